@@ -1,0 +1,4 @@
+//! File formats: profiles (TOML), traces (CSV), recordings (MCAP), summaries (JSON).
+//! Adapters around the core; the core never reads a file.
+
+pub mod profile;

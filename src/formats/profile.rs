@@ -1,0 +1,191 @@
+//! Profiles as TOML files (DESIGN §3). The default profile is embedded in the binary.
+
+use std::path::Path;
+
+use crate::profile::{Profile, ProfileError};
+
+/// The default profile, `profiles/full-flight.toml`, as shipped.
+pub const DEFAULT_PROFILE_TOML: &str = include_str!("../../profiles/full-flight.toml");
+/// How the embedded default is named in messages and recordings.
+pub const DEFAULT_PROFILE_SOURCE: &str = "profiles/full-flight.toml (embedded)";
+
+#[derive(Debug, thiserror::Error)]
+pub enum ProfileLoadError {
+    #[error("{source_name}: cannot read the profile: {error}")]
+    Io {
+        source_name: String,
+        error: std::io::Error,
+    },
+    #[error("{source_name}:{line}:{column}: {message}")]
+    Syntax {
+        source_name: String,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    #[error("{source_name}: {error}")]
+    Invalid {
+        source_name: String,
+        error: ProfileError,
+    },
+}
+
+/// 1-based line and column of a byte offset.
+pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}
+
+/// Parses and validates a profile; `source_name` names it in every error.
+pub fn parse_profile(text: &str, source_name: &str) -> Result<Profile, ProfileLoadError> {
+    let profile: Profile = toml::from_str(text).map_err(|e| {
+        let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
+        ProfileLoadError::Syntax {
+            source_name: source_name.to_string(),
+            line,
+            column,
+            message: e.message().trim().to_string(),
+        }
+    })?;
+    profile
+        .validate()
+        .map_err(|error| ProfileLoadError::Invalid {
+            source_name: source_name.to_string(),
+            error,
+        })?;
+    Ok(profile)
+}
+
+/// The embedded default profile.
+pub fn default_profile() -> Profile {
+    parse_profile(DEFAULT_PROFILE_TOML, DEFAULT_PROFILE_SOURCE)
+        .expect("the embedded default profile is valid (tested)")
+}
+
+/// A profile from a file, with its text (recordings attach it).
+pub fn load_profile(path: &Path) -> Result<(Profile, String), ProfileLoadError> {
+    let source_name = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|error| ProfileLoadError::Io {
+        source_name: source_name.clone(),
+        error,
+    })?;
+    let profile = parse_profile(&text, &source_name)?;
+    Ok((profile, text))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn with(replace: &str, by: &str) -> String {
+        assert!(DEFAULT_PROFILE_TOML.contains(replace), "{replace}");
+        DEFAULT_PROFILE_TOML.replacen(replace, by, 1)
+    }
+
+    fn invalid_key(text: &str) -> String {
+        match parse_profile(text, "test.toml") {
+            Err(ProfileLoadError::Invalid { error, .. }) => error.key,
+            other => panic!("expected a validation error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn shipped_profiles_are_valid() {
+        let full = default_profile();
+        assert_eq!(full.name, "full-flight");
+        let compact =
+            parse_profile(include_str!("../../profiles/compact.toml"), "compact.toml").unwrap();
+        assert_eq!(compact.name, "compact");
+        // The compact rig is at mid-stroke at neutral.
+        let s = compact.stewart();
+        for l in s.neutral_lengths_m.iter() {
+            assert!((l - 0.85165).abs() < 1e-3, "{l}");
+        }
+    }
+
+    #[test]
+    fn per_axis_extremes_fit_the_legs_of_both_profiles() {
+        for text in [
+            DEFAULT_PROFILE_TOML,
+            include_str!("../../profiles/compact.toml"),
+        ] {
+            let p = parse_profile(text, "p").unwrap();
+            let s = p.stewart();
+            let ex = p.limits.si().excursion;
+            for axis in 0..6 {
+                for sign in [-1.0, 1.0] {
+                    let mut pose = nalgebra::Vector6::zeros();
+                    pose[axis] = sign * ex[axis];
+                    assert!(s.fits(&pose, 0.0), "{}: axis {axis} {sign}", p.name);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn unknown_key_is_refused_with_its_line() {
+        let text = with("rate_hz = 100.0", "rate_hz = 100.0\nrate_hertz = 50");
+        match parse_profile(&text, "x.toml") {
+            Err(ProfileLoadError::Syntax {
+                line,
+                message,
+                source_name,
+                ..
+            }) => {
+                assert_eq!(source_name, "x.toml");
+                assert!(message.contains("rate_hertz"), "{message}");
+                let expected = text
+                    .lines()
+                    .position(|l| l.starts_with("rate_hertz"))
+                    .unwrap()
+                    + 1;
+                assert_eq!(line, expected);
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn wrong_type_is_refused() {
+        let err =
+            parse_profile(&with("rate_hz = 100.0", "rate_hz = \"fast\""), "x.toml").unwrap_err();
+        assert!(matches!(err, ProfileLoadError::Syntax { .. }), "{err}");
+    }
+
+    #[test]
+    fn impossible_values_name_their_key() {
+        assert_eq!(
+            invalid_key(&with("leg_min_m = 2.5", "leg_min_m = 4.6")),
+            "geometry.leg_min_m"
+        );
+        assert_eq!(
+            invalid_key(&with("neutral_height_m = 3.0", "neutral_height_m = 4.6")),
+            "geometry"
+        );
+        assert_eq!(
+            invalid_key(&with("rate_hz = 100.0", "rate_hz = -100.0")),
+            "rate_hz"
+        );
+        assert_eq!(
+            invalid_key(&with(
+                "tilt_rate_limit_dps = 3.0",
+                "tilt_rate_limit_dps = 0.0"
+            )),
+            "cwf.tilt_rate_limit_dps"
+        );
+        assert_eq!(
+            invalid_key(&with("otolith_long_s = 5.33", "otolith_long_s = -5.33")),
+            "vestibular.otolith_long_s"
+        );
+        assert_eq!(
+            invalid_key(&with("excursion_m = 1.7 ", "excursion_m = -1.7 ")),
+            "limits.surge.excursion_m"
+        );
+        let err = parse_profile(&with("leg_min_m = 2.5", "leg_min_m = 4.6"), "bad.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("bad.toml: `geometry.leg_min_m`"), "{err}");
+    }
+}

@@ -1,0 +1,14 @@
+//! hexcue: motion cueing for 6-DoF Stewart-platform flight simulators.
+//!
+//! The core (`model`, `mca`, `metrics`, `engine`, `profile`, `trace`) does no I/O; `formats`,
+//! `cli` and `tui` adapt it to files and the terminal. Frames and units: DESIGN.md §1 and
+//! `docs/design.md`.
+
+pub mod formats;
+pub mod mca;
+pub mod model;
+pub mod profile;
+pub mod trace;
+
+/// Standard gravity (m/s²).
+pub const G_MPS2: f64 = 9.80665;

@@ -1,0 +1,184 @@
+//! Motion cueing algorithms (DESIGN §5): a common trait, the classical washout filter and the
+//! workspace limiter that ends every algorithm.
+
+pub mod limiter;
+pub mod washout;
+
+use nalgebra::{Vector3, Vector6};
+use serde::Serialize;
+
+use crate::profile::Profile;
+
+/// The algorithms hexcue can run, in the order the console shows them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AlgorithmId {
+    Cwf,
+}
+
+impl AlgorithmId {
+    pub const ALL: &'static [AlgorithmId] = &[AlgorithmId::Cwf];
+
+    /// Short name used on the command line, in topics (`/cwf/...`) and summaries.
+    pub fn key(self) -> &'static str {
+        match self {
+            AlgorithmId::Cwf => "cwf",
+        }
+    }
+
+    /// Name shown to people.
+    pub fn label(self) -> &'static str {
+        match self {
+            AlgorithmId::Cwf => "CWF",
+        }
+    }
+
+    pub fn from_key(key: &str) -> Option<Self> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|a| a.key() == key.trim().to_ascii_lowercase())
+    }
+}
+
+impl std::fmt::Display for AlgorithmId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.key())
+    }
+}
+
+/// The aircraft motion an algorithm cues, after input limiting: Δf = f − (0, 0, −g) and ω at
+/// the pilot's head (head frame).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CueSample {
+    pub delta_f_mps2: Vector3<f64>,
+    pub angular_velocity_radps: Vector3<f64>,
+}
+
+/// Everything an algorithm is given at step k.
+#[derive(Clone, Copy, Debug)]
+pub struct CueInput<'a> {
+    pub k: usize,
+    pub t_s: f64,
+    pub dt_s: f64,
+    pub sample: CueSample,
+    /// The samples after this one (k+1, k+2, …), for algorithms that may look ahead; shorter
+    /// near the end of the trace. A live simulator has none.
+    pub preview: &'a [CueSample],
+    /// What the platform was commanded at the previous step, after the limiter.
+    pub applied: &'a PlatformCommand,
+}
+
+/// Platform command in the simulator inertial frame: x, y, z (m), roll, pitch, yaw (rad) and
+/// their first and second derivatives (Euler-angle rates).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PlatformCommand {
+    pub pose: Vector6<f64>,
+    pub velocity: Vector6<f64>,
+    pub acceleration: Vector6<f64>,
+}
+
+impl PlatformCommand {
+    pub fn is_finite(&self) -> bool {
+        self.pose
+            .iter()
+            .chain(self.velocity.iter())
+            .chain(self.acceleration.iter())
+            .all(|v| v.is_finite())
+    }
+}
+
+/// Which controller produced a command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// The classical washout filter.
+    Washout,
+    /// An MPC without terminal conditions.
+    Mpc,
+    /// An MPC with terminal conditions (COTC).
+    Cotc,
+    /// The S-MPC running its MPC without terminal conditions.
+    Free,
+    /// The S-MPC blending from one controller to the other.
+    Blend,
+    /// Every solver failed: a smooth washout to neutral.
+    Fallback,
+}
+
+impl Mode {
+    pub fn word(self) -> &'static str {
+        match self {
+            Mode::Washout => "washout",
+            Mode::Mpc => "mpc",
+            Mode::Cotc => "cotc",
+            Mode::Free => "free",
+            Mode::Blend => "blend",
+            Mode::Fallback => "fallback",
+        }
+    }
+}
+
+/// Outcome of one QP solve, as information for the operator.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SolverReport {
+    /// Which QP: `mpc`, `cotc`, `free`.
+    pub name: &'static str,
+    /// Solver status in words, e.g. `solved`, `primal_infeasible`, `max_time`.
+    pub status: String,
+    pub iterations: u32,
+    pub solve_time_us: f64,
+}
+
+/// The state an algorithm exposes to the console and the recording (DESIGN §5).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AlgorithmState {
+    pub mode: Mode,
+    /// Blend weight w of the S-MPC's mixer while blending (0 = previous controller, 1 = next).
+    pub blend: Option<f64>,
+    pub time_in_mode_s: f64,
+    pub switch_count: u32,
+    pub last_switch_reason: Option<String>,
+    pub solvers: Vec<SolverReport>,
+}
+
+impl AlgorithmState {
+    pub fn simple(mode: Mode) -> Self {
+        AlgorithmState {
+            mode,
+            blend: None,
+            time_in_mode_s: 0.0,
+            switch_count: 0,
+            last_switch_reason: None,
+            solvers: Vec::new(),
+        }
+    }
+}
+
+/// A motion cueing algorithm: aircraft motion in, platform command out, one sample at a time.
+pub trait MotionCueing: Send {
+    fn id(&self) -> AlgorithmId;
+    /// The raw command for step k; the engine's limiter follows.
+    fn step(&mut self, input: &CueInput) -> PlatformCommand;
+    fn state(&self) -> AlgorithmState;
+    /// Back to rest at neutral, as at the start of a trace.
+    fn reset(&mut self);
+}
+
+/// Error building an algorithm from a profile.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    #[error("profile `{profile}` has no [{section}] section, which {algorithm} needs")]
+    MissingSection {
+        profile: String,
+        section: &'static str,
+        algorithm: AlgorithmId,
+    },
+}
+
+/// Builds the algorithm `id` as the profile tunes it.
+pub fn build(id: AlgorithmId, profile: &Profile) -> Result<Box<dyn MotionCueing>, BuildError> {
+    match id {
+        AlgorithmId::Cwf => Ok(Box::new(washout::Washout::new(&profile.cwf, profile))),
+    }
+}

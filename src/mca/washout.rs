@@ -1,0 +1,377 @@
+//! The classical washout filter (Reid & Nahon structure, DESIGN §5).
+//!
+//! Scale → translational high-pass and double integration (x, y, z) → tilt coordination
+//! (low-pass, asin, tilt-rate limit) → rotational high-pass and integration (roll, pitch,
+//! yaw). Channels are linear and per axis; the small-angle assumption (Euler rates ≈ body
+//! rates) keeps them so, and the engine's perception model measures what that costs.
+
+use nalgebra::{DMatrix, Vector3, Vector6};
+use serde::{Deserialize, Serialize};
+
+use super::{AlgorithmId, AlgorithmState, CueInput, Mode, MotionCueing, PlatformCommand};
+use crate::model::lti::{LtiFilter, StateSpace};
+use crate::profile::{positive, Profile, ProfileError};
+use crate::G_MPS2;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WashoutParams {
+    /// Gain on Δf per axis before filtering.
+    pub specific_force_scale: [f64; 3],
+    /// Gain on the body rates per axis before filtering.
+    pub angular_velocity_scale: [f64; 3],
+    /// Natural frequency of the 2nd-order translational high-pass per axis (rad/s).
+    pub translational_hp_wn_radps: [f64; 3],
+    pub translational_hp_zeta: f64,
+    /// Break frequency of the 1st-order translational high-pass (rad/s).
+    pub translational_hp_break_radps: f64,
+    /// Natural frequency of the 2nd-order tilt-coordination low-pass (rad/s).
+    pub tilt_lp_wn_radps: f64,
+    pub tilt_lp_zeta: f64,
+    /// Tilt rate kept below the canals' threshold (°/s).
+    pub tilt_rate_limit_dps: f64,
+    /// Tilt acceleration limit, so that the tilt rate never steps (°/s²).
+    pub tilt_acceleration_limit_dps2: f64,
+    /// Largest tilt-coordination angle (deg).
+    pub tilt_limit_deg: f64,
+    /// Natural frequency of the 2nd-order rotational high-pass (rad/s).
+    pub rotational_hp_wn_radps: f64,
+    pub rotational_hp_zeta: f64,
+}
+
+impl WashoutParams {
+    pub fn validate(&self) -> Result<(), ProfileError> {
+        for i in 0..3 {
+            for (name, v) in [
+                ("specific_force_scale", self.specific_force_scale[i]),
+                ("angular_velocity_scale", self.angular_velocity_scale[i]),
+            ] {
+                if !(v.is_finite() && (0.0..=2.0).contains(&v)) {
+                    return Err(ProfileError {
+                        key: format!("cwf.{name}[{i}]"),
+                        reason: format!("{v}: expected a gain from 0 to 2"),
+                    });
+                }
+            }
+            positive(
+                &format!("cwf.translational_hp_wn_radps[{i}]"),
+                self.translational_hp_wn_radps[i],
+            )?;
+        }
+        positive("cwf.translational_hp_zeta", self.translational_hp_zeta)?;
+        positive(
+            "cwf.translational_hp_break_radps",
+            self.translational_hp_break_radps,
+        )?;
+        positive("cwf.tilt_lp_wn_radps", self.tilt_lp_wn_radps)?;
+        positive("cwf.tilt_lp_zeta", self.tilt_lp_zeta)?;
+        positive("cwf.tilt_rate_limit_dps", self.tilt_rate_limit_dps)?;
+        positive(
+            "cwf.tilt_acceleration_limit_dps2",
+            self.tilt_acceleration_limit_dps2,
+        )?;
+        positive("cwf.tilt_limit_deg", self.tilt_limit_deg)?;
+        if self.tilt_limit_deg >= 90.0 {
+            return Err(ProfileError {
+                key: "cwf.tilt_limit_deg".into(),
+                reason: format!("{}°: expected less than 90°", self.tilt_limit_deg),
+            });
+        }
+        positive("cwf.rotational_hp_wn_radps", self.rotational_hp_wn_radps)?;
+        positive("cwf.rotational_hp_zeta", self.rotational_hp_zeta)
+    }
+
+    /// Platform position per unit of scaled Δf: s / ((s² + 2ζω s + ω²)(s + ω_b)), i.e. the
+    /// 3rd-order high-pass s³/(…) followed by a double integration. Outputs are the position,
+    /// velocity and acceleration, so the command is consistent by construction.
+    pub fn translational_channel(&self, axis: usize) -> StateSpace {
+        let (w, z, wb) = (
+            self.translational_hp_wn_radps[axis],
+            self.translational_hp_zeta,
+            self.translational_hp_break_radps,
+        );
+        // D(s) = s³ + d2 s² + d1 s + d0.
+        let (d2, d1, d0) = (2.0 * z * w + wb, w * w + 2.0 * z * w * wb, w * w * wb);
+        StateSpace {
+            a: DMatrix::from_row_slice(3, 3, &[0.0, 1.0, 0.0, 0.0, 0.0, 1.0, -d0, -d1, -d2]),
+            b: DMatrix::from_row_slice(3, 1, &[0.0, 0.0, 1.0]),
+            // With D(s)·X1 = U: position = s·X1 = x2, velocity = x3, acceleration = ẋ3.
+            c: DMatrix::from_row_slice(3, 3, &[0.0, 1.0, 0.0, 0.0, 0.0, 1.0, -d0, -d1, -d2]),
+            d: DMatrix::from_row_slice(3, 1, &[0.0, 0.0, 1.0]),
+        }
+    }
+
+    /// Tilt-coordination low-pass ω²/(s² + 2ζω s + ω²) on the scaled Δf.
+    pub fn tilt_lowpass(&self) -> StateSpace {
+        let w = self.tilt_lp_wn_radps;
+        StateSpace::from_transfer_function(&[w * w], &[1.0, 2.0 * self.tilt_lp_zeta * w, w * w])
+    }
+
+    /// Platform angle per unit of scaled body rate: s / (s² + 2ζω s + ω²), the 2nd-order
+    /// high-pass followed by an integration. Outputs: angle and rate.
+    pub fn rotational_channel(&self) -> StateSpace {
+        let (w, z) = (self.rotational_hp_wn_radps, self.rotational_hp_zeta);
+        let (d1, d0) = (2.0 * z * w, w * w);
+        StateSpace {
+            a: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -d0, -d1]),
+            b: DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
+            c: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -d0, -d1]),
+            d: DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
+        }
+    }
+}
+
+/// Second-order rate limiter for tilt coordination: follows its target with bounded rate and
+/// acceleration, braking in time so as not to overshoot.
+#[derive(Clone, Debug, Default)]
+struct TiltTracker {
+    angle_rad: f64,
+    rate_radps: f64,
+}
+
+impl TiltTracker {
+    fn step(&mut self, target_rad: f64, rate_max: f64, acc_max: f64, dt: f64) -> (f64, f64, f64) {
+        let err = target_rad - self.angle_rad;
+        let braking = (2.0 * acc_max * err.abs()).sqrt();
+        let wanted = (err / dt)
+            .clamp(-rate_max, rate_max)
+            .clamp(-braking, braking);
+        let acc = ((wanted - self.rate_radps) / dt).clamp(-acc_max, acc_max);
+        self.rate_radps += acc * dt;
+        self.angle_rad += self.rate_radps * dt;
+        (self.angle_rad, self.rate_radps, acc)
+    }
+}
+
+pub struct Washout {
+    params: WashoutParams,
+    translational: [LtiFilter; 3],
+    tilt_lp: [LtiFilter; 2],
+    rotational: [LtiFilter; 3],
+    tilt: [TiltTracker; 2],
+    last_rot_rate: Vector3<f64>,
+}
+
+impl Washout {
+    pub fn new(params: &WashoutParams, profile: &Profile) -> Self {
+        let dt = profile.dt_s();
+        Washout {
+            params: params.clone(),
+            translational: std::array::from_fn(|i| {
+                LtiFilter::new(params.translational_channel(i).discretise_zoh(dt))
+            }),
+            tilt_lp: std::array::from_fn(|_| {
+                LtiFilter::new(params.tilt_lowpass().discretise_zoh(dt))
+            }),
+            rotational: std::array::from_fn(|_| {
+                LtiFilter::new(params.rotational_channel().discretise_zoh(dt))
+            }),
+            tilt: Default::default(),
+            last_rot_rate: Vector3::zeros(),
+        }
+    }
+}
+
+impl MotionCueing for Washout {
+    fn id(&self) -> AlgorithmId {
+        AlgorithmId::Cwf
+    }
+
+    fn step(&mut self, input: &CueInput) -> PlatformCommand {
+        let p = &self.params;
+        let dt = input.dt_s;
+        let f = input
+            .sample
+            .delta_f_mps2
+            .component_mul(&Vector3::from(p.specific_force_scale));
+        let w = input
+            .sample
+            .angular_velocity_radps
+            .component_mul(&Vector3::from(p.angular_velocity_scale));
+        let mut cmd = PlatformCommand {
+            pose: Vector6::zeros(),
+            velocity: Vector6::zeros(),
+            acceleration: Vector6::zeros(),
+        };
+        for axis in 0..3 {
+            let y = self.translational[axis].step(&[f[axis]]);
+            cmd.pose[axis] = y[0];
+            cmd.velocity[axis] = y[1];
+            cmd.acceleration[axis] = y[2];
+        }
+        // Sustained f_x is cued by pitch θ = asin(f_x/g), sustained f_y by roll φ = −asin(f_y/g).
+        let limit = p.tilt_limit_deg.to_radians();
+        let (rate_max, acc_max) = (
+            p.tilt_rate_limit_dps.to_radians(),
+            p.tilt_acceleration_limit_dps2.to_radians(),
+        );
+        let fx_lp = self.tilt_lp[0].step(&[f.x])[0];
+        let fy_lp = self.tilt_lp[1].step(&[f.y])[0];
+        let pitch_target = (fx_lp / G_MPS2)
+            .clamp(-1.0, 1.0)
+            .asin()
+            .clamp(-limit, limit);
+        let roll_target = (-(fy_lp / G_MPS2).clamp(-1.0, 1.0).asin()).clamp(-limit, limit);
+        let (roll_tc, roll_rate_tc, roll_acc_tc) =
+            self.tilt[0].step(roll_target, rate_max, acc_max, dt);
+        let (pitch_tc, pitch_rate_tc, pitch_acc_tc) =
+            self.tilt[1].step(pitch_target, rate_max, acc_max, dt);
+        let mut rot_rate = Vector3::zeros();
+        for axis in 0..3 {
+            let y = self.rotational[axis].step(&[w[axis]]);
+            cmd.pose[3 + axis] = y[0];
+            rot_rate[axis] = y[1];
+        }
+        // The rotational high-pass passes the input straight through to the rate, so its
+        // derivative is taken from successive samples.
+        let rot_acc = (rot_rate - self.last_rot_rate) / dt;
+        self.last_rot_rate = rot_rate;
+        for axis in 0..3 {
+            cmd.velocity[3 + axis] = rot_rate[axis];
+            cmd.acceleration[3 + axis] = rot_acc[axis];
+        }
+        cmd.pose[3] += roll_tc;
+        cmd.pose[4] += pitch_tc;
+        cmd.velocity[3] += roll_rate_tc;
+        cmd.velocity[4] += pitch_rate_tc;
+        cmd.acceleration[3] += roll_acc_tc;
+        cmd.acceleration[4] += pitch_acc_tc;
+        cmd
+    }
+
+    fn state(&self) -> AlgorithmState {
+        AlgorithmState::simple(Mode::Washout)
+    }
+
+    fn reset(&mut self) {
+        self.translational.iter_mut().for_each(LtiFilter::reset);
+        self.tilt_lp.iter_mut().for_each(LtiFilter::reset);
+        self.rotational.iter_mut().for_each(LtiFilter::reset);
+        self.tilt = Default::default();
+        self.last_rot_rate = Vector3::zeros();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mca::CueSample;
+    use crate::profile::tests::full_flight;
+
+    fn run(w: &mut Washout, samples: impl Iterator<Item = CueSample>) -> Vec<PlatformCommand> {
+        let applied = PlatformCommand::default();
+        samples
+            .enumerate()
+            .map(|(k, sample)| {
+                let input = CueInput {
+                    k,
+                    t_s: k as f64 * 0.01,
+                    dt_s: 0.01,
+                    sample,
+                    preview: &[],
+                    applied: &applied,
+                };
+                w.step(&input)
+            })
+            .collect()
+    }
+
+    fn surge(fx: f64) -> CueSample {
+        CueSample {
+            delta_f_mps2: Vector3::new(fx, 0.0, 0.0),
+            angular_velocity_radps: Vector3::zeros(),
+        }
+    }
+
+    #[test]
+    fn translational_channel_washes_out_to_neutral() {
+        let profile = full_flight();
+        let mut w = Washout::new(&profile.cwf, &profile);
+        let out = run(&mut w, (0..6000).map(|_| surge(2.0)));
+        let peak = out.iter().map(|c| c.pose[0]).fold(0.0f64, f64::max);
+        assert!(
+            peak > 0.05,
+            "a surge step moves the platform forward ({peak} m)"
+        );
+        let last = out.last().unwrap();
+        assert!(
+            last.pose[0].abs() < 1e-3 && last.velocity[0].abs() < 1e-4,
+            "{last:?}"
+        );
+        // The sustained part is carried by pitch: θ → asin(k·f/g).
+        let expected = (profile.cwf.specific_force_scale[0] * 2.0 / G_MPS2).asin();
+        assert!(
+            (last.pose[4] - expected).abs() < 1e-6,
+            "θ {} vs {expected}",
+            last.pose[4]
+        );
+    }
+
+    #[test]
+    fn tilt_rate_and_acceleration_stay_within_their_limits() {
+        let profile = full_flight();
+        let mut w = Washout::new(&profile.cwf, &profile);
+        let out = run(
+            &mut w,
+            (0..3000).map(|k| surge(if k < 1500 { 4.0 } else { -4.0 })),
+        );
+        let rate_max = profile.cwf.tilt_rate_limit_dps.to_radians();
+        // The rotational channel is idle, so the pitch rate is the tilt rate alone.
+        for c in &out {
+            assert!(c.velocity[4].abs() <= rate_max * (1.0 + 1e-9));
+            assert!(
+                c.acceleration[4].abs()
+                    <= profile.cwf.tilt_acceleration_limit_dps2.to_radians() * (1.0 + 1e-9)
+            );
+        }
+    }
+
+    #[test]
+    fn outputs_are_consistent_derivatives() {
+        let profile = full_flight();
+        let mut w = Washout::new(&profile.cwf, &profile);
+        let out = run(
+            &mut w,
+            (0..2000).map(|k| {
+                let t = k as f64 * 0.01;
+                CueSample {
+                    delta_f_mps2: Vector3::new(
+                        (0.5 * t).sin(),
+                        (0.3 * t).cos(),
+                        0.5 * (0.7 * t).sin(),
+                    ),
+                    angular_velocity_radps: Vector3::new(0.1 * (0.9 * t).sin(), 0.0, 0.05),
+                }
+            }),
+        );
+        for k in 1..out.len() - 1 {
+            for axis in 0..3 {
+                // Central difference of the position against the reported velocity.
+                let fd = (out[k + 1].pose[axis] - out[k - 1].pose[axis]) / 0.02;
+                assert!(
+                    (fd - out[k].velocity[axis]).abs() < 2e-3,
+                    "axis {axis} k {k}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn rotational_channel_is_a_high_pass_on_the_rate() {
+        // A sustained roll rate gives a roll angle that peaks, then returns to neutral.
+        let profile = full_flight();
+        let mut w = Washout::new(&profile.cwf, &profile);
+        let rate = CueSample {
+            delta_f_mps2: Vector3::zeros(),
+            angular_velocity_radps: Vector3::new(0.1, 0.0, 0.0),
+        };
+        let out = run(&mut w, (0..3000).map(|_| rate));
+        let k = profile.cwf.angular_velocity_scale[0];
+        assert!(
+            (out[0].velocity[3] - k * 0.1).abs() < 1e-12,
+            "onset passes through"
+        );
+        assert!(out.last().unwrap().pose[3].abs() < 1e-6);
+        assert!(out.iter().any(|c| c.pose[3] > 0.01));
+    }
+}

@@ -1,0 +1,5 @@
+//! Physical models: linear systems, the vestibular system and the Stewart platform.
+
+pub mod lti;
+pub mod stewart;
+pub mod vestibular;

@@ -1,0 +1,321 @@
+//! A simulator profile: geometry, limits, models and algorithm tuning (DESIGN §3).
+//!
+//! Values are stored in the units their key names (`_m`, `_deg`, `_dps`, …) so that the TOML
+//! reads as the engineer wrote it; accessors convert to SI.
+
+use nalgebra::{Vector3, Vector6};
+use serde::{Deserialize, Serialize};
+
+use crate::mca::washout::WashoutParams;
+use crate::model::stewart::{Geometry, Stewart};
+use crate::model::vestibular::VestibularParams;
+
+/// A profile value that cannot describe a real simulator.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("`{key}`: {reason}")]
+pub struct ProfileError {
+    /// Dotted path of the offending key, e.g. `geometry.leg_min_m`.
+    pub key: String,
+    pub reason: String,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Profile {
+    /// Short name shown in the console and written to recordings.
+    pub name: String,
+    /// One line on the simulator this profile describes.
+    #[serde(default)]
+    pub description: String,
+    /// Rate at which every algorithm runs; traces at another rate are resampled (Hz).
+    pub rate_hz: f64,
+    /// Pilot's head relative to the centre of the platform joint plane, platform frame
+    /// (x forward, y right, z down) (m).
+    pub eye_point_m: [f64; 3],
+    pub geometry: Geometry,
+    pub limits: Limits,
+    pub input: InputLimits,
+    pub limiter: LimiterParams,
+    #[serde(default)]
+    pub vestibular: VestibularParams,
+    pub cwf: WashoutParams,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TranslationLimits {
+    /// Largest displacement from neutral, either way (m).
+    pub excursion_m: f64,
+    pub velocity_mps: f64,
+    pub acceleration_mps2: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RotationLimits {
+    /// Largest angle from neutral, either way (deg).
+    pub excursion_deg: f64,
+    pub rate_dps: f64,
+    pub acceleration_dps2: f64,
+}
+
+/// Per-DoF limits of the platform (DESIGN §3 table).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    pub surge: TranslationLimits,
+    pub sway: TranslationLimits,
+    pub heave: TranslationLimits,
+    pub roll: RotationLimits,
+    pub pitch: RotationLimits,
+    pub yaw: RotationLimits,
+}
+
+impl Limits {
+    /// Excursion, velocity and acceleration limits in SI (m, m/s, m/s², rad, rad/s, rad/s²),
+    /// in the order x, y, z, roll, pitch, yaw.
+    pub fn si(&self) -> DofLimits {
+        let t = [&self.surge, &self.sway, &self.heave];
+        let r = [&self.roll, &self.pitch, &self.yaw];
+        let pick = |ft: fn(&TranslationLimits) -> f64, fr: fn(&RotationLimits) -> f64| {
+            Vector6::from_fn(|i, _| {
+                if i < 3 {
+                    ft(t[i])
+                } else {
+                    fr(r[i - 3]).to_radians()
+                }
+            })
+        };
+        DofLimits {
+            excursion: pick(|l| l.excursion_m, |l| l.excursion_deg),
+            velocity: pick(|l| l.velocity_mps, |l| l.rate_dps),
+            acceleration: pick(|l| l.acceleration_mps2, |l| l.acceleration_dps2),
+        }
+    }
+}
+
+/// Per-DoF limits in SI, symmetric about neutral.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DofLimits {
+    pub excursion: Vector6<f64>,
+    pub velocity: Vector6<f64>,
+    pub acceleration: Vector6<f64>,
+}
+
+/// Saturation of the aircraft motion before any algorithm sees it: a crash or a sensor
+/// glitch in a trace must not become a platform command.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputLimits {
+    /// Largest |Δf| per axis passed to the algorithms (m/s²).
+    pub specific_force_limit_mps2: f64,
+    /// Largest |ω| per axis passed to the algorithms (°/s).
+    pub angular_velocity_limit_dps: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimiterParams {
+    /// Distance every leg keeps from its end stops (m).
+    pub leg_margin_m: f64,
+}
+
+impl Profile {
+    pub fn dt_s(&self) -> f64 {
+        1.0 / self.rate_hz
+    }
+
+    pub fn eye_point(&self) -> Vector3<f64> {
+        Vector3::from(self.eye_point_m)
+    }
+
+    pub fn stewart(&self) -> Stewart {
+        Stewart::new(&self.geometry)
+    }
+
+    /// Every check that TOML's types cannot express. The first problem found is reported.
+    pub fn validate(&self) -> Result<(), ProfileError> {
+        let err = |key: &str, reason: String| {
+            Err(ProfileError {
+                key: key.to_string(),
+                reason,
+            })
+        };
+        if self.name.trim().is_empty() {
+            return err("name", "must not be empty".into());
+        }
+        positive("rate_hz", self.rate_hz)?;
+        if self.rate_hz > 10_000.0 {
+            return err(
+                "rate_hz",
+                format!(
+                    "{} Hz is beyond any motion platform; expected at most 10000",
+                    self.rate_hz
+                ),
+            );
+        }
+        for (i, v) in self.eye_point_m.iter().enumerate() {
+            if !v.is_finite() || v.abs() > 10.0 {
+                return err(
+                    &format!("eye_point_m[{i}]"),
+                    format!("{v} m: expected a finite offset within 10 m of the platform centre"),
+                );
+            }
+        }
+        let g = &self.geometry;
+        positive("geometry.base_radius_m", g.base_radius_m)?;
+        positive("geometry.platform_radius_m", g.platform_radius_m)?;
+        positive("geometry.neutral_height_m", g.neutral_height_m)?;
+        positive("geometry.leg_min_m", g.leg_min_m)?;
+        positive("geometry.leg_max_m", g.leg_max_m)?;
+        for (key, v) in [
+            ("geometry.base_pair_spacing_deg", g.base_pair_spacing_deg),
+            (
+                "geometry.platform_pair_spacing_deg",
+                g.platform_pair_spacing_deg,
+            ),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v < 120.0) {
+                return err(
+                    key,
+                    format!("{v}°: the two joints of a pair must be between 0° and 120° apart"),
+                );
+            }
+        }
+        if !g.platform_rotation_deg.is_finite() {
+            return err(
+                "geometry.platform_rotation_deg",
+                "must be a finite angle".into(),
+            );
+        }
+        if g.leg_min_m >= g.leg_max_m {
+            return err(
+                "geometry.leg_min_m",
+                format!(
+                    "{} m is not shorter than leg_max_m = {} m",
+                    g.leg_min_m, g.leg_max_m
+                ),
+            );
+        }
+        let stewart = self.stewart();
+        for (i, l) in stewart.neutral_lengths_m.iter().enumerate() {
+            if *l <= g.leg_min_m || *l >= g.leg_max_m {
+                return err(
+                    "geometry",
+                    format!(
+                        "at the neutral pose leg {} is {l:.4} m, outside its stroke [{}, {}] m: \
+                         change neutral_height_m or the joint radii",
+                        i + 1,
+                        g.leg_min_m,
+                        g.leg_max_m
+                    ),
+                );
+            }
+        }
+        for (name, l) in [
+            ("surge", &self.limits.surge),
+            ("sway", &self.limits.sway),
+            ("heave", &self.limits.heave),
+        ] {
+            positive(&format!("limits.{name}.excursion_m"), l.excursion_m)?;
+            positive(&format!("limits.{name}.velocity_mps"), l.velocity_mps)?;
+            positive(
+                &format!("limits.{name}.acceleration_mps2"),
+                l.acceleration_mps2,
+            )?;
+        }
+        if self.limits.heave.excursion_m >= g.neutral_height_m {
+            return err(
+                "limits.heave.excursion_m",
+                format!(
+                    "{} m would put the platform through the floor (neutral height {} m)",
+                    self.limits.heave.excursion_m, g.neutral_height_m
+                ),
+            );
+        }
+        for (name, l) in [
+            ("roll", &self.limits.roll),
+            ("pitch", &self.limits.pitch),
+            ("yaw", &self.limits.yaw),
+        ] {
+            positive(&format!("limits.{name}.excursion_deg"), l.excursion_deg)?;
+            if l.excursion_deg >= 90.0 {
+                return err(
+                    &format!("limits.{name}.excursion_deg"),
+                    format!("{}°: expected less than 90°", l.excursion_deg),
+                );
+            }
+            positive(&format!("limits.{name}.rate_dps"), l.rate_dps)?;
+            positive(
+                &format!("limits.{name}.acceleration_dps2"),
+                l.acceleration_dps2,
+            )?;
+        }
+        positive(
+            "input.specific_force_limit_mps2",
+            self.input.specific_force_limit_mps2,
+        )?;
+        positive(
+            "input.angular_velocity_limit_dps",
+            self.input.angular_velocity_limit_dps,
+        )?;
+        if !(self.limiter.leg_margin_m.is_finite() && self.limiter.leg_margin_m >= 0.0) {
+            return err(
+                "limiter.leg_margin_m",
+                format!(
+                    "{}: expected a distance of 0 m or more",
+                    self.limiter.leg_margin_m
+                ),
+            );
+        }
+        if 2.0 * self.limiter.leg_margin_m >= g.leg_max_m - g.leg_min_m {
+            return err(
+                "limiter.leg_margin_m",
+                "leaves no stroke between the end stops".into(),
+            );
+        }
+        let v = &self.vestibular;
+        for (i, t) in v.canal_tl_s.iter().enumerate() {
+            positive(&format!("vestibular.canal_tl_s[{i}]"), *t)?;
+        }
+        positive("vestibular.canal_ts_s", v.canal_ts_s)?;
+        positive("vestibular.canal_ta_s", v.canal_ta_s)?;
+        positive("vestibular.otolith_gain", v.otolith_gain)?;
+        positive("vestibular.otolith_lead_s", v.otolith_lead_s)?;
+        positive("vestibular.otolith_long_s", v.otolith_long_s)?;
+        positive("vestibular.otolith_short_s", v.otolith_short_s)?;
+        for i in 0..3 {
+            positive(
+                &format!("vestibular.canal_threshold_dps[{i}]"),
+                v.canal_threshold_dps[i],
+            )?;
+            positive(
+                &format!("vestibular.otolith_threshold_mps2[{i}]"),
+                v.otolith_threshold_mps2[i],
+            )?;
+        }
+        self.cwf.validate()
+    }
+}
+
+/// `Ok` for a finite, strictly positive value, else an error naming the key.
+pub(crate) fn positive(key: &str, v: f64) -> Result<(), ProfileError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(ProfileError {
+            key: key.to_string(),
+            reason: format!("{v}: expected a finite value greater than 0"),
+        })
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::Profile;
+
+    /// The shipped default profile, for tests of the core.
+    pub(crate) fn full_flight() -> Profile {
+        crate::formats::profile::default_profile()
+    }
+}
