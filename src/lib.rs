@@ -4,10 +4,13 @@
 //! `cli` and `tui` adapt it to files and the terminal. Frames and units: DESIGN.md §1 and
 //! `docs/design.md`.
 
+pub mod engine;
 pub mod formats;
 pub mod mca;
+pub mod metrics;
 pub mod model;
 pub mod profile;
+pub mod summary;
 pub mod trace;
 
 /// Standard gravity (m/s²).

@@ -1,0 +1,168 @@
+//! The run summary: metrics per algorithm and channel, step times and workspace use
+//! (the JSON of `--summary`). Built from frames, whether fresh from the engine or read back
+//! from a recording, so that both give the same numbers.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::engine::Frame;
+use crate::mca::AlgorithmId;
+use crate::metrics::{ChannelAccumulator, ChannelMetrics, StepTimes, TimeHistogram, CHANNELS};
+use crate::model::stewart::Stewart;
+use crate::profile::Profile;
+
+/// Lags searched for the equivalent delay (s).
+const MAX_LAG_S: f64 = 1.0;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    pub trace: String,
+    pub profile: String,
+    pub steps: u64,
+    pub rate_hz: f64,
+    pub algorithms: BTreeMap<String, AlgorithmSummary>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AlgorithmSummary {
+    /// Per channel: fx, fy, fz, wx, wy, wz.
+    pub metrics: BTreeMap<String, ChannelMetrics>,
+    pub step_time_us: StepTimes,
+    /// Steps at which the limiter changed the command.
+    pub limiter_steps: u64,
+    /// Share of the steps at which the limiter acted.
+    pub limiter_fraction: f64,
+    /// Largest fraction of a leg's stroke used, from neutral to the nearer end stop.
+    pub max_leg_usage: f64,
+    /// Smallest leg margin seen (m).
+    pub min_leg_margin_m: f64,
+    /// Steps at which a leg was outside its stroke.
+    pub leg_violations: u64,
+    /// Controller switches (S-MPC), from its state.
+    pub switches: u64,
+}
+
+struct AlgorithmAccumulator {
+    channels: Vec<ChannelAccumulator>,
+    times: TimeHistogram,
+    steps: u64,
+    limiter_steps: u64,
+    max_leg_usage: f64,
+    min_leg_margin_m: f64,
+    leg_violations: u64,
+    switches: u64,
+}
+
+/// Accumulates frames into a [`Summary`] in constant memory.
+pub struct SummaryBuilder {
+    trace: String,
+    profile: String,
+    rate_hz: f64,
+    stewart: Stewart,
+    thresholds: [f64; 6],
+    steps: u64,
+    algorithms: BTreeMap<AlgorithmId, AlgorithmAccumulator>,
+}
+
+impl SummaryBuilder {
+    pub fn new(profile: &Profile, trace_name: &str) -> Self {
+        let v = &profile.vestibular;
+        let w = v.canal_threshold_radps();
+        SummaryBuilder {
+            trace: trace_name.to_string(),
+            profile: profile.name.clone(),
+            rate_hz: profile.rate_hz,
+            stewart: profile.stewart(),
+            thresholds: [
+                v.otolith_threshold_mps2[0],
+                v.otolith_threshold_mps2[1],
+                v.otolith_threshold_mps2[2],
+                w.x,
+                w.y,
+                w.z,
+            ],
+            steps: 0,
+            algorithms: BTreeMap::new(),
+        }
+    }
+
+    pub fn push(&mut self, frame: &Frame) {
+        self.steps += 1;
+        let reference = frame.reference.channels();
+        for lane in &frame.lanes {
+            let (thresholds, dt) = (self.thresholds, 1.0 / self.rate_hz);
+            let max_lag = (MAX_LAG_S * self.rate_hz).round() as usize;
+            let acc = self
+                .algorithms
+                .entry(lane.id)
+                .or_insert_with(|| AlgorithmAccumulator {
+                    channels: thresholds
+                        .iter()
+                        .map(|&t| ChannelAccumulator::new(t, dt, max_lag))
+                        .collect(),
+                    times: TimeHistogram::default(),
+                    steps: 0,
+                    limiter_steps: 0,
+                    max_leg_usage: 0.0,
+                    min_leg_margin_m: f64::INFINITY,
+                    leg_violations: 0,
+                    switches: 0,
+                });
+            let perceived = lane.perceived.channels();
+            for (c, ch) in acc.channels.iter_mut().enumerate() {
+                ch.push(reference[c], perceived[c]);
+            }
+            acc.times.push(lane.step_time_us);
+            acc.steps += 1;
+            acc.limiter_steps += u64::from(lane.limiter_active);
+            acc.max_leg_usage = acc
+                .max_leg_usage
+                .max(self.stewart.usage(&lane.legs.length_m).max());
+            let margin = lane.legs.margin_m.min();
+            acc.min_leg_margin_m = acc.min_leg_margin_m.min(margin);
+            acc.leg_violations += u64::from(margin < 0.0);
+            acc.switches = acc.switches.max(u64::from(lane.state.switch_count));
+        }
+    }
+
+    pub fn finish(&self) -> Summary {
+        let algorithms = self
+            .algorithms
+            .iter()
+            .map(|(id, acc)| {
+                let metrics = CHANNELS
+                    .iter()
+                    .zip(&acc.channels)
+                    .map(|(name, ch)| (name.to_string(), ch.finish()))
+                    .collect();
+                let summary = AlgorithmSummary {
+                    metrics,
+                    step_time_us: acc.times.summary(),
+                    limiter_steps: acc.limiter_steps,
+                    limiter_fraction: if acc.steps > 0 {
+                        acc.limiter_steps as f64 / acc.steps as f64
+                    } else {
+                        0.0
+                    },
+                    max_leg_usage: acc.max_leg_usage,
+                    min_leg_margin_m: if acc.min_leg_margin_m.is_finite() {
+                        acc.min_leg_margin_m
+                    } else {
+                        0.0
+                    },
+                    leg_violations: acc.leg_violations,
+                    switches: acc.switches,
+                };
+                (id.key().to_string(), summary)
+            })
+            .collect();
+        Summary {
+            trace: self.trace.clone(),
+            profile: self.profile.clone(),
+            steps: self.steps,
+            rate_hz: self.rate_hz,
+            algorithms,
+        }
+    }
+}
