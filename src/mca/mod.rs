@@ -2,6 +2,7 @@
 //! workspace limiter that ends every algorithm.
 
 pub mod limiter;
+pub mod switching;
 pub mod washout;
 
 use nalgebra::{Vector3, Vector6};
