@@ -9,6 +9,7 @@ pub mod formats;
 pub mod mca;
 pub mod metrics;
 pub mod model;
+pub mod omct;
 pub mod profile;
 pub mod summary;
 pub mod trace;

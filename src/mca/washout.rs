@@ -101,10 +101,18 @@ impl WashoutParams {
         }
     }
 
-    /// Tilt-coordination low-pass ω²/(s² + 2ζω s + ω²) on the scaled Δf.
+    /// Tilt-coordination low-pass ω²/(s² + 2ζω s + ω²) on the scaled Δf, with its output's
+    /// first and second derivatives as outputs too, so that the tilt's rate and acceleration
+    /// are exact rather than differenced.
     pub fn tilt_lowpass(&self) -> StateSpace {
-        let w = self.tilt_lp_wn_radps;
-        StateSpace::from_transfer_function(&[w * w], &[1.0, 2.0 * self.tilt_lp_zeta * w, w * w])
+        let (w, z) = (self.tilt_lp_wn_radps, self.tilt_lp_zeta);
+        let w2 = w * w;
+        StateSpace {
+            a: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -w2, -2.0 * z * w]),
+            b: DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
+            c: DMatrix::from_row_slice(3, 2, &[w2, 0.0, 0.0, w2, -w2 * w2, -2.0 * z * w * w2]),
+            d: DMatrix::from_row_slice(3, 1, &[0.0, 0.0, w2]),
+        }
     }
 
     /// Platform angle per unit of scaled body rate: s / (s² + 2ζω s + ω²), the 2nd-order
@@ -121,17 +129,60 @@ impl WashoutParams {
     }
 }
 
-/// Second-order rate limiter for tilt coordination: follows its target with bounded rate and
-/// acceleration, braking in time so as not to overshoot.
+/// Second-order rate limiter for tilt coordination. While the target moves within the rate
+/// and acceleration limits the tracker sits on it with the target's exact derivatives (the
+/// channel is then linear); otherwise it follows with bounded rate and acceleration, braking
+/// in time so as not to overshoot, until it lands on the target again.
 #[derive(Clone, Debug, Default)]
 struct TiltTracker {
     angle_rad: f64,
     rate_radps: f64,
+    on_target: bool,
+}
+
+/// Target angle with its first and second time derivatives.
+#[derive(Clone, Copy, Debug)]
+struct Target {
+    angle: f64,
+    rate: f64,
+    acc: f64,
+}
+
+impl Target {
+    /// θ = sign·asin(y/g) with the chain rule for the derivatives, clamped to ±`limit`.
+    fn from_lowpass(y: &[f64], sign: f64, limit: f64) -> Target {
+        let ratio = y[0] / G_MPS2;
+        if ratio.abs() >= 1.0 {
+            let angle = sign * ratio.signum() * std::f64::consts::FRAC_PI_2;
+            return Target {
+                angle: angle.clamp(-limit, limit),
+                rate: 0.0,
+                acc: 0.0,
+            };
+        }
+        let angle = sign * ratio.asin();
+        if angle.abs() > limit {
+            return Target {
+                angle: angle.clamp(-limit, limit),
+                rate: 0.0,
+                acc: 0.0,
+            };
+        }
+        let c = angle.cos();
+        let rate = sign * y[1] / (G_MPS2 * c);
+        let acc = sign * y[2] / (G_MPS2 * c) + rate * rate * angle.tan();
+        Target { angle, rate, acc }
+    }
 }
 
 impl TiltTracker {
-    fn step(&mut self, target_rad: f64, rate_max: f64, acc_max: f64, dt: f64) -> (f64, f64, f64) {
-        let err = target_rad - self.angle_rad;
+    fn step(&mut self, target: Target, rate_max: f64, acc_max: f64, dt: f64) -> (f64, f64, f64) {
+        if self.on_target && target.rate.abs() <= rate_max && target.acc.abs() <= acc_max {
+            self.angle_rad = target.angle;
+            self.rate_radps = target.rate;
+            return (target.angle, target.rate, target.acc);
+        }
+        let err = target.angle - self.angle_rad;
         let braking = (2.0 * acc_max * err.abs()).sqrt();
         let wanted = (err / dt)
             .clamp(-rate_max, rate_max)
@@ -139,6 +190,8 @@ impl TiltTracker {
         let acc = ((wanted - self.rate_radps) / dt).clamp(-acc_max, acc_max);
         self.rate_radps += acc * dt;
         self.angle_rad += self.rate_radps * dt;
+        self.on_target =
+            (self.angle_rad - target.angle).abs() <= 1e-12 * target.angle.abs().max(1.0);
         (self.angle_rad, self.rate_radps, acc)
     }
 }
@@ -205,13 +258,8 @@ impl MotionCueing for Washout {
             p.tilt_rate_limit_dps.to_radians(),
             p.tilt_acceleration_limit_dps2.to_radians(),
         );
-        let fx_lp = self.tilt_lp[0].step(&[f.x])[0];
-        let fy_lp = self.tilt_lp[1].step(&[f.y])[0];
-        let pitch_target = (fx_lp / G_MPS2)
-            .clamp(-1.0, 1.0)
-            .asin()
-            .clamp(-limit, limit);
-        let roll_target = (-(fy_lp / G_MPS2).clamp(-1.0, 1.0).asin()).clamp(-limit, limit);
+        let pitch_target = Target::from_lowpass(self.tilt_lp[0].step(&[f.x]), 1.0, limit);
+        let roll_target = Target::from_lowpass(self.tilt_lp[1].step(&[f.y]), -1.0, limit);
         let (roll_tc, roll_rate_tc, roll_acc_tc) =
             self.tilt[0].step(roll_target, rate_max, acc_max, dt);
         let (pitch_tc, pitch_rate_tc, pitch_acc_tc) =

@@ -1,0 +1,428 @@
+//! The Objective Motion Cueing Test (ICAO 9625, OMCT): frequency responses of a motion cueing
+//! algorithm, measured at the pilot's head, for sinusoidal aircraft inputs.
+//!
+//! Each test drives one aircraft channel with A·sin(ωt) and fits the platform's response at
+//! the pilot's head (after the workspace limiter, through the exact head kinematics) with
+//! a·sin(ωt) + b·cos(ωt) + c over whole periods after the transient. Gain = |a + jb| / A,
+//! phase = arg(a + jb). The amplitude is halved until the limiter stays inactive, so that
+//! the platform keeps inside its limits as the standard asks.
+
+use std::sync::Arc;
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use crate::engine::Engine;
+use crate::mca::{AlgorithmId, BuildError};
+use crate::model::stewart::head_motion;
+use crate::profile::Profile;
+use crate::trace::{AircraftSample, Trace};
+use crate::G_MPS2;
+
+/// The twelve OMCT frequencies, log-spaced from 0.1 to 15.85 rad/s.
+pub fn frequencies_radps() -> [f64; 12] {
+    std::array::from_fn(|i| 0.1 * (15.85f64 / 0.1).powf(i as f64 / 11.0))
+}
+
+/// A channel of aircraft input or platform output at the head: Δf x, y, z (m/s²), ω x, y, z
+/// (rad/s).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum Channel {
+    Fx,
+    Fy,
+    Fz,
+    Wx,
+    Wy,
+    Wz,
+}
+
+impl Channel {
+    fn index(self) -> usize {
+        self as usize
+    }
+    pub fn is_rotational(self) -> bool {
+        self.index() >= 3
+    }
+    pub fn unit(self) -> &'static str {
+        if self.is_rotational() {
+            "rad/s"
+        } else {
+            "m/s²"
+        }
+    }
+}
+
+/// The six direct and four cross-coupling tests.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum OmctTest {
+    RollRate,
+    PitchRate,
+    YawRate,
+    Surge,
+    Sway,
+    Heave,
+    PitchToSurge,
+    RollToSway,
+    SurgeToPitch,
+    SwayToRoll,
+}
+
+impl OmctTest {
+    pub const ALL: [OmctTest; 10] = [
+        OmctTest::RollRate,
+        OmctTest::PitchRate,
+        OmctTest::YawRate,
+        OmctTest::Surge,
+        OmctTest::Sway,
+        OmctTest::Heave,
+        OmctTest::PitchToSurge,
+        OmctTest::RollToSway,
+        OmctTest::SurgeToPitch,
+        OmctTest::SwayToRoll,
+    ];
+
+    /// (aircraft input, platform output at the head).
+    pub fn channels(self) -> (Channel, Channel) {
+        use Channel::*;
+        match self {
+            OmctTest::RollRate => (Wx, Wx),
+            OmctTest::PitchRate => (Wy, Wy),
+            OmctTest::YawRate => (Wz, Wz),
+            OmctTest::Surge => (Fx, Fx),
+            OmctTest::Sway => (Fy, Fy),
+            OmctTest::Heave => (Fz, Fz),
+            OmctTest::PitchToSurge => (Wy, Fx),
+            OmctTest::RollToSway => (Wx, Fy),
+            OmctTest::SurgeToPitch => (Fx, Wy),
+            OmctTest::SwayToRoll => (Fy, Wx),
+        }
+    }
+
+    pub fn key(self) -> &'static str {
+        match self {
+            OmctTest::RollRate => "roll-rate",
+            OmctTest::PitchRate => "pitch-rate",
+            OmctTest::YawRate => "yaw-rate",
+            OmctTest::Surge => "surge",
+            OmctTest::Sway => "sway",
+            OmctTest::Heave => "heave",
+            OmctTest::PitchToSurge => "pitch-to-surge",
+            OmctTest::RollToSway => "roll-to-sway",
+            OmctTest::SurgeToPitch => "surge-to-pitch",
+            OmctTest::SwayToRoll => "sway-to-roll",
+        }
+    }
+
+    pub fn is_cross_coupling(self) -> bool {
+        let (i, o) = self.channels();
+        i != o
+    }
+
+    /// Starting amplitude of the input, halved until the limiter stays idle: 0.1 g in
+    /// translation, 5 °/s in rotation.
+    pub fn nominal_amplitude(self) -> f64 {
+        if self.channels().0.is_rotational() {
+            5f64.to_radians()
+        } else {
+            0.1 * G_MPS2
+        }
+    }
+}
+
+/// Fit of y ≈ a·sin(ωt) + b·cos(ωt) + c by least squares.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SineFit {
+    pub amplitude: f64,
+    /// Phase of the fitted sinusoid relative to sin(ωt) (rad).
+    pub phase_rad: f64,
+    pub offset: f64,
+    /// RMS of what the sinusoid does not explain, relative to its amplitude.
+    pub residual: f64,
+}
+
+/// Least-squares fit of a sinusoid of known frequency to samples at times `t0 + k·dt`.
+pub fn fit_sine(samples: &[f64], t0_s: f64, dt_s: f64, w_radps: f64) -> SineFit {
+    // Normal equations of [sin, cos, 1] (3×3).
+    let mut m = nalgebra::Matrix3::<f64>::zeros();
+    let mut r = nalgebra::Vector3::<f64>::zeros();
+    for (k, &y) in samples.iter().enumerate() {
+        let t = t0_s + k as f64 * dt_s;
+        let phi = nalgebra::Vector3::new((w_radps * t).sin(), (w_radps * t).cos(), 1.0);
+        m += phi * phi.transpose();
+        r += phi * y;
+    }
+    let coef = m.lu().solve(&r).unwrap_or_else(nalgebra::Vector3::zeros);
+    let (a, b, c) = (coef.x, coef.y, coef.z);
+    let amplitude = a.hypot(b);
+    let sq: f64 = samples
+        .iter()
+        .enumerate()
+        .map(|(k, &y)| {
+            let t = t0_s + k as f64 * dt_s;
+            (y - a * (w_radps * t).sin() - b * (w_radps * t).cos() - c).powi(2)
+        })
+        .sum();
+    let rms = (sq / samples.len().max(1) as f64).sqrt();
+    SineFit {
+        amplitude,
+        phase_rad: b.atan2(a),
+        offset: c,
+        residual: if amplitude > 0.0 {
+            rms / amplitude
+        } else {
+            0.0
+        },
+    }
+}
+
+/// One frequency of one test.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OmctPoint {
+    pub frequency_radps: f64,
+    /// Input amplitude used (m/s² or rad/s).
+    pub amplitude: f64,
+    pub gain: f64,
+    pub phase_deg: f64,
+    /// Steps at which the limiter acted (0 unless even the smallest amplitude tried needed it).
+    pub limiter_steps: usize,
+    /// Unexplained part of the response, relative to its amplitude (nonlinearity, noise).
+    pub residual: f64,
+}
+
+/// How many whole periods to let the transient settle and to fit over.
+fn periods(w_radps: f64) -> (usize, usize) {
+    // The washout filters settle within ~40 s; at high frequency that is many periods.
+    let period = std::f64::consts::TAU / w_radps;
+    let settle = ((40.0 / period).ceil() as usize).clamp(2, 200);
+    let fit = ((20.0 / period).ceil() as usize).clamp(2, 40);
+    (settle, fit)
+}
+
+/// Runs `algorithm` on a sinusoid of amplitude `amplitude` on the test's input channel and
+/// fits the response at the head.
+pub fn measure(
+    profile: &Profile,
+    algorithm: AlgorithmId,
+    test: OmctTest,
+    w_radps: f64,
+    amplitude: f64,
+) -> Result<OmctPoint, BuildError> {
+    let (input, output) = test.channels();
+    let dt = profile.dt_s();
+    let (settle, fit) = periods(w_radps);
+    let period = std::f64::consts::TAU / w_radps;
+    let n_settle = (settle as f64 * period / dt).round() as usize;
+    let n_fit = (fit as f64 * period / dt).round() as usize;
+    let samples = (0..n_settle + n_fit)
+        .map(|k| {
+            let t = k as f64 * dt;
+            let mut motion = [0.0; 6];
+            motion[input.index()] = amplitude * (w_radps * t).sin();
+            AircraftSample {
+                t_s: t,
+                specific_force_mps2: Vector3::new(motion[0], motion[1], motion[2] - G_MPS2),
+                angular_velocity_radps: Vector3::new(motion[3], motion[4], motion[5]),
+                attitude_rad: Vector3::zeros(),
+            }
+        })
+        .collect();
+    let trace = Trace {
+        name: format!("omct-{}", test.key()),
+        rate_hz: profile.rate_hz,
+        samples,
+        info: None,
+        notices: vec![],
+    };
+    let mut engine = Engine::new(profile, Arc::new(trace), &[algorithm])?;
+    let eye = profile.eye_point();
+    let mut response = Vec::with_capacity(n_fit);
+    let mut limiter_steps = 0;
+    let mut t0 = 0.0;
+    while let Some(frame) = engine.step() {
+        let lane = &frame.lanes[0];
+        limiter_steps += usize::from(lane.limiter_active);
+        if frame.k >= n_settle {
+            if response.is_empty() {
+                t0 = frame.t_s;
+            }
+            let c = &lane.command;
+            let head = head_motion(&c.pose, &c.velocity, &c.acceleration, &eye);
+            let y = [
+                head.delta_f_mps2.x,
+                head.delta_f_mps2.y,
+                head.delta_f_mps2.z,
+                head.angular_velocity_radps.x,
+                head.angular_velocity_radps.y,
+                head.angular_velocity_radps.z,
+            ];
+            response.push(y[output.index()]);
+        }
+    }
+    let f = fit_sine(&response, t0, dt, w_radps);
+    Ok(OmctPoint {
+        frequency_radps: w_radps,
+        amplitude,
+        gain: f.amplitude / amplitude,
+        phase_deg: wrap_deg(f.phase_rad.to_degrees()),
+        limiter_steps,
+        residual: f.residual,
+    })
+}
+
+/// Phase in (−180°, 180°].
+fn wrap_deg(d: f64) -> f64 {
+    let w = (d + 180.0).rem_euclid(360.0) - 180.0;
+    if w <= -180.0 {
+        w + 360.0
+    } else {
+        w
+    }
+}
+
+/// One frequency with the amplitude halved (up to six times) until the limiter stays idle.
+pub fn measure_within_limits(
+    profile: &Profile,
+    algorithm: AlgorithmId,
+    test: OmctTest,
+    w_radps: f64,
+) -> Result<OmctPoint, BuildError> {
+    let mut amplitude = test.nominal_amplitude();
+    let mut point = measure(profile, algorithm, test, w_radps, amplitude)?;
+    for _ in 0..6 {
+        if point.limiter_steps == 0 {
+            break;
+        }
+        amplitude *= 0.5;
+        point = measure(profile, algorithm, test, w_radps, amplitude)?;
+    }
+    Ok(point)
+}
+
+/// The whole test for one algorithm.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OmctCurve {
+    pub test: OmctTest,
+    pub algorithm: AlgorithmId,
+    pub input_unit: &'static str,
+    pub output_unit: &'static str,
+    pub points: Vec<OmctPoint>,
+}
+
+pub fn run_test(
+    profile: &Profile,
+    algorithm: AlgorithmId,
+    test: OmctTest,
+) -> Result<OmctCurve, BuildError> {
+    let points = frequencies_radps()
+        .iter()
+        .map(|&w| measure_within_limits(profile, algorithm, test, w))
+        .collect::<Result<Vec<_>, _>>()?;
+    let (i, o) = test.channels();
+    Ok(OmctCurve {
+        test,
+        algorithm,
+        input_unit: i.unit(),
+        output_unit: o.unit(),
+        points,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mca::washout::WashoutParams;
+    use crate::model::lti::StateSpace;
+    use crate::profile::tests::full_flight;
+    use nalgebra::Complex;
+
+    #[test]
+    fn frequencies_span_the_standard_range() {
+        let f = frequencies_radps();
+        assert!((f[0] - 0.1).abs() < 1e-12 && (f[11] - 15.85).abs() < 1e-9);
+        for k in 1..12 {
+            assert!((f[k] / f[k - 1] - (158.5f64).powf(1.0 / 11.0)).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn fit_recovers_a_known_gain_and_phase() {
+        let (w, dt) = (2.3, 0.01);
+        let samples: Vec<f64> = (0..2000)
+            .map(|k| 0.7 + 1.8 * (w * (5.0 + k as f64 * dt) - 0.6).sin())
+            .collect();
+        let f = fit_sine(&samples, 5.0, dt, w);
+        assert!(
+            (f.amplitude - 1.8).abs() < 1e-9
+                && (f.phase_rad + 0.6).abs() < 1e-9
+                && (f.offset - 0.7).abs() < 1e-9
+        );
+        assert!(f.residual < 1e-9);
+    }
+
+    /// The sampled channel's frequency response at z = e^{jωT}: what the CWF, a discrete-time
+    /// algorithm, does to a sampled sinusoid.
+    fn eval(sys: &StateSpace, dt: f64, w: f64, output: usize) -> Complex<f64> {
+        sys.discretise_zoh(dt).frequency_response(w)[(output, 0)]
+    }
+
+    /// The CWF's own linear transfer functions at the head, small-angle: surge
+    /// Δf_x = k·[T(z) + L(z) − h·L̈(z)/g] (translation, tilt, and the lever arm of the tilt's
+    /// angular acceleration with the head h above the joint plane); pitch and yaw rate
+    /// ω = k·R(z) (rotational channel); heave Δf_z = k·T_z(z).
+    fn cwf_linear(p: &WashoutParams, profile: &Profile, test: OmctTest, w: f64) -> Complex<f64> {
+        let (h, dt) = (-profile.eye_point_m[2], profile.dt_s());
+        match test {
+            OmctTest::Surge => {
+                let k = p.specific_force_scale[0];
+                let trans = eval(&p.translational_channel(0), dt, w, 2);
+                let lp = eval(&p.tilt_lowpass(), dt, w, 0);
+                let lp_acc = eval(&p.tilt_lowpass(), dt, w, 2);
+                k * (trans + lp - h * lp_acc / G_MPS2)
+            }
+            OmctTest::PitchRate => {
+                p.angular_velocity_scale[1] * eval(&p.rotational_channel(), dt, w, 1)
+            }
+            OmctTest::YawRate => {
+                p.angular_velocity_scale[2] * eval(&p.rotational_channel(), dt, w, 1)
+            }
+            OmctTest::Heave => {
+                p.specific_force_scale[2] * eval(&p.translational_channel(2), dt, w, 2)
+            }
+            _ => unreachable!("not used in this test"),
+        }
+    }
+
+    #[test]
+    fn cwf_omct_matches_its_linear_transfer_functions() {
+        let profile = full_flight();
+        for test in [
+            OmctTest::PitchRate,
+            OmctTest::YawRate,
+            OmctTest::Heave,
+            OmctTest::Surge,
+        ] {
+            for &w in frequencies_radps().iter() {
+                // Small enough that neither the limiter nor the tilt-rate limit acts.
+                let amplitude = if test == OmctTest::Surge { 0.02 } else { 0.01 };
+                let point = measure(&profile, AlgorithmId::Cwf, test, w, amplitude).unwrap();
+                assert_eq!(point.limiter_steps, 0);
+                let expected = cwf_linear(&profile.cwf, &profile, test, w);
+                let gain_err = (point.gain - expected.norm()).abs() / expected.norm();
+                let phase_err = wrap_deg(point.phase_deg - expected.arg().to_degrees()).abs();
+                assert!(
+                    gain_err < 0.01,
+                    "{test:?} at {w:.3} rad/s: gain {} vs {}",
+                    point.gain,
+                    expected.norm()
+                );
+                assert!(
+                    phase_err < 1.0,
+                    "{test:?} at {w:.3} rad/s: phase {} vs {}",
+                    point.phase_deg,
+                    expected.arg().to_degrees()
+                );
+            }
+        }
+    }
+}
