@@ -130,8 +130,10 @@ pub fn resample_uniform(
         return Err(ResampleError::NotFromZero(samples[0].t_s));
     }
     for (index, w) in samples.windows(2).enumerate() {
-        // Written negated so that a NaN time is refused too.
-        if !(w[1].t_s > w[0].t_s) || !w[1].t_s.is_finite() {
+        // A NaN time compares as neither greater nor less, so it is refused here too.
+        if w[1].t_s.partial_cmp(&w[0].t_s) != Some(std::cmp::Ordering::Greater)
+            || !w[1].t_s.is_finite()
+        {
             return Err(ResampleError::NotIncreasing { index: index + 1 });
         }
     }

@@ -689,6 +689,16 @@ fn parse_measured(
         // Cannot happen after the checks above; reported rather than unwrapped all the same.
         other => ctx.file(TraceErrorKind::TimeNotIncreasing, other.to_string()),
     })?;
+    if resampled.samples.len() < 2 {
+        return Err(ctx.file(
+            TraceErrorKind::TooFewRows,
+            format!(
+                "{} s of data is shorter than one step at {} Hz; expected at least two samples",
+                rows[rows.len() - 1].t_s,
+                format_hz(target_rate_hz)
+            ),
+        ));
+    }
     if resampled.interpolated {
         let irregular = if max_step - min_step > IRREGULAR_SPREAD * median_step {
             " irregular"
@@ -1102,6 +1112,10 @@ mod tests {
             "{m}"
         );
         refused(&native(1), TraceErrorKind::TooFewRows, None, None);
+        // Two rows 5 ms apart hold a single sample at 100 Hz.
+        let text = "t,fx,fy,fz,p,q,r\n0,0,0,-9.8,0,0,0\n0.005,0,0,-9.8,0,0,0\n";
+        let m = refused(text, TraceErrorKind::TooFewRows, None, None);
+        assert!(m.contains("shorter than one step"), "{m}");
     }
 
     #[test]
@@ -1292,6 +1306,22 @@ mod tests {
         ];
         for text in inputs {
             let _ = parse(text);
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(300))]
+        /// Text made of the characters that matter to the parser, and arbitrary text, is
+        /// either a trace or an error, never a panic.
+        #[test]
+        fn any_text_is_parsed_or_refused(
+            body in "(t,fx,fy,fz,p,q,r\n)?[0-9eE.,;+\\-\n\r \tNaif\u{feff}\"é]{0,300}",
+            noise in ".{0,100}",
+            rate in proptest::prelude::prop_oneof![proptest::prelude::Just(100.0), 0.001f64..1e5],
+        ) {
+            let _ = parse_trace(&body, "p.csv", "p", rate);
+            let _ = parse_trace(&(body + &noise), "p.csv", "p", rate);
+            let _ = parse_sidecar(&noise, "p.json");
         }
     }
 
