@@ -328,8 +328,15 @@ impl Player {
                 self.seek_to(k, now);
             }
             Command::Home => self.seek_to(0, now),
-            Command::Faster => self.speed = (self.speed + 1).min(SPEEDS.len() - 1),
-            Command::Slower => self.speed = self.speed.saturating_sub(1),
+            // A measurement at the old speed says nothing about keeping up with the new one.
+            Command::Faster => {
+                self.speed = (self.speed + 1).min(SPEEDS.len() - 1);
+                self.achieved = None;
+            }
+            Command::Slower => {
+                self.speed = self.speed.saturating_sub(1);
+                self.achieved = None;
+            }
             Command::ToggleLoop => {
                 self.looping = !self.looping;
                 let word = if self.looping { "on" } else { "off" };

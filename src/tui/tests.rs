@@ -676,3 +676,62 @@ fn a_dead_terminal_ends_the_loop_and_still_finishes_the_recording() {
     assert_eq!(lines.len(), 1);
     assert_eq!(counters.finished.load(Ordering::SeqCst), 1);
 }
+
+/// A source that takes 20 ms a frame: half real time at 100 Hz.
+struct Slow(Box<dyn FrameSource>);
+
+impl FrameSource for Slow {
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    fn position(&self) -> usize {
+        self.0.position()
+    }
+    fn next_frame(&mut self) -> Option<Frame> {
+        std::thread::sleep(Duration::from_millis(20));
+        self.0.next_frame()
+    }
+    fn rewind(&mut self) {
+        self.0.rewind()
+    }
+    fn algorithms(&self) -> Vec<AlgorithmId> {
+        self.0.algorithms()
+    }
+    fn rate_hz(&self) -> f64 {
+        self.0.rate_hz()
+    }
+}
+
+#[test]
+fn the_header_says_when_the_engine_cannot_keep_up() {
+    let (source, profile, info) = engine(&[AlgorithmId::Cwf]);
+    let opts = PlayerOptions {
+        start_paused: false,
+        recording: None,
+    };
+    let session = player::spawn(Box::new(Slow(source)), &profile, &info, opts).unwrap();
+    let s = wait_for(&session, "the lag warning", |s| s.lagging);
+    let a = s.achieved_speed.unwrap();
+    assert!(a > 0.2 && a < 0.8, "{a}");
+    let mut app = App::new(Arc::new(info), &profile, Theme::ANSI16);
+    app.snapshot = s;
+    assert!(screen(&draw(&app, 80, 24)).contains("⚠ BEHIND"));
+    // Half speed is within reach: the warning goes.
+    let (tx, rx) = mpsc::channel();
+    tx.send(UiEvent::Key(key(KeyCode::Char('-')))).unwrap();
+    tx.send(UiEvent::Key(key(KeyCode::Char('-')))).unwrap();
+    std::thread::scope(|scope| {
+        let ui = scope.spawn(|| {
+            let mut t = Terminal::new(TestBackend::new(80, 24)).unwrap();
+            run_ui(&mut t, &mut Scripted(rx), &session, &mut app)
+        });
+        wait_for(&session, "×0.25", |s| s.speed == 0);
+        std::thread::sleep(Duration::from_millis(100));
+        wait_for(&session, "no lag at ×0.25", |s| {
+            !s.lagging && s.achieved_speed.is_some_and(|a| a > 0.2)
+        });
+        tx.send(UiEvent::Key(key(KeyCode::Char('q')))).unwrap();
+        ui.join().unwrap().unwrap();
+    });
+    assert!(session.shutdown().is_empty());
+}
