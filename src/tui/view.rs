@@ -21,6 +21,8 @@ use super::Theme;
 const MIN_COLUMN_W: u16 = 18;
 /// Longer gauge bars only spread the same information.
 const MAX_BAR_W: usize = 30;
+/// Rows a chart needs to be worth a second one below it.
+const CHART_ROWS_EACH: usize = 8;
 
 pub fn render(app: &App, f: &mut ratatui::Frame, now: Instant) {
     let area = f.area();
@@ -256,8 +258,14 @@ fn render_column(app: &App, f: &mut ratatui::Frame, area: Rect, lane: usize, sta
         Constraint::Length(legs_rows as u16),
     ])
     .areas(inner);
+    // Tall columns show more channels, the selected one first: the other axes of the same
+    // manoeuvre are often where a washout's false cues are.
+    let charts = (chart_rows / CHART_ROWS_EACH).clamp(1, CHANNELS.len());
     if chart_rows >= 3 {
-        render_chart(app, f, chart_a, lane, s);
+        let areas = Layout::vertical(vec![Constraint::Fill(1); charts]).split(chart_a);
+        for (i, &a) in areas.iter().enumerate() {
+            render_chart(app, f, a, lane, s, (app.channel + i) % CHANNELS.len());
+        }
     }
     let metric_lines = if metric_rows >= 2 {
         metrics
@@ -531,9 +539,15 @@ fn channel_scale(ch: usize) -> (f64, &'static str) {
     }
 }
 
-fn render_chart(app: &App, f: &mut ratatui::Frame, area: Rect, lane: usize, s: &Snapshot) {
+fn render_chart(
+    app: &App,
+    f: &mut ratatui::Frame,
+    area: Rect,
+    lane: usize,
+    s: &Snapshot,
+    ch: usize,
+) {
     let th = &app.theme;
-    let ch = app.channel % CHANNELS.len();
     let (scale, unit) = channel_scale(ch);
     let [caption, plot] = Layout::vertical([Constraint::Length(1), Constraint::Min(0)]).areas(area);
     let reference: Vec<(f64, f64)> = s
