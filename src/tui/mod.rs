@@ -284,12 +284,22 @@ fn run_terminal(
         .context("starting the signal thread")?;
 
     let theme = Theme::from_env();
-    let session = player::spawn(source, &profile, &info, opts)?;
+    let session = match player::spawn(source, &profile, &info, opts) {
+        Ok(s) => s,
+        Err(e) => {
+            signal_handle.close();
+            let _ = signal_thread.join();
+            return Err(e.context("starting the engine thread"));
+        }
+    };
     let mut app = App::new(Arc::new(info), &profile, theme);
     let result = match ratatui::try_init() {
         Ok(mut terminal) => {
             let mut events = TerminalEvents { signals: sig_rx };
             let r = app::run_ui(&mut terminal, &mut events, &session, &mut app);
+            // Some terminals (tmux after a resize) carry alternate-screen rows over to the
+            // main screen on exit: blank them first. A dead terminal makes this fail; fine.
+            let _ = terminal.clear();
             ratatui::restore();
             r.map(|()| events_signal(&app))
         }
