@@ -13,6 +13,7 @@ pub mod omct;
 pub mod profile;
 pub mod summary;
 pub mod trace;
+pub mod tui;
 
 /// Standard gravity (m/s²).
 pub const G_MPS2: f64 = 9.80665;
