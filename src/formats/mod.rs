@@ -2,3 +2,4 @@
 //! Adapters around the core; the core never reads a file.
 
 pub mod profile;
+pub mod recording;
