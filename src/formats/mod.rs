@@ -2,4 +2,5 @@
 //! Adapters around the core; the core never reads a file.
 
 pub mod profile;
+pub mod recording;
 pub mod trace;

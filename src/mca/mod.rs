@@ -118,13 +118,28 @@ impl Mode {
             Mode::Fallback => "fallback",
         }
     }
+
+    /// The mode a [`Mode::word`] names, as recordings store it.
+    pub fn from_word(word: &str) -> Option<Self> {
+        [
+            Mode::Washout,
+            Mode::Mpc,
+            Mode::Cotc,
+            Mode::Free,
+            Mode::Blend,
+            Mode::Fallback,
+        ]
+        .into_iter()
+        .find(|m| m.word() == word)
+    }
 }
 
 /// Outcome of one QP solve, as information for the operator.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SolverReport {
-    /// Which QP: `mpc`, `cotc`, `free`.
-    pub name: &'static str,
+    /// Which QP: `mpc`, `cotc`, `free`. Owned so that a report read back from a recording
+    /// is the same type as a live one.
+    pub name: String,
     /// Solver status in words, e.g. `solved`, `primal_infeasible`, `max_time`.
     pub status: String,
     pub iterations: u32,
