@@ -4,6 +4,8 @@
 //! `cli` and `tui` adapt it to files and the terminal. Frames and units: DESIGN.md §1 and
 //! `docs/design.md`.
 
+pub mod cli;
+pub mod console;
 pub mod engine;
 pub mod formats;
 pub mod mca;

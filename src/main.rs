@@ -1,1 +1,12 @@
-fn main() {}
+use clap::Parser;
+
+fn main() -> std::process::ExitCode {
+    let cli = hexcue::cli::Cli::parse();
+    match hexcue::cli::run(cli) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("hexcue: error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

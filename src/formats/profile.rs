@@ -38,15 +38,44 @@ pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
     (line, column)
 }
 
+/// The dotted key assigned on the line holding `offset`, with the table it sits in, e.g.
+/// `limits.surge.excursion_m`; `None` when that line assigns no key.
+fn key_at(text: &str, offset: usize) -> Option<String> {
+    let start = text[..offset.min(text.len())]
+        .rfind('\n')
+        .map_or(0, |i| i + 1);
+    let line = text[start..].lines().next()?;
+    let key = line.split_once('=')?.0.trim().trim_matches('"');
+    if key.is_empty() || key.starts_with('#') || key.starts_with('[') {
+        return None;
+    }
+    let table = text[..start].lines().rev().find_map(|l| {
+        let l = l.trim();
+        (l.starts_with('[') && !l.starts_with("[["))
+            .then(|| l.trim_matches(|c| c == '[' || c == ']').trim().to_string())
+    });
+    Some(match table {
+        Some(t) if !t.is_empty() => format!("{t}.{key}"),
+        _ => key.to_string(),
+    })
+}
+
 /// Parses and validates a profile; `source_name` names it in every error.
 pub fn parse_profile(text: &str, source_name: &str) -> Result<Profile, ProfileLoadError> {
     let profile: Profile = toml::from_str(text).map_err(|e| {
         let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
+        let mut message = e.message().trim().to_string();
+        // TOML's type errors say what was expected but not for which key.
+        if let Some(key) = e.span().and_then(|s| key_at(text, s.start)) {
+            if !message.contains(&key) {
+                message = format!("`{key}`: {message}");
+            }
+        }
         ProfileLoadError::Syntax {
             source_name: source_name.to_string(),
             line,
             column,
-            message: e.message().trim().to_string(),
+            message,
         }
     })?;
     profile
@@ -148,10 +177,20 @@ mod tests {
     }
 
     #[test]
-    fn wrong_type_is_refused() {
+    fn wrong_type_is_refused_with_its_key() {
         let err =
             parse_profile(&with("rate_hz = 100.0", "rate_hz = \"fast\""), "x.toml").unwrap_err();
         assert!(matches!(err, ProfileLoadError::Syntax { .. }), "{err}");
+        assert!(err.to_string().contains("`rate_hz`"), "{err}");
+        let err = parse_profile(
+            &with("velocity_mps = 1.5", "velocity_mps = [1.5]"),
+            "x.toml",
+        )
+        .unwrap_err();
+        assert!(
+            err.to_string().contains("`limits.surge.velocity_mps`"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -129,13 +129,13 @@ fn dressed_snapshot() -> (App, Snapshot) {
         last_switch_reason: Some("cotc infeasible: |Δf| beyond tilt".into()),
         solvers: vec![
             SolverReport {
-                name: "cotc",
+                name: "cotc".into(),
                 status: "primal_infeasible".into(),
                 iterations: 6,
                 solve_time_us: 850.0,
             },
             SolverReport {
-                name: "free",
+                name: "free".into(),
                 status: "solved".into(),
                 iterations: 11,
                 solve_time_us: 1400.0,
@@ -150,7 +150,7 @@ fn dressed_snapshot() -> (App, Snapshot) {
         switch_count: 0,
         last_switch_reason: None,
         solvers: vec![SolverReport {
-            name: "mpc",
+            name: "mpc".into(),
             status: "solved".into(),
             iterations: 9,
             solve_time_us: 900.0,

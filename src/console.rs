@@ -1,0 +1,99 @@
+//! Glue from the command line to the terminal console: real trace and profile files, MCAP
+//! recordings as the console's frame sink, and recordings as its frame source for review.
+
+use std::io::IsTerminal;
+use std::path::Path;
+use std::sync::Arc;
+
+use anyhow::{bail, Context, Result};
+
+use crate::cli::{load_session, recording_meta, PlayArgs};
+use crate::engine::Frame;
+use crate::formats::recording::{Recorder, Recording};
+use crate::tui::{self, FrameSink, LiveConfig, RecordedFrames, ReviewConfig, SessionInfo};
+
+/// An MCAP recorder as the console's frame sink.
+struct McapSink {
+    recorder: Recorder,
+}
+
+impl FrameSink for McapSink {
+    fn record(&mut self, frame: &Frame) -> Result<()> {
+        Ok(self.recorder.record(frame)?)
+    }
+
+    fn finish(self: Box<Self>) -> Result<String> {
+        let path = self.recorder.path().display().to_string();
+        let stats = self
+            .recorder
+            .finish()
+            .with_context(|| format!("{path}: cannot finish the recording"))?;
+        Ok(format!(
+            "recorded {path}: {} steps, {} messages",
+            stats.steps, stats.messages
+        ))
+    }
+}
+
+fn require_terminal() -> Result<()> {
+    if !std::io::stdout().is_terminal() {
+        bail!("the console needs a terminal on stdout; use --headless for batch runs (see hexcue play --help)");
+    }
+    Ok(())
+}
+
+/// A session ended by SIGTERM, SIGHUP or Ctrl-C exits non-zero, naming the signal, once the
+/// terminal is restored and every recording finished.
+fn exit_for_signal(signal: Option<&str>) -> Result<()> {
+    match signal {
+        None => Ok(()),
+        Some(name) => bail!("stopped by {name}"),
+    }
+}
+
+pub fn run_live(args: &PlayArgs) -> Result<()> {
+    require_terminal()?;
+    let session = load_session(args)?;
+    let meta = recording_meta(&session);
+    let trace = Arc::new(session.trace.trace.clone());
+    let mut cfg = LiveConfig::new(session.profile.clone(), trace, session.algorithms.clone());
+    cfg.record = args.record.clone();
+    let factory: tui::SinkFactory = Box::new(move |request: &tui::RecordingRequest| {
+        let recorder = Recorder::create(&request.path, &meta)?;
+        Ok(Box::new(McapSink { recorder }) as Box<dyn FrameSink>)
+    });
+    let outcome = tui::run_live(cfg, factory)?;
+    exit_for_signal(outcome.signal)
+}
+
+pub fn run_review(path: &Path) -> Result<()> {
+    require_terminal()?;
+    let recording = Recording::open(path)?;
+    let profile = recording
+        .profile
+        .as_ref()
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .clone();
+    let frames = recording.frames()?.collect::<Result<Vec<Frame>, _>>()?;
+    if frames.is_empty() {
+        bail!("{}: the recording holds no complete step", path.display());
+    }
+    let mut info = SessionInfo {
+        trace_name: recording.trace_name.clone(),
+        description: None,
+        events: Vec::new(),
+        profile_name: profile.name.clone(),
+        review_of: Some(path.display().to_string()),
+    };
+    if !recording.finished {
+        info.description = Some("unfinished recording (cut short): showing what it holds".into());
+    }
+    let source = Box::new(RecordedFrames::new(frames, profile.rate_hz));
+    let outcome = tui::run_review(ReviewConfig {
+        profile,
+        source,
+        info,
+        start_paused: false,
+    })?;
+    exit_for_signal(outcome.signal)
+}

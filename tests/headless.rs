@@ -1,0 +1,176 @@
+//! The headless pipeline end to end on the shipped JSBSim traces: play → MCAP + summary →
+//! review → the same summary.
+
+mod common;
+
+use std::collections::BTreeSet;
+
+use common::*;
+
+const CHANNELS: [&str; 6] = ["fx", "fy", "fz", "wx", "wy", "wz"];
+const METRICS: [&str; 7] = ["aad", "naad", "aas", "rae", "pc", "ed_s", "rmse"];
+
+fn check_summary(json: &serde_json::Value, trace: &str, algorithms: &[&str]) {
+    assert_eq!(json["trace"], trace);
+    assert_eq!(json["profile"], "full-flight");
+    assert_eq!(json["rate_hz"], 100.0);
+    assert!(json["steps"].as_u64().unwrap() > 1000);
+    for alg in algorithms {
+        let a = &json["algorithms"][alg];
+        for ch in CHANNELS {
+            for m in METRICS {
+                let v = a["metrics"][ch][m]
+                    .as_f64()
+                    .unwrap_or_else(|| panic!("{alg}.{ch}.{m} missing"));
+                assert!(v.is_finite(), "{trace} {alg}.{ch}.{m} = {v}");
+            }
+        }
+        for q in ["median", "p99", "max"] {
+            assert!(a["step_time_us"][q].as_f64().unwrap() > 0.0);
+        }
+        assert!(a["limiter_steps"].as_u64().is_some());
+        let usage = a["max_leg_usage"].as_f64().unwrap();
+        assert!(
+            usage > 0.0 && usage <= 1.0,
+            "{trace} {alg}: leg usage {usage}"
+        );
+        assert_eq!(
+            a["leg_violations"], 0,
+            "{trace} {alg}: a leg left its stroke"
+        );
+    }
+}
+
+/// Every topic of DESIGN §7, read with the mcap crate directly, independently of hexcue's reader.
+fn recorded_topics(path: &std::path::Path) -> (BTreeSet<String>, usize) {
+    let bytes = std::fs::read(path).unwrap();
+    let mut topics = BTreeSet::new();
+    let mut count = 0;
+    for msg in mcap::MessageStream::new(&bytes).unwrap() {
+        let msg = msg.unwrap();
+        assert!(msg.log_time > 0, "log time must not be 0");
+        assert_eq!(msg.channel.message_encoding, "json");
+        topics.insert(msg.channel.topic.clone());
+        count += 1;
+    }
+    (topics, count)
+}
+
+#[test]
+fn cwf_on_every_shipped_trace_records_and_reviews() {
+    let dir = tempfile::tempdir().unwrap();
+    let traces = shipped_traces();
+    assert_eq!(traces.len(), 5, "{traces:?}");
+    for trace in traces {
+        let name = trace.file_stem().unwrap().to_string_lossy().into_owned();
+        let mcap = dir.path().join(format!("{name}.mcap"));
+        let summary = dir.path().join(format!("{name}.json"));
+        let out = hexcue(&[
+            "play".as_ref(),
+            "--headless".as_ref(),
+            "--trace".as_ref(),
+            trace.as_os_str(),
+            "--algorithms".as_ref(),
+            "cwf".as_ref(),
+            "--record".as_ref(),
+            mcap.as_os_str(),
+            "--summary".as_ref(),
+            summary.as_os_str(),
+        ]);
+        assert!(out.status.success(), "{name}: {}", stderr(&out));
+        let table = stdout(&out);
+        assert!(table.contains("cwf") && table.contains("RAE"), "{table}");
+        let played = read_json(&summary);
+        check_summary(&played, &name, &["cwf"]);
+
+        let (topics, count) = recorded_topics(&mcap);
+        for t in [
+            "/aircraft",
+            "/aircraft/perceived",
+            "/cwf/perceived",
+            "/cwf/platform",
+            "/cwf/actuators",
+            "/cwf/controller",
+        ] {
+            assert!(
+                topics.contains(t),
+                "{name}: topic {t} missing from {topics:?}"
+            );
+        }
+        let steps = played["steps"].as_u64().unwrap() as usize;
+        assert_eq!(count, steps * 6, "one message per topic per step");
+
+        let reviewed_path = dir.path().join(format!("{name}-review.json"));
+        let out = hexcue(&[
+            "review".as_ref(),
+            mcap.as_os_str(),
+            "--headless".as_ref(),
+            "--summary".as_ref(),
+            reviewed_path.as_os_str(),
+        ]);
+        assert!(out.status.success(), "{name}: {}", stderr(&out));
+        let reviewed = read_json(&reviewed_path);
+        assert_eq!(
+            reviewed["algorithms"]["cwf"]["metrics"], played["algorithms"]["cwf"]["metrics"],
+            "{name}: review recomputes the same metrics"
+        );
+        assert_eq!(reviewed["steps"], played["steps"]);
+        assert_eq!(
+            reviewed["algorithms"]["cwf"]["limiter_steps"],
+            played["algorithms"]["cwf"]["limiter_steps"]
+        );
+        assert_eq!(
+            reviewed["algorithms"]["cwf"]["max_leg_usage"],
+            played["algorithms"]["cwf"]["max_leg_usage"]
+        );
+    }
+}
+
+#[test]
+fn default_run_uses_the_embedded_profile_and_trace() {
+    let out = hexcue(&["play", "--headless", "--algorithms", "cwf"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let table = stdout(&out);
+    assert!(
+        table.starts_with("trace horizontal-stall  profile full-flight  5500 steps at 100 Hz"),
+        "{table}"
+    );
+    // stdout holds the table and only the table.
+    assert_eq!(
+        table.lines().filter(|l| l.starts_with("cwf ")).count(),
+        7,
+        "{table}"
+    );
+}
+
+#[test]
+fn compact_profile_runs_inside_its_small_workspace() {
+    let dir = tempfile::tempdir().unwrap();
+    let summary = dir.path().join("s.json");
+    let out = hexcue(&[
+        "play".as_ref(),
+        "--headless".as_ref(),
+        "--profile".as_ref(),
+        repo().join("profiles/compact.toml").as_os_str(),
+        "--trace".as_ref(),
+        repo()
+            .join("recordings/traces/turbulence-cruise.csv")
+            .as_os_str(),
+        "--algorithms".as_ref(),
+        "cwf".as_ref(),
+        "--summary".as_ref(),
+        summary.as_os_str(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let json = read_json(&summary);
+    assert_eq!(json["profile"], "compact");
+    assert_eq!(json["algorithms"]["cwf"]["leg_violations"], 0);
+}
+
+#[test]
+fn unknown_algorithm_is_refused_with_the_known_ones() {
+    let out = hexcue(&["play", "--headless", "--algorithms", "cwf,warp"]);
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(err.contains("warp") && err.contains("cwf"), "{err}");
+}
