@@ -236,8 +236,17 @@ pub fn format_table(s: &Summary) -> String {
         for ch in CHANNELS {
             if let Some(m) = alg.metrics.get(ch) {
                 out.push_str(&format!(
-                    "{:<6} {:<4} {:>9.4} {:>7.4} {:>7.3} {:>7.3} {:>7.3} {:>7.2} {:>9.4} {:>8.2}\n",
-                    name, ch, m.aad, m.naad, m.aas, m.rae, m.pc, m.ed_s, m.rmse, m.false_cue_s
+                    "{:<6} {:<4} {:>9} {:>7} {:>7.3} {:>7.3} {:>7.3} {:>7.2} {:>9} {:>8.2}\n",
+                    name,
+                    ch,
+                    sig(m.aad),
+                    sig(m.naad),
+                    m.aas,
+                    m.rae,
+                    m.pc,
+                    m.ed_s,
+                    sig(m.rmse),
+                    m.false_cue_s
                 ));
             }
         }
@@ -257,8 +266,32 @@ pub fn format_table(s: &Summary) -> String {
             alg.step_time_us.p99,
             alg.step_time_us.max
         ));
+        let dofs: Vec<String> = crate::summary::DOFS
+            .iter()
+            .map(|d| {
+                format!(
+                    "{d} {:.2}",
+                    alg.max_dof_usage.get(*d).copied().unwrap_or(0.0)
+                )
+            })
+            .collect();
+        out.push_str(&format!(
+            "{:<6} peak excursion / limit: {}\n",
+            name,
+            dofs.join(", ")
+        ));
     }
     out
+}
+
+/// Four decimals, or three significant digits for values too small to show that way
+/// (yaw-rate errors of a few µrad/s are real information, not zero).
+fn sig(v: f64) -> String {
+    if v != 0.0 && v.abs() < 1e-3 {
+        format!("{v:.2e}")
+    } else {
+        format!("{v:.4}")
+    }
 }
 
 fn write_summary(path: &Path, summary: &Summary) -> Result<()> {

@@ -41,7 +41,12 @@ pub struct AlgorithmSummary {
     pub leg_violations: u64,
     /// Controller switches (S-MPC), from its state.
     pub switches: u64,
+    /// Largest |excursion| of each DoF as a fraction of its limit: x, y, z, roll, pitch, yaw.
+    pub max_dof_usage: BTreeMap<String, f64>,
 }
+
+/// DoF names in pose order.
+pub const DOFS: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
 
 struct AlgorithmAccumulator {
     channels: Vec<ChannelAccumulator>,
@@ -52,6 +57,7 @@ struct AlgorithmAccumulator {
     min_leg_margin_m: f64,
     leg_violations: u64,
     switches: u64,
+    max_dof_usage: [f64; 6],
 }
 
 /// Accumulates frames into a [`Summary`] in constant memory.
@@ -60,6 +66,7 @@ pub struct SummaryBuilder {
     profile: String,
     rate_hz: f64,
     stewart: Stewart,
+    excursion: nalgebra::Vector6<f64>,
     thresholds: [f64; 6],
     steps: u64,
     algorithms: BTreeMap<AlgorithmId, AlgorithmAccumulator>,
@@ -74,6 +81,7 @@ impl SummaryBuilder {
             profile: profile.name.clone(),
             rate_hz: profile.rate_hz,
             stewart: profile.stewart(),
+            excursion: profile.limits.si().excursion,
             thresholds: [
                 v.otolith_threshold_mps2[0],
                 v.otolith_threshold_mps2[1],
@@ -108,6 +116,7 @@ impl SummaryBuilder {
                     min_leg_margin_m: f64::INFINITY,
                     leg_violations: 0,
                     switches: 0,
+                    max_dof_usage: [0.0; 6],
                 });
             let perceived = lane.perceived.channels();
             for (c, ch) in acc.channels.iter_mut().enumerate() {
@@ -123,6 +132,9 @@ impl SummaryBuilder {
             acc.min_leg_margin_m = acc.min_leg_margin_m.min(margin);
             acc.leg_violations += u64::from(margin < 0.0);
             acc.switches = acc.switches.max(u64::from(lane.state.switch_count));
+            for (i, usage) in acc.max_dof_usage.iter_mut().enumerate() {
+                *usage = usage.max(lane.command.pose[i].abs() / self.excursion[i]);
+            }
         }
     }
 
@@ -153,6 +165,11 @@ impl SummaryBuilder {
                     },
                     leg_violations: acc.leg_violations,
                     switches: acc.switches,
+                    max_dof_usage: DOFS
+                        .iter()
+                        .zip(acc.max_dof_usage)
+                        .map(|(d, u)| (d.to_string(), u))
+                        .collect(),
                 };
                 (id.key().to_string(), summary)
             })
