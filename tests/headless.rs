@@ -136,10 +136,28 @@ fn default_run_uses_the_embedded_profile_and_trace() {
         "{table}"
     );
     // stdout holds the table and only the table.
-    assert_eq!(
-        table.lines().filter(|l| l.starts_with("cwf ")).count(),
-        7,
+    for ch in CHANNELS {
+        let rows = table
+            .lines()
+            .filter(|l| l.split_whitespace().take(2).eq(["cwf", ch]));
+        assert_eq!(rows.count(), 1, "{ch}: {table}");
+    }
+    assert!(
+        table
+            .lines()
+            .any(|l| l.starts_with("cwf") && l.contains("limiter")),
         "{table}"
+    );
+    assert!(
+        table
+            .lines()
+            .any(|l| l.starts_with("cwf") && l.contains("peak excursion")),
+        "{table}"
+    );
+    assert_eq!(
+        table.lines().filter(|l| l.starts_with("cwf")).count(),
+        8,
+        "nothing but the table: {table}"
     );
 }
 
