@@ -31,6 +31,8 @@ pub enum Command {
     Play(PlayArgs),
     /// Open a recording made by `play`, in the console or as a summary.
     Review(ReviewArgs),
+    /// Run the algorithms on every trace of a folder and write the comparison report.
+    Compare(CompareArgs),
     /// Write a finished copy of a recording that was cut short (killed, power lost).
     Recover {
         /// The unfinished recording.
@@ -61,6 +63,22 @@ pub struct PlayArgs {
     pub summary: Option<PathBuf>,
     /// Algorithms to run, comma-separated.
     #[arg(long, value_name = "LIST", value_delimiter = ',', default_values_t = AlgorithmId::ALL.iter().map(|a| a.key().to_string()).collect::<Vec<_>>())]
+    pub algorithms: Vec<String>,
+}
+
+#[derive(Args, Debug)]
+pub struct CompareArgs {
+    /// Folder of traces (*.csv, with their sidecars). Default: the shipped traces.
+    #[arg(long, value_name = "DIR", default_value = "recordings/traces")]
+    pub traces: PathBuf,
+    /// Simulator profile (TOML). Default: the embedded profiles/full-flight.toml.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+    /// Write the Markdown report here instead of stdout.
+    #[arg(long, value_name = "FILE.md")]
+    pub out: Option<PathBuf>,
+    /// Algorithms to run, comma-separated.
+    #[arg(long, value_name = "LIST", value_delimiter = ',', default_values_t = default_algorithms())]
     pub algorithms: Vec<String>,
 }
 
@@ -363,6 +381,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 crate::console::run_review(&args.file)
             }
         }
+        Command::Compare(args) => run_compare(&args),
         Command::Recover { input, output } => {
             let stats = crate::formats::recording::recover(&input, &output)?;
             eprintln!(
@@ -373,6 +392,75 @@ pub fn run(cli: Cli) -> Result<()> {
             );
             Ok(())
         }
+    }
+}
+
+/// Runs every algorithm on every trace of the folder and writes the report.
+pub fn run_compare(args: &CompareArgs) -> Result<()> {
+    let (profile, _) = match &args.profile {
+        Some(path) => load_profile(path)?,
+        None => (default_profile(), String::new()),
+    };
+    let algorithms = parse_algorithms(&args.algorithms)?;
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(&args.traces)
+        .with_context(|| format!("{}: cannot list the traces folder", args.traces.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")))
+        .collect();
+    paths.sort();
+    if paths.is_empty() {
+        bail!("{}: no trace (*.csv) in this folder", args.traces.display());
+    }
+    let stop = install_stop_flag()?;
+    let mut results = Vec::new();
+    for path in &paths {
+        let loaded = load_trace(path, profile.rate_hz)?;
+        let trace = Arc::new(loaded.trace);
+        let started = std::time::Instant::now();
+        let mut engine = Engine::new(&profile, trace.clone(), &algorithms)?;
+        let mut summary = SummaryBuilder::new(&profile, &trace.name);
+        while let Some(frame) = engine.step() {
+            summary.push(&frame);
+            if stop.load(Ordering::Relaxed) {
+                bail!(
+                    "stopped by a signal during {}; no report written",
+                    trace.name
+                );
+            }
+        }
+        let wall = started.elapsed().as_secs_f64();
+        eprintln!(
+            "{}: {:.1} s of flight in {:.1} s ({:.1}× real time)",
+            trace.name,
+            trace.duration_s(),
+            wall,
+            trace.duration_s() / wall.max(1e-9)
+        );
+        let description = trace.info.as_ref().map(|i| {
+            [i.aircraft.as_deref(), i.scenario.as_deref()]
+                .into_iter()
+                .flatten()
+                .collect::<Vec<_>>()
+                .join(": ")
+        });
+        results.push(crate::compare::TraceResult {
+            summary: summary.finish(),
+            description: description.filter(|d| !d.is_empty()),
+        });
+    }
+    let command = format!(
+        "hexcue compare --traces {}{}",
+        args.traces.display(),
+        args.profile
+            .as_ref()
+            .map(|p| format!(" --profile {}", p.display()))
+            .unwrap_or_default()
+    );
+    let report = crate::compare::render_markdown(&results, &profile.name, &command);
+    match &args.out {
+        Some(path) => std::fs::write(path, report)
+            .with_context(|| format!("{}: cannot write the report", path.display())),
+        None => print_stdout(&report),
     }
 }
 

@@ -5,6 +5,7 @@
 //! `docs/design.md`.
 
 pub mod cli;
+pub mod compare;
 pub mod console;
 pub mod engine;
 pub mod formats;
