@@ -2,6 +2,7 @@
 //! workspace limiter that ends every algorithm.
 
 pub mod limiter;
+pub mod mpc;
 pub mod washout;
 
 use nalgebra::{Vector3, Vector6};
@@ -13,15 +14,17 @@ use crate::profile::Profile;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum AlgorithmId {
+    Mpc,
     Cwf,
 }
 
 impl AlgorithmId {
-    pub const ALL: &'static [AlgorithmId] = &[AlgorithmId::Cwf];
+    pub const ALL: &'static [AlgorithmId] = &[AlgorithmId::Mpc, AlgorithmId::Cwf];
 
     /// Short name used on the command line, in topics (`/cwf/...`) and summaries.
     pub fn key(self) -> &'static str {
         match self {
+            AlgorithmId::Mpc => "mpc",
             AlgorithmId::Cwf => "cwf",
         }
     }
@@ -29,6 +32,7 @@ impl AlgorithmId {
     /// Name shown to people.
     pub fn label(self) -> &'static str {
         match self {
+            AlgorithmId::Mpc => "MPC",
             AlgorithmId::Cwf => "CWF",
         }
     }
@@ -174,11 +178,22 @@ pub enum BuildError {
         section: &'static str,
         algorithm: AlgorithmId,
     },
+    #[error("{algorithm}: {reason}")]
+    Setup {
+        algorithm: AlgorithmId,
+        reason: String,
+    },
 }
 
 /// Builds the algorithm `id` as the profile tunes it.
 pub fn build(id: AlgorithmId, profile: &Profile) -> Result<Box<dyn MotionCueing>, BuildError> {
     match id {
+        AlgorithmId::Mpc => mpc::Mpc::new(&profile.mpc, profile, mpc::Terminal::Free)
+            .map(|m| Box::new(m) as Box<dyn MotionCueing>)
+            .map_err(|e| BuildError::Setup {
+                algorithm: id,
+                reason: e.to_string(),
+            }),
         AlgorithmId::Cwf => Ok(Box::new(washout::Washout::new(&profile.cwf, profile))),
     }
 }

@@ -1,0 +1,90 @@
+//! One MPC step (one QP) on the full-flight profile, against DESIGN §9 (median ≤ 1 ms,
+//! p99 ≤ 4 ms). A plain timing loop (`harness = false`) so that the benchmark needs no extra
+//! dependency: `cargo bench --bench mpc`.
+//!
+//! The input is a synthetic 20 s manoeuvre (surge pulses, a coordinated turn, heave) so that
+//! constraints become active and leave again, as on a real trace. Each algorithm runs closed
+//! loop: its command is fed back as the applied state, as the engine does.
+
+use std::time::Instant;
+
+use hexcue::formats::profile::default_profile;
+use hexcue::mca::mpc::{Mpc, Terminal};
+use hexcue::mca::{CueInput, CueSample, PlatformCommand};
+use nalgebra::Vector3;
+
+fn manoeuvre(t: f64) -> CueSample {
+    let pulse = |t0: f64, t1: f64| if t >= t0 && t < t1 { 1.0 } else { 0.0 };
+    CueSample {
+        delta_f_mps2: Vector3::new(
+            3.0 * pulse(1.0, 4.0) - 2.5 * pulse(6.0, 8.0) + 0.5 * (0.8 * t).sin(),
+            1.5 * pulse(10.0, 16.0) * (0.5 * t).sin(),
+            1.0 * (1.3 * t).sin() * pulse(12.0, 20.0),
+        ),
+        angular_velocity_radps: Vector3::new(
+            0.15 * pulse(9.0, 10.0) - 0.15 * pulse(16.0, 17.0),
+            0.05 * (0.9 * t).sin(),
+            0.1 * pulse(10.0, 16.0),
+        ),
+    }
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    let i = ((sorted.len() - 1) as f64 * p).round() as usize;
+    sorted[i]
+}
+
+fn bench(terminal: Terminal) {
+    let profile = default_profile();
+    let mut mpc = match Mpc::new(&profile.mpc, &profile, terminal) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("cannot build the MPC: {e}");
+            return;
+        }
+    };
+    let dt = profile.dt_s();
+    let steps = 2000;
+    let samples: Vec<CueSample> = (0..steps + 300).map(|k| manoeuvre(k as f64 * dt)).collect();
+    let mut applied = PlatformCommand::default();
+    let mut times_us = Vec::with_capacity(steps);
+    let mut solved = 0;
+    let mut iterations = 0u64;
+    for k in 0..steps {
+        let input = CueInput {
+            k,
+            t_s: k as f64 * dt,
+            dt_s: dt,
+            sample: samples[k],
+            preview: &samples[k + 1..],
+            applied: &applied,
+        };
+        let start = Instant::now();
+        let out = mpc.solve(&input);
+        times_us.push(start.elapsed().as_secs_f64() * 1e6);
+        solved += usize::from(out.feasible);
+        iterations += u64::from(out.report.iterations);
+        applied = out.command;
+    }
+    times_us.sort_by(f64::total_cmp);
+    let (nv, neq, nin) = mpc.qp_size();
+    println!(
+        "{:>4}: {nv} variables, {neq} equality + {nin} inequality rows; {steps} steps, \
+         {solved} solved, {:.1} iterations mean; step time median {:.0} µs, p99 {:.0} µs, \
+         max {:.0} µs",
+        terminal.name(),
+        iterations as f64 / steps as f64,
+        percentile(&times_us, 0.5),
+        percentile(&times_us, 0.99),
+        times_us[times_us.len() - 1],
+    );
+}
+
+fn main() {
+    // `cargo test --benches` runs this with `--bench` absent: keep that quick.
+    if !std::env::args().any(|a| a == "--bench") {
+        return;
+    }
+    bench(Terminal::Free);
+    bench(Terminal::Cotc);
+}
