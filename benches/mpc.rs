@@ -29,13 +29,54 @@ fn manoeuvre(t: f64) -> CueSample {
     }
 }
 
+/// CPU time this thread has run (ns), from the scheduler: the step's own cost, whatever
+/// else the shared machine is doing. `None` where /proc is unavailable.
+fn thread_cpu_ns() -> Option<u64> {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     let i = ((sorted.len() - 1) as f64 * p).round() as usize;
     sorted[i]
 }
 
+/// `MPC_BENCH=key=value,…` overrides `[mpc]` keys, to compare formulations without editing
+/// the profile: e.g. `MPC_BENCH=leg_constraint_stride=2,coarse_steps=3`.
+fn profile() -> hexcue::profile::Profile {
+    let mut profile = default_profile();
+    let Ok(spec) = std::env::var("MPC_BENCH") else {
+        return profile;
+    };
+    let m = &mut profile.mpc;
+    for kv in spec.split(',').filter(|s| !s.is_empty()) {
+        let Some((k, v)) = kv.split_once('=') else {
+            continue;
+        };
+        let f: f64 = v.parse().unwrap_or(f64::NAN);
+        match k {
+            "fine_step_s" => m.fine_step_s = f,
+            "fine_steps" => m.fine_steps = f as usize,
+            "coarse_step_s" => m.coarse_step_s = f,
+            "coarse_steps" => m.coarse_steps = f as usize,
+            "leg_constraint_stride" => m.leg_constraint_stride = f as usize,
+            "tolerance" => m.tolerance = f,
+            _ => eprintln!("MPC_BENCH: unknown key {k}"),
+        }
+    }
+    if let Err(e) = profile.validate() {
+        eprintln!("MPC_BENCH: {e}");
+    }
+    println!("overrides: {spec}");
+    profile
+}
+
 fn bench(terminal: Terminal) {
-    let profile = default_profile();
+    let profile = profile();
     let mut mpc = match Mpc::new(&profile.mpc, &profile, terminal) {
         Ok(m) => m,
         Err(e) => {
@@ -48,6 +89,7 @@ fn bench(terminal: Terminal) {
     let samples: Vec<CueSample> = (0..steps + 300).map(|k| manoeuvre(k as f64 * dt)).collect();
     let mut applied = PlatformCommand::default();
     let mut times_us = Vec::with_capacity(steps);
+    let mut cpu_us = Vec::with_capacity(steps);
     let mut solved = 0;
     let mut iterations = 0u64;
     for k in 0..steps {
@@ -59,9 +101,13 @@ fn bench(terminal: Terminal) {
             preview: &samples[k + 1..],
             applied: &applied,
         };
+        let cpu0 = thread_cpu_ns();
         let start = Instant::now();
         let out = mpc.solve(&input);
         times_us.push(start.elapsed().as_secs_f64() * 1e6);
+        if let (Some(a), Some(b)) = (cpu0, thread_cpu_ns()) {
+            cpu_us.push(b.saturating_sub(a) as f64 * 1e-3);
+        }
         solved += usize::from(out.feasible);
         iterations += u64::from(out.report.iterations);
         applied = out.command;
@@ -78,9 +124,21 @@ fn bench(terminal: Terminal) {
         percentile(&times_us, 0.99),
         times_us[times_us.len() - 1],
     );
+    if !cpu_us.is_empty() {
+        cpu_us.sort_by(f64::total_cmp);
+        println!(
+            "      thread CPU time per step: median {:.0} µs, p99 {:.0} µs, max {:.0} µs",
+            percentile(&cpu_us, 0.5),
+            percentile(&cpu_us, 0.99),
+            cpu_us[cpu_us.len() - 1],
+        );
+    }
 }
 
 fn main() {
+    if let Ok(load) = std::fs::read_to_string("/proc/loadavg") {
+        println!("load average: {}", load.trim());
+    }
     // `cargo test --benches` runs this with `--bench` absent: keep that quick.
     if !std::env::args().any(|a| a == "--bench") {
         return;

@@ -14,14 +14,12 @@ pub mod riccati;
 use std::time::Instant;
 
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{
-    DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
-};
+use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 use nalgebra::{DMatrix, DVector, Matrix6, Vector3, Vector6};
 
 use self::model::{input, pose_of, state, PredictionModel, NU, NX, POSE_STATE};
-use self::params::ReferenceMode;
 pub use self::params::MpcParams;
+use self::params::ReferenceMode;
 use self::qp::{CscPattern, Triplets};
 use super::{
     AlgorithmId, AlgorithmState, CueInput, CueSample, Mode, MotionCueing, PlatformCommand,
@@ -128,8 +126,8 @@ struct StepData<'a> {
     pose0: Vector6<f64>,
     legs0: Vector6<f64>,
     jacobian: Matrix6<f64>,
-    /// Perceived reference specific force now, for COTC's terminal equality.
-    f_ref_now: Vector3<f64>,
+    /// COTC's terminal roll and pitch: the tilt whose gravity gives the aircraft's Δf now.
+    terminal_tilt_rad: [f64; 2],
 }
 
 pub struct Mpc {
@@ -200,6 +198,13 @@ fn finite_or_zero(v: f64) -> f64 {
     }
 }
 
+/// Roll and pitch whose gravity gives the sample's Δf_y and Δf_x (DESIGN §1): φ = −asin(Δf_y/g),
+/// θ = asin(Δf_x/g). Beyond 1 g no tilt can: ±π/2 then makes COTC infeasible, as it should be.
+pub fn terminal_tilt(sample: &CueSample) -> [f64; 2] {
+    let tilt = |f: f64| (finite_or_zero(f) / crate::G_MPS2).clamp(-1.0, 1.0).asin();
+    [-tilt(sample.delta_f_mps2.y), tilt(sample.delta_f_mps2.x)]
+}
+
 /// Total roll, pitch and yaw rates of an input.
 fn total_rates(u: &[f64]) -> Vector3<f64> {
     Vector3::new(
@@ -210,7 +215,11 @@ fn total_rates(u: &[f64]) -> Vector3<f64> {
 }
 
 impl Mpc {
-    pub fn new(params: &MpcParams, profile: &Profile, terminal: Terminal) -> Result<Self, MpcError> {
+    pub fn new(
+        params: &MpcParams,
+        profile: &Profile,
+        terminal: Terminal,
+    ) -> Result<Self, MpcError> {
         let dt_s = profile.dt_s();
         let grid = params.grid();
         let model = PredictionModel::new(&profile.vestibular);
@@ -230,7 +239,10 @@ impl Mpc {
         let discrete: Vec<DiscreteStateSpace> =
             lengths.iter().map(|h| model.discretise(*h)).collect();
         let ref_model = profile.vestibular.perception_model();
-        let ref_discrete = lengths.iter().map(|h| ref_model.discretise_zoh(*h)).collect();
+        let ref_discrete = lengths
+            .iter()
+            .map(|h| ref_model.discretise_zoh(*h))
+            .collect();
         let thresholds = profile.vestibular.canal_threshold_radps();
         let margin = profile.limiter.leg_margin_m;
         let mut mpc = Mpc {
@@ -336,7 +348,11 @@ impl Mpc {
     /// Scales every washout weight (the S-MPC's adaptive weight regulator). Values are
     /// written into the solver in place; the COTC terminal weight keeps its nominal washout.
     pub fn set_washout_gain(&mut self, gain: f64) {
-        let gain = if gain.is_finite() { gain.clamp(0.0, 1e6) } else { 1.0 };
+        let gain = if gain.is_finite() {
+            gain.clamp(0.0, 1e6)
+        } else {
+            1.0
+        };
         if (gain - self.washout_gain).abs() <= 1e-12 * self.washout_gain.max(1.0) {
             return;
         }
@@ -389,7 +405,13 @@ impl Mpc {
     /// State weight of one fine interval: Cᵀ Q C on the perceived motion plus the washout
     /// terms, with every washout weight times `gain`. Built with unit weights it gives the
     /// structure that must stay fixed whatever the tuning.
-    fn stage_hessian_with(&self, q_f: [f64; 3], q_w: [f64; 3], washout: [[f64; 3]; 4], gain: f64) -> DMatrix<f64> {
+    fn stage_hessian_with(
+        &self,
+        q_f: [f64; 3],
+        q_w: [f64; 3],
+        washout: [[f64; 3]; 4],
+        gain: f64,
+    ) -> DMatrix<f64> {
         let mut q = DMatrix::zeros(6, 6);
         for i in 0..3 {
             q[(i, i)] = q_f[i];
@@ -405,9 +427,12 @@ impl Mpc {
         h[(state::TILT_ROLL, state::TILT_ROLL)] += gain * tilt[0];
         h[(state::TILT_PITCH, state::TILT_PITCH)] += gain * tilt[1];
         // Rotational-channel angle = total − tilt (roll, pitch), yaw itself.
-        for (j, (total, tilt_s)) in [(state::ROLL, state::TILT_ROLL), (state::PITCH, state::TILT_PITCH)]
-            .into_iter()
-            .enumerate()
+        for (j, (total, tilt_s)) in [
+            (state::ROLL, state::TILT_ROLL),
+            (state::PITCH, state::TILT_PITCH),
+        ]
+        .into_iter()
+        .enumerate()
         {
             let w = gain * rot[j];
             h[(total, total)] += w;
@@ -472,7 +497,11 @@ impl Mpc {
                     t.push(uc + k, Self::u_col(i + 1) + k, -2.0 * r[k]);
                 }
             }
-            let terminal = if i + 1 == n { self.terminal_weight.as_ref() } else { None };
+            let terminal = if i + 1 == n {
+                self.terminal_weight.as_ref()
+            } else {
+                None
+            };
             for c in 0..NX {
                 for rr in 0..=c {
                     match terminal {
@@ -547,38 +576,40 @@ impl Mpc {
             row += NX;
         }
         if self.terminal == Terminal::Cotc {
-            let xc = Self::x_col(n - 1);
-            // Back at neutral and at rest.
+            let (xc, uc) = (Self::x_col(n - 1), Self::u_col(n - 1));
+            // At rest at neutral: position and velocity zero, no acceleration in the last
+            // interval (else an otolith transient could pass for the sustained cue).
             for k in 0..6 {
                 t.push(row, xc + state::POS + k, 1.0);
                 b.push(0.0);
                 row += 1;
             }
-            // Perceived specific force (x, y) equal to the reference's now.
-            for a in 0..2 {
-                for k in 0..NX {
-                    let v = self.perceived_c[(a, k)];
-                    if v != 0.0 {
-                        t.push(row, xc + k, v);
-                    }
-                }
-                b.push(d.f_ref_now[a]);
+            for k in 0..3 {
+                t.push(row, uc + input::ACCEL_X + k, 1.0);
+                b.push(0.0);
+                row += 1;
+            }
+            // The sustained specific force carried by tilt alone.
+            for (k, s) in [state::ROLL, state::PITCH].into_iter().enumerate() {
+                t.push(row, xc + s, 1.0);
+                b.push(d.terminal_tilt_rad[k]);
                 row += 1;
             }
         }
         self.n_eq = row;
         let lim = &self.limits;
-        let mut bound = |t: &mut Triplets, b: &mut Vec<f64>, entries: &[(usize, f64)], lo: f64, hi: f64| {
-            for &(c, v) in entries {
-                t.push(row, c, v);
-            }
-            b.push(hi);
-            for &(c, v) in entries {
-                t.push(row + 1, c, -v);
-            }
-            b.push(-lo);
-            row += 2;
-        };
+        let mut bound =
+            |t: &mut Triplets, b: &mut Vec<f64>, entries: &[(usize, f64)], lo: f64, hi: f64| {
+                for &(c, v) in entries {
+                    t.push(row, c, v);
+                }
+                b.push(hi);
+                for &(c, v) in entries {
+                    t.push(row + 1, c, -v);
+                }
+                b.push(-lo);
+                row += 2;
+            };
         let u_prev_rates = total_rates(d.u_prev.as_slice());
         let alpha = lim.acceleration.fixed_rows::<3>(3).into_owned();
         let legs_offset = d.legs0 - d.jacobian * d.pose0;
@@ -626,7 +657,13 @@ impl Mpc {
             // Tilt below the canals' threshold, so that it is not felt as rotation.
             for k in 0..2 {
                 let w = self.tilt_rate_max_radps[k];
-                bound(&mut t, &mut b, &[(uc + input::TILT_ROLL_RATE + k, 1.0)], -w, w);
+                bound(
+                    &mut t,
+                    &mut b,
+                    &[(uc + input::TILT_ROLL_RATE + k, 1.0)],
+                    -w,
+                    w,
+                );
             }
             // Leg lengths, linearised around the current pose.
             if (i + 1) % stride == 0 || i + 1 == n {
@@ -656,7 +693,7 @@ impl Mpc {
         &self,
         x0: &'a DVector<f64>,
         u_prev: &'a DVector<f64>,
-        f_ref_now: Vector3<f64>,
+        terminal_tilt_rad: [f64; 2],
     ) -> StepData<'a> {
         let pose0 = pose_of(x0);
         StepData {
@@ -665,7 +702,7 @@ impl Mpc {
             pose0,
             legs0: self.stewart.leg_lengths(&pose0),
             jacobian: self.stewart.jacobian(&pose0),
-            f_ref_now,
+            terminal_tilt_rad,
         }
     }
 
@@ -689,7 +726,7 @@ impl Mpc {
     fn build_solver(&mut self) -> Result<(), MpcError> {
         let (x0, u0, y_ref) = self.neutral_step_data();
         self.y_ref = y_ref;
-        let data = self.step_data(&x0, &u0, Vector3::zeros());
+        let data = self.step_data(&x0, &u0, [0.0; 2]);
         self.assemble_a(&data);
         self.assemble_p();
         self.assemble_q(&u0);
@@ -729,9 +766,12 @@ impl Mpc {
             }
             // Keep this controller's split of roll and pitch into tilt and rotation, shrunk
             // with the total when something upstream scaled it toward neutral.
-            for (j, (total, tilt)) in [(state::ROLL, state::TILT_ROLL), (state::PITCH, state::TILT_PITCH)]
-                .into_iter()
-                .enumerate()
+            for (j, (total, tilt)) in [
+                (state::ROLL, state::TILT_ROLL),
+                (state::PITCH, state::TILT_PITCH),
+            ]
+            .into_iter()
+            .enumerate()
             {
                 let new_total = applied.pose[3 + j];
                 let old_total = x[total];
@@ -817,11 +857,15 @@ impl Mpc {
             self.dt_s
         };
         self.sync_and_advance(input.applied, dt_s);
-        let f_ref_now = (&self.ref_discrete[0].c * &self.ref_x).fixed_rows::<3>(0).into_owned();
-        let perceived_now = (&self.perceived_c * &self.x).fixed_rows::<3>(0).into_owned();
+        let f_ref_now = (&self.ref_discrete[0].c * &self.ref_x)
+            .fixed_rows::<3>(0)
+            .into_owned();
+        let perceived_now = (&self.perceived_c * &self.x)
+            .fixed_rows::<3>(0)
+            .into_owned();
         self.predict_reference(&input.sample, input.preview, dt_s);
         let started = Instant::now();
-        let solution = self.solve_qp(f_ref_now);
+        let solution = self.solve_qp(terminal_tilt(&input.sample));
         let wall_us = started.elapsed().as_secs_f64() * 1e6;
         self.report.solve_time_us = wall_us;
         let prev_mode = self.mode;
@@ -829,7 +873,11 @@ impl Mpc {
             Some(u0) => (u0, true),
             None => (self.fallback_input(dt_s), false),
         };
-        self.mode = if feasible { self.solved_mode() } else { Mode::Fallback };
+        self.mode = if feasible {
+            self.solved_mode()
+        } else {
+            Mode::Fallback
+        };
         if self.mode == prev_mode {
             self.time_in_mode_s += dt_s;
         } else {
@@ -850,7 +898,7 @@ impl Mpc {
     }
 
     /// Writes this step's values into the solver and solves; the first move when solved.
-    fn solve_qp(&mut self, f_ref_now: Vector3<f64>) -> Option<DVector<f64>> {
+    fn solve_qp(&mut self, terminal_tilt_rad: [f64; 2]) -> Option<DVector<f64>> {
         if !self.x.iter().all(|v| v.is_finite()) {
             self.report.status = "non_finite_state".into();
             self.report.iterations = 0;
@@ -858,7 +906,7 @@ impl Mpc {
         }
         let x0 = self.x.clone();
         let u_prev = self.u_last.clone();
-        let data = self.step_data(&x0, &u_prev, f_ref_now);
+        let data = self.step_data(&x0, &u_prev, terminal_tilt_rad);
         self.assemble_a(&data);
         self.assemble_q(&u_prev);
         let Some(solver) = self.solver.as_mut() else {
@@ -879,8 +927,10 @@ impl Mpc {
         let sol = &solver.solution;
         self.report.status = status_word(&sol.status).into();
         self.report.iterations = sol.iterations;
-        let ok = matches!(sol.status, SolverStatus::Solved | SolverStatus::AlmostSolved)
-            && sol.x.iter().all(|v| v.is_finite());
+        let ok = matches!(
+            sol.status,
+            SolverStatus::Solved | SolverStatus::AlmostSolved
+        ) && sol.x.iter().all(|v| v.is_finite());
         if !ok {
             return None;
         }
@@ -913,8 +963,8 @@ impl Mpc {
                 let w = self.params.fallback_washout_radps;
                 let mut u = DVector::zeros(NU);
                 for k in 0..3 {
-                    u[input::ACCEL_X + k] = -w * w * self.x[state::POS + k]
-                        - 2.0 * w * self.x[state::VEL + k];
+                    u[input::ACCEL_X + k] =
+                        -w * w * self.x[state::POS + k] - 2.0 * w * self.x[state::VEL + k];
                 }
                 // Roll and pitch return through the tilt channel, yaw through rotation.
                 u[input::TILT_ROLL_RATE] = -w * self.x[state::ROLL];
@@ -931,7 +981,8 @@ impl Mpc {
         }
         for k in 0..2 {
             let w = self.tilt_rate_max_radps[k];
-            u[input::TILT_ROLL_RATE + k] = finite_or_zero(u[input::TILT_ROLL_RATE + k]).clamp(-w, w);
+            u[input::TILT_ROLL_RATE + k] =
+                finite_or_zero(u[input::TILT_ROLL_RATE + k]).clamp(-w, w);
         }
         let prev_rates = total_rates(self.u_last.as_slice());
         for k in 0..3 {

@@ -146,7 +146,10 @@ impl MpcParams {
         non_negative("tilt_rate_weight", &self.tilt_rate_weight)?;
         non_negative("rotation_rate_weight", &self.rotation_rate_weight)?;
         // R > 0 keeps the QP strictly convex in the inputs whatever S is.
-        strictly_positive("acceleration_change_weight", &self.acceleration_change_weight)?;
+        strictly_positive(
+            "acceleration_change_weight",
+            &self.acceleration_change_weight,
+        )?;
         strictly_positive("tilt_rate_change_weight", &self.tilt_rate_change_weight)?;
         strictly_positive(
             "rotation_rate_change_weight",

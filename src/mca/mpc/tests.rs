@@ -67,7 +67,7 @@ fn qp_is_small_and_the_horizon_long_enough() {
     assert!(nin > 0);
     assert!(mpc.horizon_s() >= 1.5);
     let cotc = Mpc::new(&p.mpc, &p, Terminal::Cotc).unwrap();
-    assert_eq!(cotc.qp_size().1, neq + 8);
+    assert_eq!(cotc.qp_size().1, neq + 11);
 }
 
 #[test]
@@ -88,7 +88,8 @@ fn first_move_equals_the_dense_kkt_optimum_when_no_constraint_is_active() {
     let mut kkt = DMatrix::zeros(nv + neq, nv + neq);
     kkt.view_mut((0, 0), (nv, nv)).copy_from(&p_dense);
     kkt.view_mut((nv, 0), (neq, nv)).copy_from(&a_eq);
-    kkt.view_mut((0, nv), (nv, neq)).copy_from(&a_eq.transpose());
+    kkt.view_mut((0, nv), (nv, neq))
+        .copy_from(&a_eq.transpose());
     let mut rhs = DVector::zeros(nv + neq);
     for i in 0..nv {
         rhs[i] = -mpc.q[i];
@@ -100,7 +101,11 @@ fn first_move_equals_the_dense_kkt_optimum_when_no_constraint_is_active() {
     // No inequality is active at the unconstrained optimum…
     let a_in = a_all.rows(neq, a_all.nrows() - neq).into_owned();
     let slack = DVector::from_row_slice(&mpc.b[neq..]) - &a_in * z.rows(0, nv);
-    assert!(slack.min() > 1e-3, "an inequality is active: {}", slack.min());
+    assert!(
+        slack.min() > 1e-3,
+        "an inequality is active: {}",
+        slack.min()
+    );
     // …so the interior-point solution's first move is the same.
     for k in 0..NU {
         assert!(
@@ -147,11 +152,23 @@ fn cotc_meets_its_terminal_equalities() {
         let xc = Mpc::x_col(mpc.grid.len() - 1);
         let x_n = DVector::from_row_slice(&z[xc..xc + NX]);
         for s in 0..6 {
-            assert!(x_n[state::POS + s].abs() < 1e-6, "k {k}: state {s} = {}", x_n[s]);
+            assert!(
+                x_n[state::POS + s].abs() < 1e-6,
+                "k {k}: state {s} = {}",
+                x_n[s]
+            );
         }
-        let f_n = (&mpc.perceived_c * &x_n).fixed_rows::<2>(0).into_owned();
-        let f_ref = out.reference_f_mps2.fixed_rows::<2>(0).into_owned();
-        assert!((f_n - f_ref).amax() < 1e-6, "k {k}: {f_n:?} vs {f_ref:?}");
+        let uc = Mpc::u_col(mpc.grid.len() - 1);
+        for a in 0..3 {
+            assert!(
+                z[uc + a].abs() < 1e-6,
+                "k {k}: last acceleration {}",
+                z[uc + a]
+            );
+        }
+        let target = terminal_tilt(&input(k as f64 * 0.01));
+        assert!((x_n[state::ROLL] - target[0]).abs() < 1e-6, "k {k}: roll");
+        assert!((x_n[state::PITCH] - target[1]).abs() < 1e-6, "k {k}: pitch");
     }
     assert!(checked >= 10, "COTC solved only {checked} of 15 steps");
 }
@@ -162,11 +179,7 @@ fn cotc_on_a_sustained_6_mps2_surge_is_infeasible() {
     let surge = sample([6.0, 0.0, 0.0], [0.0; 3]);
     for terminal in [Terminal::Cotc, Terminal::Free] {
         let mut mpc = Mpc::new(&p.mpc, &p, terminal).unwrap();
-        // The aircraft has pulled 6 m/s² for 5 s: its perceived reference is established
-        // (solving every one of those steps would only slow the debug build down).
-        for _ in 0..500 {
-            mpc.advance_reference(&surge, 0.01);
-        }
+        // asin(6 / g) = 37.7° of tilt: beyond the 25° the platform has.
         let outs = run(&mut mpc, 5, |_| surge);
         let last = outs.last().unwrap();
         assert!(outs.iter().all(|o| o.command.is_finite()));
@@ -211,7 +224,14 @@ fn closed_loop_keeps_legs_in_stroke_without_clipping() {
                 0.15 * pulse(t, 10.0, 16.0),
             ],
         );
-        let input = CueInput { k, t_s: t, dt_s: dt, sample: s, preview: &[], applied: &applied };
+        let input = CueInput {
+            k,
+            t_s: t,
+            dt_s: dt,
+            sample: s,
+            preview: &[],
+            applied: &applied,
+        };
         let out = mpc.solve(&input);
         let c = out.command;
         assert!(c.is_finite(), "k {k}");
@@ -219,15 +239,24 @@ fn closed_loop_keeps_legs_in_stroke_without_clipping() {
         let margin = stewart.margins(&stewart.leg_lengths(&c.pose)).min();
         worst_margin = worst_margin.min(margin);
         for d in 0..6 {
-            assert!(c.pose[d].abs() <= lim.excursion[d] * (1.0 + 1e-6) + 1e-9, "k {k} pose {d}");
-            assert!(c.velocity[d].abs() <= lim.velocity[d] * (1.0 + 1e-6) + 1e-9, "k {k} vel {d}");
+            assert!(
+                c.pose[d].abs() <= lim.excursion[d] * (1.0 + 1e-6) + 1e-9,
+                "k {k} pose {d}"
+            );
+            assert!(
+                c.velocity[d].abs() <= lim.velocity[d] * (1.0 + 1e-6) + 1e-9,
+                "k {k} vel {d}"
+            );
         }
         peak_x = peak_x.max(c.pose[0].abs());
         // The raw command goes to the platform unchanged: the limiter would not act.
         applied = c;
     }
     assert_eq!(failures, 0, "every QP solved");
-    assert!(worst_margin >= 0.0, "a leg left its stroke: margin {worst_margin} m");
+    assert!(
+        worst_margin >= 0.0,
+        "a leg left its stroke: margin {worst_margin} m"
+    );
     assert!(peak_x > 0.05, "the surge was cued ({peak_x} m)");
 }
 
@@ -236,7 +265,9 @@ fn preview_sees_a_step_before_it_comes() {
     let mut p = profile();
     p.mpc.reference = ReferenceMode::Preview;
     let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
-    let future: Vec<CueSample> = (0..300).map(|_| sample([2.0, 0.0, 0.0], [0.0; 3])).collect();
+    let future: Vec<CueSample> = (0..300)
+        .map(|_| sample([2.0, 0.0, 0.0], [0.0; 3]))
+        .collect();
     let applied = PlatformCommand::default();
     let input = CueInput {
         k: 0,
@@ -249,7 +280,11 @@ fn preview_sees_a_step_before_it_comes() {
     let out = mpc.solve(&input);
     assert!(out.feasible);
     // Holding the current (zero) sample, the platform would stay at rest.
-    let moved = out.command.acceleration.amax().max(out.command.velocity.amax());
+    let moved = out
+        .command
+        .acceleration
+        .amax()
+        .max(out.command.velocity.amax());
     assert!(moved > 1e-3, "it moves before the step ({:?})", out.command);
 }
 
@@ -257,7 +292,10 @@ fn preview_sees_a_step_before_it_comes() {
 fn non_finite_input_never_yields_nan() {
     let p = profile();
     let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
-    let bad = sample([f64::NAN, f64::INFINITY, 0.0], [f64::NAN, 0.0, f64::NEG_INFINITY]);
+    let bad = sample(
+        [f64::NAN, f64::INFINITY, 0.0],
+        [f64::NAN, 0.0, f64::NEG_INFINITY],
+    );
     let nan_cmd = PlatformCommand {
         pose: Vector6::from_element(f64::NAN),
         ..PlatformCommand::default()
@@ -278,7 +316,11 @@ fn failed_solve_follows_the_plan_then_washes_out() {
     let plan_u0 = mpc.plan().inputs[0];
     mpc.params.time_limit_ms = 1e-6;
     let settings = mpc.settings();
-    mpc.solver.as_mut().unwrap().update_settings(settings).unwrap();
+    mpc.solver
+        .as_mut()
+        .unwrap()
+        .update_settings(settings)
+        .unwrap();
     let mut applied = outs.last().unwrap().command;
     let mut last = None;
     for k in 5..5 + 220 {
