@@ -29,15 +29,31 @@ fn manoeuvre(t: f64) -> CueSample {
     }
 }
 
-/// CPU time this thread has run (ns), from the scheduler: the step's own cost, whatever
-/// else the shared machine is doing. `None` where /proc is unavailable.
+/// CPU time this thread has run (ns): the step's own cost, whatever else the shared machine
+/// is doing. `None` where the clock is unavailable.
+#[cfg(target_os = "linux")]
 fn thread_cpu_ns() -> Option<u64> {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()?
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()
+    #[repr(C)]
+    struct Timespec {
+        tv_sec: i64,
+        tv_nsec: i64,
+    }
+    extern "C" {
+        fn clock_gettime(clock: i32, tp: *mut Timespec) -> i32;
+    }
+    const CLOCK_THREAD_CPUTIME_ID: i32 = 3;
+    let mut ts = Timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes one timespec through a valid pointer.
+    let rc = unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    (rc == 0).then(|| ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64)
+}
+
+#[cfg(not(target_os = "linux"))]
+fn thread_cpu_ns() -> Option<u64> {
+    None
 }
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
@@ -92,6 +108,8 @@ fn bench(terminal: Terminal) {
     let mut cpu_us = Vec::with_capacity(steps);
     let mut solved = 0;
     let mut iterations = 0u64;
+    let mut qp_us = Vec::with_capacity(steps);
+    let mut statuses = std::collections::BTreeMap::new();
     for k in 0..steps {
         let input = CueInput {
             k,
@@ -109,11 +127,15 @@ fn bench(terminal: Terminal) {
             cpu_us.push(b.saturating_sub(a) as f64 * 1e-3);
         }
         solved += usize::from(out.feasible);
+        *statuses.entry(out.report.status.clone()).or_insert(0usize) += 1;
         iterations += u64::from(out.report.iterations);
+        qp_us.push(out.report.solve_time_us);
         applied = out.command;
     }
     times_us.sort_by(f64::total_cmp);
     let (nv, neq, nin) = mpc.qp_size();
+    let (nnz_p, nnz_a) = mpc.qp_nonzeros();
+    println!("      nonzeros: P {nnz_p}, A {nnz_a}");
     println!(
         "{:>4}: {nv} variables, {neq} equality + {nin} inequality rows; {steps} steps, \
          {solved} solved, {:.1} iterations mean; step time median {:.0} µs, p99 {:.0} µs, \
@@ -123,6 +145,13 @@ fn bench(terminal: Terminal) {
         percentile(&times_us, 0.5),
         percentile(&times_us, 0.99),
         times_us[times_us.len() - 1],
+    );
+    println!("      statuses: {statuses:?}");
+    qp_us.sort_by(f64::total_cmp);
+    println!(
+        "      of which the solver's own solve: median {:.0} µs, p99 {:.0} µs",
+        percentile(&qp_us, 0.5),
+        percentile(&qp_us, 0.99)
     );
     if !cpu_us.is_empty() {
         cpu_us.sort_by(f64::total_cmp);

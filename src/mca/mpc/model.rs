@@ -139,7 +139,7 @@ mod tests {
         u[input::TILT_PITCH_RATE] = 0.01;
         u[input::ROT_YAW_RATE] = 0.02;
         let mut vest = LtiFilter::new(integrated_model(&p).discretise_zoh(0.1));
-        let mut yv = vec![0.0; 8];
+        let mut yv = [0.0; 8];
         for _ in 0..20 {
             x = &d.a * &x + &d.b * &u;
             yv.copy_from_slice(vest.step(u.as_slice()));

@@ -63,7 +63,7 @@ fn qp_is_small_and_the_horizon_long_enough() {
     let p = profile();
     let mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
     let (nv, neq, nin) = mpc.qp_size();
-    assert_eq!((nv, neq), (10 * (NU + NX), 10 * NX));
+    assert_eq!((nv, neq), (6 * (NU + NX), 6 * NX));
     assert!(nin > 0);
     assert!(mpc.horizon_s() >= 1.5);
     let cotc = Mpc::new(&p.mpc, &p, Terminal::Cotc).unwrap();
