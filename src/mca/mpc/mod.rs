@@ -65,6 +65,8 @@ pub struct Plan {
     pub interval_s: Vec<f64>,
     /// Input held over each interval, in the model's order (a 3, ω_tilt 2, ω_rot 3).
     pub inputs: Vec<[f64; NU]>,
+    /// Pose when the plan was made.
+    pub start_pose: Vector6<f64>,
     /// Pose at the end of each interval.
     pub poses: Vec<Vector6<f64>>,
     /// Time since the plan was made (s).
@@ -82,6 +84,21 @@ impl Plan {
             }
         }
         None
+    }
+
+    /// Pose the plan predicts `t_s` after it was made, linear between its grid points and
+    /// held after the last; `None` for an empty plan.
+    pub fn pose_at(&self, t_s: f64) -> Option<Vector6<f64>> {
+        let (mut t0, mut p0) = (0.0, self.start_pose);
+        for (h, p1) in self.interval_s.iter().zip(&self.poses) {
+            if t_s <= t0 + h {
+                let w = ((t_s - t0) / h).clamp(0.0, 1.0);
+                return Some(p0 + (p1 - p0) * w);
+            }
+            t0 += h;
+            p0 = *p1;
+        }
+        self.poses.last().copied()
     }
 }
 
@@ -123,9 +140,10 @@ pub fn status_word(s: &SolverStatus) -> &'static str {
 struct StepData<'a> {
     x0: &'a DVector<f64>,
     u_prev: &'a DVector<f64>,
-    pose0: Vector6<f64>,
-    legs0: Vector6<f64>,
-    jacobian: Matrix6<f64>,
+    /// Per grid point: leg lengths l(p̄) − J p̄ and J = ∂l/∂pose at the linearisation pose p̄,
+    /// so that l(p) ≈ offset + J p.
+    leg_offset: Vec<Vector6<f64>>,
+    leg_jacobian: Vec<Matrix6<f64>>,
     /// COTC's terminal roll and pitch: the tilt whose gravity gives the aircraft's Δf now.
     terminal_tilt_rad: [f64; 2],
 }
@@ -612,7 +630,6 @@ impl Mpc {
             };
         let u_prev_rates = total_rates(d.u_prev.as_slice());
         let alpha = lim.acceleration.fixed_rows::<3>(3).into_owned();
-        let legs_offset = d.legs0 - d.jacobian * d.pose0;
         let stride = self.params.leg_constraint_stride.max(1);
         for i in 0..n {
             let (xc, uc) = (Self::x_col(i), Self::u_col(i));
@@ -666,13 +683,14 @@ impl Mpc {
                 );
             }
             // Leg lengths, linearised around the current pose.
-            if (i + 1) % stride == 0 || i + 1 == n {
+            // The first point always: it is where the platform goes next.
+            if i % stride == 0 || i + 1 == n {
                 for leg in 0..6 {
                     let mut e = [(0usize, 0.0f64); 6];
                     for (dof, &s) in POSE_STATE.iter().enumerate() {
-                        e[dof] = (xc + s, d.jacobian[(leg, dof)]);
+                        e[dof] = (xc + s, d.leg_jacobian[i][(leg, dof)]);
                     }
-                    let off = legs_offset[leg];
+                    let off = d.leg_offset[i][leg];
                     bound(&mut t, &mut b, &e, self.leg_lo_m - off, self.leg_hi_m - off);
                 }
             }
@@ -696,12 +714,29 @@ impl Mpc {
         terminal_tilt_rad: [f64; 2],
     ) -> StepData<'a> {
         let pose0 = pose_of(x0);
+        // Each grid point is linearised around where the last solved plan put the platform
+        // at that point (the leg length is convex in the translation, so a tangent at the
+        // current pose underestimates it further along); around the current pose when there
+        // is no fresh plan.
+        let fresh = self.plan.elapsed_s < 1e-12 && self.plan.poses.len() == self.grid.len();
+        let (mut leg_offset, mut leg_jacobian) = (Vec::new(), Vec::new());
+        let mut t_end = 0.0;
+        for i in 0..self.grid.len() {
+            // The plan was made one step ago.
+            t_end += self.grid[i];
+            let p = match self.plan.pose_at(t_end + self.trace_model.dt_s) {
+                Some(p) if fresh && p.iter().all(|v| v.is_finite()) => p,
+                _ => pose0,
+            };
+            let j = self.stewart.jacobian(&p);
+            leg_offset.push(self.stewart.leg_lengths(&p) - j * p);
+            leg_jacobian.push(j);
+        }
         StepData {
             x0,
             u_prev,
-            pose0,
-            legs0: self.stewart.leg_lengths(&pose0),
-            jacobian: self.stewart.jacobian(&pose0),
+            leg_offset,
+            leg_jacobian,
             terminal_tilt_rad,
         }
     }
@@ -962,6 +997,7 @@ impl Mpc {
         self.plan.inputs.clear();
         self.plan.poses.clear();
         self.plan.elapsed_s = 0.0;
+        self.plan.start_pose = pose_of(&self.x);
         for i in 0..n {
             let uc = Self::u_col(i);
             let mut u = [0.0; NU];

@@ -28,7 +28,7 @@ pub struct MpcParams {
     pub coarse_step_s: f64,
     /// Number of coarse intervals (may be 0).
     pub coarse_steps: usize,
-    /// Leg-length constraints at every n-th grid point (and always the last).
+    /// Leg-length constraints at the first grid point, every n-th after it, and the last.
     pub leg_constraint_stride: usize,
     /// Weight on the perceived specific-force error f̂ − f̂_ref per axis, per (m/s²)².
     pub specific_force_weight: [f64; 3],
