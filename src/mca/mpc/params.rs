@@ -176,3 +176,57 @@ impl MpcParams {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::profile::tests::full_flight;
+
+    #[test]
+    fn invalid_values_name_their_key() {
+        let base = full_flight();
+        let cases: [(&str, fn(&mut super::MpcParams)); 5] = [
+            ("mpc.coarse_steps", |m| m.coarse_steps = 1),
+            ("mpc.specific_force_weight[1]", |m| {
+                m.specific_force_weight[1] = -1.0
+            }),
+            ("mpc.washout_position_weight[2]", |m| {
+                m.washout_position_weight[2] = 0.0
+            }),
+            ("mpc.tolerance", |m| m.tolerance = f64::NAN),
+            ("mpc.leg_constraint_stride", |m| m.leg_constraint_stride = 0),
+        ];
+        for (key, spoil) in cases {
+            let mut p = base.clone();
+            spoil(&mut p.mpc);
+            let err = p.validate().unwrap_err();
+            assert_eq!(err.key, key, "{err}");
+        }
+        let mut p = base.clone();
+        p.mpc.fine_step_s = 0.005;
+        p.mpc.fine_steps = 100;
+        assert!(
+            p.validate().is_err(),
+            "a fine step shorter than a sample is refused"
+        );
+    }
+
+    #[test]
+    fn unknown_keys_are_refused_and_reference_parses() {
+        let toml = crate::formats::profile::DEFAULT_PROFILE_TOML;
+        let spoiled = toml.replace("reference = \"hold\"", "reference = \"hold\"\nhorizon = 3");
+        assert!(crate::formats::profile::parse_profile(&spoiled, "t").is_err());
+        let preview = toml.replace("reference = \"hold\"", "reference = \"preview\"");
+        let p = crate::formats::profile::parse_profile(&preview, "t").unwrap();
+        assert_eq!(p.mpc.reference, super::ReferenceMode::Preview);
+    }
+
+    #[test]
+    fn both_shipped_profiles_load() {
+        for path in ["profiles/full-flight.toml", "profiles/compact.toml"] {
+            let full = format!("{}/{path}", env!("CARGO_MANIFEST_DIR"));
+            let text = std::fs::read_to_string(&full).unwrap();
+            let p = crate::formats::profile::parse_profile(&text, path).unwrap();
+            assert!(p.mpc.horizon_s() >= 1.5);
+        }
+    }
+}

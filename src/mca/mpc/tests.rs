@@ -385,3 +385,26 @@ fn leg_constraints_hold_a_diagonal_excursion_within_the_margin() {
     );
     assert!(worst > p.limiter.leg_margin_m - 1e-3, "margin {worst} m");
 }
+
+#[test]
+fn compact_rig_builds_and_solves() {
+    let text = include_str!("../../../profiles/compact.toml");
+    let mut p = crate::formats::profile::parse_profile(text, "compact.toml").unwrap();
+    p.mpc.time_limit_ms = 10_000.0;
+    let stewart = p.stewart();
+    for terminal in [Terminal::Free, Terminal::Cotc] {
+        let mut mpc = Mpc::new(&p.mpc, &p, terminal).unwrap();
+        let outs = run(&mut mpc, 10, |_| sample([1.0, -0.5, 0.3], [0.05, 0.0, 0.1]));
+        assert!(outs.iter().all(|o| o.command.is_finite()));
+        if terminal == Terminal::Free {
+            assert!(
+                outs.iter().all(|o| o.feasible),
+                "{:?}",
+                outs.last().unwrap().report
+            );
+        }
+        for o in &outs {
+            assert!(stewart.fits(&o.command.pose, 0.0));
+        }
+    }
+}
