@@ -184,7 +184,8 @@ mod tests {
     #[test]
     fn invalid_values_name_their_key() {
         let base = full_flight();
-        let cases: [(&str, fn(&mut super::MpcParams)); 5] = [
+        type Spoil = fn(&mut super::MpcParams);
+        let cases: [(&str, Spoil); 5] = [
             ("mpc.coarse_steps", |m| m.coarse_steps = 1),
             ("mpc.specific_force_weight[1]", |m| {
                 m.specific_force_weight[1] = -1.0
