@@ -408,3 +408,34 @@ fn compact_rig_builds_and_solves() {
         }
     }
 }
+
+#[test]
+fn washout_gain_is_written_in_place_and_pulls_toward_neutral() {
+    let p = profile();
+    let surge = |_| sample([2.0, 0.0, 0.0], [0.0; 3]);
+    let mut nominal = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let mut strong = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    strong.set_washout_gain(50.0);
+    assert_eq!(strong.washout_gain(), 50.0);
+    let a = run(&mut nominal, 3, surge);
+    let b = run(&mut strong, 3, surge);
+    assert!(a.iter().chain(&b).all(|o| o.feasible));
+    // Same structure (the solver was updated, not rebuilt), smaller excursion planned.
+    assert_eq!(nominal.qp_nonzeros(), strong.qp_nonzeros());
+    let reach = |m: &Mpc| {
+        m.plan()
+            .poses
+            .iter()
+            .map(|q| q[0].abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(
+        reach(&strong) < reach(&nominal),
+        "{} vs {}",
+        reach(&strong),
+        reach(&nominal)
+    );
+    // Nonsense gains are ignored rather than poisoning the QP.
+    strong.set_washout_gain(f64::NAN);
+    assert_eq!(strong.washout_gain(), 1.0);
+}
