@@ -6,6 +6,7 @@
 use nalgebra::{Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
+use crate::mca::mpc::MpcParams;
 use crate::mca::washout::WashoutParams;
 use crate::model::stewart::{Geometry, Stewart};
 use crate::model::vestibular::VestibularParams;
@@ -39,6 +40,9 @@ pub struct Profile {
     #[serde(default)]
     pub vestibular: VestibularParams,
     pub cwf: WashoutParams,
+    pub mpc: MpcParams,
+    /// The switchable MPC's supervisor, mixer and weight regulator; its two MPCs use `[mpc]`.
+    pub smpc: crate::mca::switching::SwitchingParams,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -294,7 +298,20 @@ impl Profile {
                 v.otolith_threshold_mps2[i],
             )?;
         }
-        self.cwf.validate()
+        self.cwf.validate()?;
+        self.mpc.validate()?;
+        self.smpc.validate("smpc")?;
+        if self.mpc.fine_step_s < self.dt_s() - 1e-12 {
+            return err(
+                "mpc.fine_step_s",
+                format!(
+                    "{} s is shorter than one sample at rate_hz ({} s)",
+                    self.mpc.fine_step_s,
+                    self.dt_s()
+                ),
+            );
+        }
+        Ok(())
     }
 }
 

@@ -2,6 +2,7 @@
 //! workspace limiter that ends every algorithm.
 
 pub mod limiter;
+pub mod mpc;
 pub mod switching;
 pub mod washout;
 
@@ -14,15 +15,20 @@ use crate::profile::Profile;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum AlgorithmId {
+    Smpc,
+    Mpc,
     Cwf,
 }
 
 impl AlgorithmId {
-    pub const ALL: &'static [AlgorithmId] = &[AlgorithmId::Cwf];
+    pub const ALL: &'static [AlgorithmId] =
+        &[AlgorithmId::Smpc, AlgorithmId::Mpc, AlgorithmId::Cwf];
 
     /// Short name used on the command line, in topics (`/cwf/...`) and summaries.
     pub fn key(self) -> &'static str {
         match self {
+            AlgorithmId::Smpc => "smpc",
+            AlgorithmId::Mpc => "mpc",
             AlgorithmId::Cwf => "cwf",
         }
     }
@@ -30,6 +36,8 @@ impl AlgorithmId {
     /// Name shown to people.
     pub fn label(self) -> &'static str {
         match self {
+            AlgorithmId::Smpc => "S-MPC",
+            AlgorithmId::Mpc => "MPC",
             AlgorithmId::Cwf => "CWF",
         }
     }
@@ -135,7 +143,7 @@ impl Mode {
 }
 
 /// Outcome of one QP solve, as information for the operator.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct SolverReport {
     /// Which QP: `mpc`, `cotc`, `free`. Owned so that a report read back from a recording
     /// is the same type as a live one.
@@ -190,11 +198,27 @@ pub enum BuildError {
         section: &'static str,
         algorithm: AlgorithmId,
     },
+    #[error("{algorithm}: {reason}")]
+    Setup {
+        algorithm: AlgorithmId,
+        reason: String,
+    },
 }
 
 /// Builds the algorithm `id` as the profile tunes it.
 pub fn build(id: AlgorithmId, profile: &Profile) -> Result<Box<dyn MotionCueing>, BuildError> {
+    let setup = |e: mpc::MpcError| BuildError::Setup {
+        algorithm: id,
+        reason: e.to_string(),
+    };
     match id {
+        AlgorithmId::Smpc => Err(BuildError::Setup {
+            algorithm: id,
+            reason: "the S-MPC lands in the next commit".into(),
+        }),
+        AlgorithmId::Mpc => mpc::Mpc::new(&profile.mpc, profile, mpc::Terminal::Free)
+            .map(|m| Box::new(m) as Box<dyn MotionCueing>)
+            .map_err(setup),
         AlgorithmId::Cwf => Ok(Box::new(washout::Washout::new(&profile.cwf, profile))),
     }
 }

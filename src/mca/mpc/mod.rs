@@ -1,0 +1,1123 @@
+//! Model predictive motion cueing (DESIGN §5), without terminal conditions (`mpc`) and with
+//! them (COTC), as one type. The model, the QP and the choices behind them: `docs/mpc.md`.
+//!
+//! Each step: bring the prediction state to the applied platform state, predict the aircraft's
+//! perceived motion over the horizon, re-linearise the leg lengths around the current pose,
+//! overwrite the QP's values in the solver (the structure was built once) and solve. On any
+//! outcome other than a solution the previous plan is followed, then a smooth washout.
+
+pub mod model;
+pub mod params;
+pub mod qp;
+pub mod riccati;
+
+use std::time::Instant;
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+use nalgebra::{DMatrix, DVector, Matrix6, Vector3, Vector6};
+
+use self::model::{input, pose_of, state, PredictionModel, NU, NX, POSE_STATE};
+pub use self::params::MpcParams;
+use self::params::ReferenceMode;
+use self::qp::{CscPattern, Triplets};
+use super::{
+    AlgorithmId, AlgorithmState, CueInput, CueSample, Mode, MotionCueing, PlatformCommand,
+    SolverReport,
+};
+use crate::model::lti::{DiscreteStateSpace, StateSpace};
+use crate::model::stewart::Stewart;
+use crate::profile::{DofLimits, Profile};
+
+/// Terminal conditions of the MPC.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Terminal {
+    /// Q_N = Q, no terminal constraint: the `mpc` algorithm, the S-MPC's free controller.
+    Free,
+    /// Q_N from the Riccati equation plus terminal equalities: back at neutral and at rest,
+    /// the sustained cue carried by tilt.
+    Cotc,
+}
+
+impl Terminal {
+    /// Name of the QP in reports: `mpc` or `cotc`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Terminal::Free => "mpc",
+            Terminal::Cotc => "cotc",
+        }
+    }
+}
+
+/// Error building an MPC.
+#[derive(Debug, thiserror::Error)]
+pub enum MpcError {
+    #[error("terminal weight: {0}")]
+    Riccati(#[from] riccati::RiccatiError),
+    #[error("QP setup rejected by the solver: {0}")]
+    Solver(String),
+}
+
+/// The last solved plan: inputs per prediction interval and the predicted poses.
+#[derive(Clone, Debug, Default)]
+pub struct Plan {
+    /// Interval lengths (s).
+    pub interval_s: Vec<f64>,
+    /// Input held over each interval, in the model's order (a 3, ω_tilt 2, ω_rot 3).
+    pub inputs: Vec<[f64; NU]>,
+    /// Pose when the plan was made.
+    pub start_pose: Vector6<f64>,
+    /// Pose at the end of each interval.
+    pub poses: Vec<Vector6<f64>>,
+    /// Time since the plan was made (s).
+    pub elapsed_s: f64,
+}
+
+impl Plan {
+    /// Input the plan holds `t_s` after it was made; `None` beyond its horizon.
+    pub fn input_at(&self, t_s: f64) -> Option<[f64; NU]> {
+        let mut end = 0.0;
+        for (h, u) in self.interval_s.iter().zip(&self.inputs) {
+            end += h;
+            if t_s < end - 1e-12 {
+                return Some(*u);
+            }
+        }
+        None
+    }
+
+    /// Pose the plan predicts `t_s` after it was made, linear between its grid points and
+    /// held after the last; `None` for an empty plan.
+    pub fn pose_at(&self, t_s: f64) -> Option<Vector6<f64>> {
+        let (mut t0, mut p0) = (0.0, self.start_pose);
+        for (h, p1) in self.interval_s.iter().zip(&self.poses) {
+            if t_s <= t0 + h {
+                let w = ((t_s - t0) / h).clamp(0.0, 1.0);
+                return Some(p0 + (p1 - p0) * w);
+            }
+            t0 += h;
+            p0 = *p1;
+        }
+        self.poses.last().copied()
+    }
+}
+
+/// Result of one MPC step.
+#[derive(Clone, Debug)]
+pub struct MpcOutcome {
+    pub command: PlatformCommand,
+    /// The solver's outcome for this step's QP.
+    pub report: SolverReport,
+    /// Whether the QP was solved (the command is the QP's first move).
+    pub feasible: bool,
+    /// `Mpc`/`Cotc` when solved, `Fallback` otherwise.
+    pub mode: Mode,
+    /// Perceived specific force of the platform (prediction model) at this step (m/s²).
+    pub perceived_f_mps2: Vector3<f64>,
+    /// Perceived specific force of the aircraft reference at this step (m/s²).
+    pub reference_f_mps2: Vector3<f64>,
+}
+
+/// Solver status in words, for reports and recordings.
+pub fn status_word(s: &SolverStatus) -> &'static str {
+    match s {
+        SolverStatus::Unsolved => "unsolved",
+        SolverStatus::Solved => "solved",
+        SolverStatus::PrimalInfeasible => "primal_infeasible",
+        SolverStatus::DualInfeasible => "dual_infeasible",
+        SolverStatus::AlmostSolved => "almost_solved",
+        SolverStatus::AlmostPrimalInfeasible => "almost_primal_infeasible",
+        SolverStatus::AlmostDualInfeasible => "almost_dual_infeasible",
+        SolverStatus::MaxIterations => "max_iterations",
+        SolverStatus::MaxTime => "max_time",
+        SolverStatus::NumericalError => "numerical_error",
+        SolverStatus::InsufficientProgress => "insufficient_progress",
+        SolverStatus::CallbackTerminated => "callback_terminated",
+    }
+}
+
+/// Values of the QP that change every step, built from the current state.
+struct StepData<'a> {
+    x0: &'a DVector<f64>,
+    u_prev: &'a DVector<f64>,
+    /// Per grid point: leg lengths l(p̄) − J p̄ and J = ∂l/∂pose at the linearisation pose p̄,
+    /// so that l(p) ≈ offset + J p.
+    leg_offset: Vec<Vector6<f64>>,
+    leg_jacobian: Vec<Matrix6<f64>>,
+    /// COTC's terminal roll and pitch: the tilt whose gravity gives the aircraft's Δf now.
+    terminal_tilt_rad: [f64; 2],
+}
+
+pub struct Mpc {
+    params: MpcParams,
+    terminal: Terminal,
+    dt_s: f64,
+    grid: Vec<f64>,
+    model: PredictionModel,
+    /// Discretisation for each interval of the grid (shared between equal lengths).
+    interval_model: Vec<usize>,
+    discrete: Vec<DiscreteStateSpace>,
+    /// Nonzero entries of each discrete A and B, fixed so that the pattern never changes.
+    a_entries: Vec<Vec<(usize, usize, f64)>>,
+    b_entries: Vec<Vec<(usize, usize, f64)>>,
+    trace_model: DiscreteStateSpace,
+    /// Aircraft reference perception model: per grid interval and per trace step.
+    ref_discrete: Vec<DiscreteStateSpace>,
+    ref_trace: DiscreteStateSpace,
+    ref_continuous: StateSpace,
+    perceived_c: DMatrix<f64>,
+    stewart: Stewart,
+    limits: DofLimits,
+    tilt_rate_max_radps: [f64; 2],
+    leg_lo_m: f64,
+    leg_hi_m: f64,
+    terminal_weight: Option<DMatrix<f64>>,
+    washout_gain: f64,
+    // Running state.
+    x: DVector<f64>,
+    u_last: DVector<f64>,
+    ref_x: DVector<f64>,
+    started: bool,
+    last_command: PlatformCommand,
+    plan: Plan,
+    report: SolverReport,
+    mode: Mode,
+    time_in_mode_s: f64,
+    // The QP.
+    solver: Option<DefaultSolver<f64>>,
+    p_pattern: CscPattern,
+    a_pattern: CscPattern,
+    p_trip: Triplets,
+    a_trip: Triplets,
+    q: Vec<f64>,
+    b: Vec<f64>,
+    nz: Vec<f64>,
+    n_eq: usize,
+    y_ref: Vec<DVector<f64>>,
+}
+
+fn nonzeros(m: &DMatrix<f64>) -> Vec<(usize, usize, f64)> {
+    let mut out = Vec::new();
+    for c in 0..m.ncols() {
+        for r in 0..m.nrows() {
+            if m[(r, c)] != 0.0 {
+                out.push((r, c, m[(r, c)]));
+            }
+        }
+    }
+    out
+}
+
+fn finite_or_zero(v: f64) -> f64 {
+    if v.is_finite() {
+        v
+    } else {
+        0.0
+    }
+}
+
+/// Roll and pitch whose gravity gives the sample's Δf_y and Δf_x (DESIGN §1): φ = −asin(Δf_y/g),
+/// θ = asin(Δf_x/g). Beyond 1 g no tilt can: ±π/2 then makes COTC infeasible, as it should be.
+pub fn terminal_tilt(sample: &CueSample) -> [f64; 2] {
+    let tilt = |f: f64| (finite_or_zero(f) / crate::G_MPS2).clamp(-1.0, 1.0).asin();
+    [-tilt(sample.delta_f_mps2.y), tilt(sample.delta_f_mps2.x)]
+}
+
+/// Total roll, pitch and yaw rates of an input.
+fn total_rates(u: &[f64]) -> Vector3<f64> {
+    Vector3::new(
+        u[input::TILT_ROLL_RATE] + u[input::ROT_ROLL_RATE],
+        u[input::TILT_PITCH_RATE] + u[input::ROT_PITCH_RATE],
+        u[input::ROT_YAW_RATE],
+    )
+}
+
+impl Mpc {
+    pub fn new(
+        params: &MpcParams,
+        profile: &Profile,
+        terminal: Terminal,
+    ) -> Result<Self, MpcError> {
+        let dt_s = profile.dt_s();
+        let grid = params.grid();
+        let model = PredictionModel::new(&profile.vestibular);
+        let mut lengths: Vec<f64> = Vec::new();
+        let interval_model: Vec<usize> = grid
+            .iter()
+            .map(|h| {
+                lengths
+                    .iter()
+                    .position(|l| (l - h).abs() < 1e-12)
+                    .unwrap_or_else(|| {
+                        lengths.push(*h);
+                        lengths.len() - 1
+                    })
+            })
+            .collect();
+        let discrete: Vec<DiscreteStateSpace> =
+            lengths.iter().map(|h| model.discretise(*h)).collect();
+        let ref_model = profile.vestibular.perception_model();
+        let ref_discrete = lengths
+            .iter()
+            .map(|h| ref_model.discretise_zoh(*h))
+            .collect();
+        let thresholds = profile.vestibular.canal_threshold_radps();
+        let margin = profile.limiter.leg_margin_m;
+        let mut mpc = Mpc {
+            params: params.clone(),
+            terminal,
+            dt_s,
+            a_entries: discrete.iter().map(|d| nonzeros(&d.a)).collect(),
+            b_entries: discrete.iter().map(|d| nonzeros(&d.b)).collect(),
+            discrete,
+            interval_model,
+            trace_model: model.discretise(dt_s),
+            ref_discrete,
+            ref_trace: ref_model.discretise_zoh(dt_s),
+            ref_continuous: ref_model,
+            perceived_c: model.perceived_rows(),
+            model,
+            stewart: profile.stewart(),
+            limits: profile.limits.si(),
+            tilt_rate_max_radps: [thresholds.x, thresholds.y],
+            leg_lo_m: profile.geometry.leg_min_m + margin,
+            leg_hi_m: profile.geometry.leg_max_m - margin,
+            terminal_weight: None,
+            washout_gain: 1.0,
+            x: DVector::zeros(NX),
+            u_last: DVector::zeros(NU),
+            ref_x: DVector::zeros(15),
+            started: false,
+            last_command: PlatformCommand::default(),
+            plan: Plan::default(),
+            report: SolverReport {
+                name: terminal.name().to_string(),
+                status: "unsolved".into(),
+                iterations: 0,
+                solve_time_us: 0.0,
+            },
+            mode: Mode::Mpc,
+            time_in_mode_s: 0.0,
+            solver: None,
+            p_pattern: CscPattern::new(0, 0, &Triplets::default()),
+            a_pattern: CscPattern::new(0, 0, &Triplets::default()),
+            p_trip: Triplets::default(),
+            a_trip: Triplets::default(),
+            q: Vec::new(),
+            b: Vec::new(),
+            nz: Vec::new(),
+            n_eq: 0,
+            y_ref: Vec::new(),
+            grid,
+        };
+        mpc.mode = mpc.solved_mode();
+        if terminal == Terminal::Cotc {
+            let n = mpc.grid.len();
+            let last = &mpc.discrete[mpc.interval_model[n - 1]];
+            let w = mpc.stage_weight(n - 1);
+            let qx = mpc.stage_hessian(1.0) * w;
+            let r = DMatrix::from_diagonal(&(mpc.input_weight() * w + mpc.input_change_weight()));
+            mpc.terminal_weight = Some(riccati::solve_dare(&last.a, &last.b, &qx, &r)?);
+        }
+        mpc.build_solver()?;
+        Ok(mpc)
+    }
+
+    fn solved_mode(&self) -> Mode {
+        match self.terminal {
+            Terminal::Free => Mode::Mpc,
+            Terminal::Cotc => Mode::Cotc,
+        }
+    }
+
+    pub fn terminal(&self) -> Terminal {
+        self.terminal
+    }
+
+    pub fn params(&self) -> &MpcParams {
+        &self.params
+    }
+
+    /// The prediction grid's interval lengths (s).
+    pub fn grid(&self) -> &[f64] {
+        &self.grid
+    }
+
+    pub fn horizon_s(&self) -> f64 {
+        self.grid.iter().sum()
+    }
+
+    pub fn plan(&self) -> &Plan {
+        &self.plan
+    }
+
+    pub fn report(&self) -> &SolverReport {
+        &self.report
+    }
+
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    pub fn set_reference_mode(&mut self, mode: ReferenceMode) {
+        self.params.reference = mode;
+    }
+
+    /// Scales every washout weight (the S-MPC's adaptive weight regulator). Values are
+    /// written into the solver in place; the COTC terminal weight keeps its nominal washout.
+    pub fn set_washout_gain(&mut self, gain: f64) {
+        let gain = if gain.is_finite() {
+            gain.clamp(0.0, 1e6)
+        } else {
+            1.0
+        };
+        if (gain - self.washout_gain).abs() <= 1e-12 * self.washout_gain.max(1.0) {
+            return;
+        }
+        self.washout_gain = gain;
+        self.assemble_p();
+        if let Some(solver) = self.solver.as_mut() {
+            if self.p_pattern.fill(&self.p_trip, &mut self.nz) && solver.update_P(&self.nz).is_ok()
+            {
+                return;
+            }
+            self.solver = None;
+            self.report.status = "update_error".into();
+        }
+    }
+
+    pub fn washout_gain(&self) -> f64 {
+        self.washout_gain
+    }
+
+    fn stage_weight(&self, interval: usize) -> f64 {
+        self.grid[interval] / self.params.fine_step_s
+    }
+
+    fn input_weight(&self) -> DVector<f64> {
+        let p = &self.params;
+        let mut s = DVector::zeros(NU);
+        for i in 0..3 {
+            s[input::ACCEL_X + i] = p.acceleration_weight[i];
+            s[input::ROT_ROLL_RATE + i] = p.rotation_rate_weight[i];
+        }
+        for i in 0..2 {
+            s[input::TILT_ROLL_RATE + i] = p.tilt_rate_weight[i];
+        }
+        s
+    }
+
+    fn input_change_weight(&self) -> DVector<f64> {
+        let p = &self.params;
+        let mut r = DVector::zeros(NU);
+        for i in 0..3 {
+            r[input::ACCEL_X + i] = p.acceleration_change_weight[i];
+            r[input::ROT_ROLL_RATE + i] = p.rotation_rate_change_weight[i];
+        }
+        for i in 0..2 {
+            r[input::TILT_ROLL_RATE + i] = p.tilt_rate_change_weight[i];
+        }
+        r
+    }
+
+    /// State weight of one fine interval: Cᵀ Q C on the perceived motion plus the washout
+    /// terms, with every washout weight times `gain`. Built with unit weights it gives the
+    /// structure that must stay fixed whatever the tuning.
+    fn stage_hessian_with(
+        &self,
+        q_f: [f64; 3],
+        q_w: [f64; 3],
+        washout: [[f64; 3]; 4],
+        gain: f64,
+    ) -> DMatrix<f64> {
+        let mut q = DMatrix::zeros(6, 6);
+        for i in 0..3 {
+            q[(i, i)] = q_f[i];
+            q[(3 + i, 3 + i)] = q_w[i];
+        }
+        let c = &self.perceived_c;
+        let mut h = c.transpose() * q * c;
+        let [pos, vel, tilt, rot] = washout;
+        for i in 0..3 {
+            h[(state::POS + i, state::POS + i)] += gain * pos[i];
+            h[(state::VEL + i, state::VEL + i)] += gain * vel[i];
+        }
+        h[(state::TILT_ROLL, state::TILT_ROLL)] += gain * tilt[0];
+        h[(state::TILT_PITCH, state::TILT_PITCH)] += gain * tilt[1];
+        // Rotational-channel angle = total − tilt (roll, pitch), yaw itself.
+        for (j, (total, tilt_s)) in [
+            (state::ROLL, state::TILT_ROLL),
+            (state::PITCH, state::TILT_PITCH),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let w = gain * rot[j];
+            h[(total, total)] += w;
+            h[(tilt_s, tilt_s)] += w;
+            h[(total, tilt_s)] -= w;
+            h[(tilt_s, total)] -= w;
+        }
+        h[(state::YAW, state::YAW)] += gain * rot[2];
+        h
+    }
+
+    fn stage_hessian(&self, gain: f64) -> DMatrix<f64> {
+        let p = &self.params;
+        self.stage_hessian_with(
+            p.specific_force_weight,
+            p.angular_velocity_weight,
+            [
+                p.washout_position_weight,
+                p.washout_velocity_weight,
+                [p.washout_tilt_weight[0], p.washout_tilt_weight[1], 0.0],
+                p.washout_rotation_weight,
+            ],
+            gain,
+        )
+    }
+
+    fn n_intervals(&self) -> usize {
+        self.grid.len()
+    }
+
+    fn n_vars(&self) -> usize {
+        self.n_intervals() * (NU + NX)
+    }
+
+    /// Column of input u_i (interval i).
+    fn u_col(i: usize) -> usize {
+        i * (NU + NX)
+    }
+
+    /// Column of state x_{i+1} (end of interval i).
+    fn x_col(i: usize) -> usize {
+        i * (NU + NX) + NU
+    }
+
+    /// Upper triangle of P (cost ½ zᵀPz + qᵀz) in a fixed order.
+    fn assemble_p(&mut self) {
+        let n = self.n_intervals();
+        let structure = self.stage_hessian_with([1.0; 3], [1.0; 3], [[1.0; 3]; 4], 1.0);
+        let stage = self.stage_hessian(self.washout_gain);
+        let s = self.input_weight();
+        let r = self.input_change_weight();
+        let mut t = std::mem::take(&mut self.p_trip);
+        t.clear();
+        for i in 0..n {
+            let w = self.stage_weight(i);
+            let (uc, xc) = (Self::u_col(i), Self::x_col(i));
+            for k in 0..NU {
+                // Δu_i = u_i − u_{i−1} for every i (u_{−1} is the applied input), and Δu_{i+1}.
+                let couplings = if i + 1 < n { 2.0 } else { 1.0 };
+                t.push(uc + k, uc + k, 2.0 * (w * s[k] + couplings * r[k]));
+                if i + 1 < n {
+                    t.push(uc + k, Self::u_col(i + 1) + k, -2.0 * r[k]);
+                }
+            }
+            let terminal = if i + 1 == n {
+                self.terminal_weight.as_ref()
+            } else {
+                None
+            };
+            for c in 0..NX {
+                for rr in 0..=c {
+                    match terminal {
+                        Some(pn) => t.push(xc + rr, xc + c, 2.0 * pn[(rr, c)]),
+                        None if structure[(rr, c)] != 0.0 => {
+                            t.push(xc + rr, xc + c, 2.0 * w * stage[(rr, c)])
+                        }
+                        None => {}
+                    }
+                }
+            }
+        }
+        self.p_trip = t;
+    }
+
+    /// Linear cost term: perceived reference tracking and the Δu link to the applied input.
+    fn assemble_q(&mut self, u_prev: &DVector<f64>) {
+        let n = self.n_intervals();
+        self.q.clear();
+        self.q.resize(self.n_vars(), 0.0);
+        let p = &self.params;
+        let mut qy = DVector::zeros(6);
+        let r = self.input_change_weight();
+        for k in 0..NU {
+            self.q[Self::u_col(0) + k] = -2.0 * r[k] * u_prev[k];
+        }
+        for i in 0..n {
+            let w = self.stage_weight(i);
+            for a in 0..3 {
+                qy[a] = p.specific_force_weight[a] * self.y_ref[i][a];
+                qy[3 + a] = p.angular_velocity_weight[a] * self.y_ref[i][3 + a];
+            }
+            let lin = self.perceived_c.tr_mul(&qy) * (-2.0 * w);
+            let xc = Self::x_col(i);
+            for (k, v) in lin.iter().enumerate() {
+                self.q[xc + k] = *v;
+            }
+        }
+    }
+
+    /// Constraint rows A z + s = b: the dynamics and COTC's terminal equalities (s = 0), then
+    /// the inequalities (s ≥ 0), in a fixed order.
+    fn assemble_a(&mut self, d: &StepData) {
+        let n = self.n_intervals();
+        let mut t = std::mem::take(&mut self.a_trip);
+        let mut b = std::mem::take(&mut self.b);
+        t.clear();
+        b.clear();
+        let mut row = 0;
+        // x_{i+1} − A x_i − B u_i = 0, with x_0 known.
+        for i in 0..n {
+            let m = self.interval_model[i];
+            let (xc, uc) = (Self::x_col(i), Self::u_col(i));
+            for k in 0..NX {
+                t.push(row + k, xc + k, 1.0);
+            }
+            if i > 0 {
+                let prev = Self::x_col(i - 1);
+                for &(r, c, v) in &self.a_entries[m] {
+                    t.push(row + r, prev + c, -v);
+                }
+            }
+            for &(r, c, v) in &self.b_entries[m] {
+                t.push(row + r, uc + c, -v);
+            }
+            if i == 0 {
+                let ax0 = &self.discrete[m].a * d.x0;
+                b.extend(ax0.iter());
+            } else {
+                b.extend(std::iter::repeat_n(0.0, NX));
+            }
+            row += NX;
+        }
+        if self.terminal == Terminal::Cotc {
+            let (xc, uc) = (Self::x_col(n - 1), Self::u_col(n - 1));
+            // At rest at neutral: position and velocity zero, no acceleration in the last
+            // interval (else an otolith transient could pass for the sustained cue).
+            for k in 0..6 {
+                t.push(row, xc + state::POS + k, 1.0);
+                b.push(0.0);
+                row += 1;
+            }
+            for k in 0..3 {
+                t.push(row, uc + input::ACCEL_X + k, 1.0);
+                b.push(0.0);
+                row += 1;
+            }
+            // The sustained specific force carried by tilt alone.
+            for (k, s) in [state::ROLL, state::PITCH].into_iter().enumerate() {
+                t.push(row, xc + s, 1.0);
+                b.push(d.terminal_tilt_rad[k]);
+                row += 1;
+            }
+        }
+        self.n_eq = row;
+        let lim = &self.limits;
+        let mut bound =
+            |t: &mut Triplets, b: &mut Vec<f64>, entries: &[(usize, f64)], lo: f64, hi: f64| {
+                for &(c, v) in entries {
+                    t.push(row, c, v);
+                }
+                b.push(hi);
+                for &(c, v) in entries {
+                    t.push(row + 1, c, -v);
+                }
+                b.push(-lo);
+                row += 2;
+            };
+        let u_prev_rates = total_rates(d.u_prev.as_slice());
+        let alpha = lim.acceleration.fixed_rows::<3>(3).into_owned();
+        let stride = self.params.leg_constraint_stride.max(1);
+        for i in 0..n {
+            let (xc, uc) = (Self::x_col(i), Self::u_col(i));
+            // Pose and translational velocity at the end of the interval.
+            for (dof, &s) in POSE_STATE.iter().enumerate() {
+                let e = lim.excursion[dof];
+                bound(&mut t, &mut b, &[(xc + s, 1.0)], -e, e);
+            }
+            for k in 0..3 {
+                let v = lim.velocity[k];
+                bound(&mut t, &mut b, &[(xc + state::VEL + k, 1.0)], -v, v);
+                let a = lim.acceleration[k];
+                bound(&mut t, &mut b, &[(uc + input::ACCEL_X + k, 1.0)], -a, a);
+            }
+            // Angular rates (total) and their change from the previous interval's.
+            let rate_cols: [&[usize]; 3] = [
+                &[input::TILT_ROLL_RATE, input::ROT_ROLL_RATE],
+                &[input::TILT_PITCH_RATE, input::ROT_PITCH_RATE],
+                &[input::ROT_YAW_RATE],
+            ];
+            for (axis, cols) in rate_cols.iter().enumerate() {
+                let mut e = [(0usize, 0.0f64); 4];
+                let mut len = 0;
+                for &c in cols.iter() {
+                    e[len] = (uc + c, 1.0);
+                    len += 1;
+                }
+                let w = lim.velocity[3 + axis];
+                bound(&mut t, &mut b, &e[..len], -w, w);
+                // Over the first interval the change happens within one trace step.
+                let (dw, centre) = if i == 0 {
+                    (alpha[axis] * self.dt_s, u_prev_rates[axis])
+                } else {
+                    for &c in cols.iter() {
+                        e[len] = (Self::u_col(i - 1) + c, -1.0);
+                        len += 1;
+                    }
+                    (alpha[axis] * self.grid[i - 1], 0.0)
+                };
+                bound(&mut t, &mut b, &e[..len], centre - dw, centre + dw);
+            }
+            // Tilt below the canals' threshold, so that it is not felt as rotation.
+            for k in 0..2 {
+                let w = self.tilt_rate_max_radps[k];
+                bound(
+                    &mut t,
+                    &mut b,
+                    &[(uc + input::TILT_ROLL_RATE + k, 1.0)],
+                    -w,
+                    w,
+                );
+            }
+            // Leg lengths, linearised around the current pose.
+            // The first point always: it is where the platform goes next.
+            if i % stride == 0 || i + 1 == n {
+                for leg in 0..6 {
+                    let mut e = [(0usize, 0.0f64); 6];
+                    for (dof, &s) in POSE_STATE.iter().enumerate() {
+                        e[dof] = (xc + s, d.leg_jacobian[i][(leg, dof)]);
+                    }
+                    let off = d.leg_offset[i][leg];
+                    bound(&mut t, &mut b, &e, self.leg_lo_m - off, self.leg_hi_m - off);
+                }
+            }
+        }
+        self.a_trip = t;
+        self.b = b;
+    }
+
+    fn neutral_step_data(&self) -> (DVector<f64>, DVector<f64>, Vec<DVector<f64>>) {
+        (
+            DVector::zeros(NX),
+            DVector::zeros(NU),
+            vec![DVector::zeros(6); self.n_intervals()],
+        )
+    }
+
+    fn step_data<'a>(
+        &self,
+        x0: &'a DVector<f64>,
+        u_prev: &'a DVector<f64>,
+        terminal_tilt_rad: [f64; 2],
+    ) -> StepData<'a> {
+        let pose0 = pose_of(x0);
+        // Each grid point is linearised around where the last solved plan put the platform
+        // at that point (the leg length is convex in the translation, so a tangent at the
+        // current pose underestimates it further along); around the current pose when there
+        // is no fresh plan.
+        let fresh = self.plan.elapsed_s < 1e-12 && self.plan.poses.len() == self.grid.len();
+        let (mut leg_offset, mut leg_jacobian) = (Vec::new(), Vec::new());
+        let mut t_end = 0.0;
+        for i in 0..self.grid.len() {
+            // The plan was made one step ago.
+            t_end += self.grid[i];
+            let p = match self.plan.pose_at(t_end + self.trace_model.dt_s) {
+                Some(p) if fresh && p.iter().all(|v| v.is_finite()) => p,
+                _ => pose0,
+            };
+            let j = self.stewart.jacobian(&p);
+            leg_offset.push(self.stewart.leg_lengths(&p) - j * p);
+            leg_jacobian.push(j);
+        }
+        StepData {
+            x0,
+            u_prev,
+            leg_offset,
+            leg_jacobian,
+            terminal_tilt_rad,
+        }
+    }
+
+    fn settings(&self) -> DefaultSettings<f64> {
+        let p = &self.params;
+        DefaultSettings {
+            verbose: false,
+            presolve_enable: false,
+            // Measured: equilibration costs more than it saves on this well-scaled QP.
+            equilibrate_enable: false,
+            max_iter: p.max_iterations,
+            time_limit: p.time_limit_ms * 1e-3,
+            tol_gap_abs: p.tolerance,
+            tol_gap_rel: p.tolerance,
+            tol_feas: p.tolerance,
+            tol_ktratio: p.tolerance,
+            // Refinement stays on (off, some solves end in insufficient progress), but to
+            // 1e-10 rather than 1e-13: measured ~17 % faster, same answers to the tolerance.
+            iterative_refinement_reltol: 1e-10,
+            iterative_refinement_abstol: 1e-10,
+            ..DefaultSettings::default()
+        }
+    }
+
+    fn build_solver(&mut self) -> Result<(), MpcError> {
+        let (x0, u0, y_ref) = self.neutral_step_data();
+        self.y_ref = y_ref;
+        let data = self.step_data(&x0, &u0, [0.0; 2]);
+        self.assemble_a(&data);
+        self.assemble_p();
+        self.assemble_q(&u0);
+        let nv = self.n_vars();
+        self.p_pattern = CscPattern::new(nv, nv, &self.p_trip);
+        self.a_pattern = CscPattern::new(self.b.len(), nv, &self.a_trip);
+        let mut nz = Vec::new();
+        self.p_pattern.fill(&self.p_trip, &mut nz);
+        let p: CscMatrix<f64> = self.p_pattern.matrix(nz.clone());
+        self.a_pattern.fill(&self.a_trip, &mut nz);
+        let a = self.a_pattern.matrix(nz);
+        let cones = [
+            SupportedConeT::ZeroConeT(self.n_eq),
+            SupportedConeT::NonnegativeConeT(self.b.len() - self.n_eq),
+        ];
+        let mut solver = DefaultSolver::new(&p, &self.q, &a, &self.b, &cones, self.settings())
+            .map_err(|e| MpcError::Solver(e.to_string()))?;
+        // Clarabel measures its time limit from the start of the setup, on every solve: a
+        // setup slowed by a busy machine would otherwise make every later step `max_time`.
+        let setup_s = solver
+            .timers
+            .as_ref()
+            .map_or(0.0, |t| t.total_time().as_secs_f64());
+        let mut settings = self.settings();
+        settings.time_limit += setup_s;
+        solver
+            .update_settings(settings)
+            .map_err(|e| MpcError::Solver(e.to_string()))?;
+        self.solver = Some(solver);
+        Ok(())
+    }
+
+    /// Nonzeros of the QP's P (upper triangle) and A.
+    pub fn qp_nonzeros(&self) -> (usize, usize) {
+        (self.p_pattern.nnz(), self.a_pattern.nnz())
+    }
+
+    /// QP dimensions: variables, equality rows, inequality rows.
+    pub fn qp_size(&self) -> (usize, usize, usize) {
+        (self.n_vars(), self.n_eq, self.b.len() - self.n_eq)
+    }
+
+    /// Brings the prediction state to the platform's applied state at the previous step, then
+    /// advances it one trace step: the MPC always predicts from where the platform really is
+    /// (after the limiter, or the S-MPC's mixer).
+    fn sync_and_advance(&mut self, applied: &PlatformCommand, dt_s: f64) {
+        if self.started && applied.is_finite() {
+            let x = &mut self.x;
+            for k in 0..3 {
+                x[state::POS + k] = applied.pose[k];
+                x[state::VEL + k] = applied.velocity[k];
+                self.u_last[input::ACCEL_X + k] = applied.acceleration[k];
+            }
+            // Keep this controller's split of roll and pitch into tilt and rotation, shrunk
+            // with the total when something upstream scaled it toward neutral.
+            for (j, (total, tilt)) in [
+                (state::ROLL, state::TILT_ROLL),
+                (state::PITCH, state::TILT_PITCH),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let new_total = applied.pose[3 + j];
+                let old_total = x[total];
+                if old_total.abs() > 1e-12 && (new_total - old_total).abs() > 1e-12 {
+                    x[tilt] *= (new_total / old_total).clamp(0.0, 1.0);
+                }
+                x[total] = new_total;
+                let tilt_rate = self.u_last[input::TILT_ROLL_RATE + j];
+                self.u_last[input::ROT_ROLL_RATE + j] = applied.velocity[3 + j] - tilt_rate;
+            }
+            x[state::YAW] = applied.pose[5];
+            self.u_last[input::ROT_YAW_RATE] = applied.velocity[5];
+        }
+        if self.started {
+            if (dt_s - self.trace_model.dt_s).abs() > 1e-12 {
+                self.trace_model = self.model.discretise(dt_s);
+            }
+            self.x = &self.trace_model.a * &self.x + &self.trace_model.b * &self.u_last;
+        }
+        self.started = true;
+    }
+
+    /// The aircraft's perceived motion over the horizon, from its perception state now.
+    fn predict_reference(&mut self, sample: &CueSample, preview: &[CueSample], dt_s: f64) {
+        let n = self.n_intervals();
+        let mut xr = self.ref_x.clone();
+        let mut u = DVector::zeros(6);
+        let mut t_start = 0.0;
+        self.y_ref.resize(n, DVector::zeros(6));
+        for i in 0..n {
+            let h = self.grid[i];
+            u.fill(0.0);
+            let avg = |u: &mut DVector<f64>, s: &CueSample, w: f64| {
+                for k in 0..3 {
+                    u[k] += w * finite_or_zero(s.delta_f_mps2[k]);
+                    u[3 + k] += w * finite_or_zero(s.angular_velocity_radps[k]);
+                }
+            };
+            match self.params.reference {
+                ReferenceMode::Hold => avg(&mut u, sample, 1.0),
+                ReferenceMode::Preview => {
+                    // Mean of the samples in the interval; past the trace's end, the last one.
+                    let first = (t_start / dt_s).round() as usize;
+                    let last = (((t_start + h) / dt_s).round() as usize).max(first + 1);
+                    let count = (last - first) as f64;
+                    for idx in first..last {
+                        let s = if idx == 0 {
+                            sample
+                        } else {
+                            preview.get(idx - 1).or(preview.last()).unwrap_or(sample)
+                        };
+                        avg(&mut u, s, 1.0 / count);
+                    }
+                }
+            }
+            let d = &self.ref_discrete[self.interval_model[i]];
+            xr = &d.a * &xr + &d.b * &u;
+            self.y_ref[i] = &d.c * &xr;
+            t_start += h;
+        }
+    }
+
+    fn advance_reference(&mut self, sample: &CueSample, dt_s: f64) {
+        if (dt_s - self.ref_trace.dt_s).abs() > 1e-12 {
+            self.ref_trace = self.ref_continuous.discretise_zoh(dt_s);
+        }
+        let u = DVector::from_row_slice(&[
+            finite_or_zero(sample.delta_f_mps2.x),
+            finite_or_zero(sample.delta_f_mps2.y),
+            finite_or_zero(sample.delta_f_mps2.z),
+            finite_or_zero(sample.angular_velocity_radps.x),
+            finite_or_zero(sample.angular_velocity_radps.y),
+            finite_or_zero(sample.angular_velocity_radps.z),
+        ]);
+        self.ref_x = &self.ref_trace.a * &self.ref_x + &self.ref_trace.b * &u;
+    }
+
+    /// One MPC step: the QP solved from the applied state, or the fallback.
+    pub fn solve(&mut self, input: &CueInput) -> MpcOutcome {
+        let dt_s = if input.dt_s.is_finite() && input.dt_s > 0.0 {
+            input.dt_s
+        } else {
+            self.dt_s
+        };
+        self.sync_and_advance(input.applied, dt_s);
+        let f_ref_now = (&self.ref_discrete[0].c * &self.ref_x)
+            .fixed_rows::<3>(0)
+            .into_owned();
+        let perceived_now = (&self.perceived_c * &self.x)
+            .fixed_rows::<3>(0)
+            .into_owned();
+        self.predict_reference(&input.sample, input.preview, dt_s);
+        let solution = self.solve_qp(terminal_tilt(&input.sample));
+        let prev_mode = self.mode;
+        let (u0, feasible) = match solution {
+            Some(u0) => (u0, true),
+            None => (self.fallback_input(dt_s), false),
+        };
+        self.mode = if feasible {
+            self.solved_mode()
+        } else {
+            Mode::Fallback
+        };
+        if self.mode == prev_mode {
+            self.time_in_mode_s += dt_s;
+        } else {
+            self.time_in_mode_s = 0.0;
+        }
+        let command = self.command_for(&u0, dt_s);
+        self.u_last = u0;
+        self.last_command = command;
+        self.advance_reference(&input.sample, dt_s);
+        MpcOutcome {
+            command,
+            report: self.report.clone(),
+            feasible,
+            mode: self.mode,
+            perceived_f_mps2: perceived_now,
+            reference_f_mps2: f_ref_now,
+        }
+    }
+
+    /// Writes this step's values into the solver and solves; the first move when solved.
+    fn solve_qp(&mut self, terminal_tilt_rad: [f64; 2]) -> Option<DVector<f64>> {
+        if !self.x.iter().all(|v| v.is_finite()) {
+            self.report.status = "non_finite_state".into();
+            self.report.iterations = 0;
+            self.report.solve_time_us = 0.0;
+            return None;
+        }
+        let x0 = self.x.clone();
+        let u_prev = self.u_last.clone();
+        let data = self.step_data(&x0, &u_prev, terminal_tilt_rad);
+        self.assemble_a(&data);
+        self.assemble_q(&u_prev);
+        let Some(solver) = self.solver.as_mut() else {
+            self.report.status = "setup_error".into();
+            self.report.iterations = 0;
+            self.report.solve_time_us = 0.0;
+            return None;
+        };
+        if !self.a_pattern.fill(&self.a_trip, &mut self.nz)
+            || solver.update_A(&self.nz).is_err()
+            || solver.update_b(&self.b).is_err()
+            || solver.update_q(&self.q).is_err()
+        {
+            self.report.status = "update_error".into();
+            self.report.iterations = 0;
+            self.report.solve_time_us = 0.0;
+            return None;
+        }
+        let started = Instant::now();
+        solver.solve();
+        self.report.solve_time_us = started.elapsed().as_secs_f64() * 1e6;
+        let sol = &solver.solution;
+        self.report.status = status_word(&sol.status).into();
+        self.report.iterations = sol.iterations;
+        let ok = matches!(
+            sol.status,
+            SolverStatus::Solved | SolverStatus::AlmostSolved
+        ) && sol.x.iter().all(|v| v.is_finite());
+        if !ok {
+            return None;
+        }
+        let z = &sol.x;
+        let n = self.grid.len();
+        self.plan.interval_s.clone_from(&self.grid);
+        self.plan.inputs.clear();
+        self.plan.poses.clear();
+        self.plan.elapsed_s = 0.0;
+        self.plan.start_pose = pose_of(&self.x);
+        for i in 0..n {
+            let uc = Self::u_col(i);
+            let mut u = [0.0; NU];
+            u.copy_from_slice(&z[uc..uc + NU]);
+            self.plan.inputs.push(u);
+            let xc = Self::x_col(i);
+            self.plan
+                .poses
+                .push(Vector6::from_fn(|k, _| z[xc + POSE_STATE[k]]));
+        }
+        Some(DVector::from_row_slice(&z[0..NU]))
+    }
+
+    /// After a failed solve: the previous plan, one step further on, then a return to neutral
+    /// slow enough that the rotation stays below the canals' thresholds.
+    fn fallback_input(&mut self, dt_s: f64) -> DVector<f64> {
+        self.plan.elapsed_s += dt_s;
+        let mut u = match self.plan.input_at(self.plan.elapsed_s) {
+            Some(u) => DVector::from_row_slice(&u),
+            None => {
+                let w = self.params.fallback_washout_radps;
+                let mut u = DVector::zeros(NU);
+                for k in 0..3 {
+                    u[input::ACCEL_X + k] =
+                        -w * w * self.x[state::POS + k] - 2.0 * w * self.x[state::VEL + k];
+                }
+                // Roll and pitch return through the tilt channel, yaw through rotation.
+                u[input::TILT_ROLL_RATE] = -w * self.x[state::ROLL];
+                u[input::TILT_PITCH_RATE] = -w * self.x[state::PITCH];
+                u[input::ROT_YAW_RATE] = -w * self.x[state::YAW];
+                u
+            }
+        };
+        // Inside the platform's limits and the thresholds whatever the plan held.
+        let lim = &self.limits;
+        for k in 0..3 {
+            let a = lim.acceleration[k];
+            u[input::ACCEL_X + k] = finite_or_zero(u[input::ACCEL_X + k]).clamp(-a, a);
+        }
+        for k in 0..2 {
+            let w = self.tilt_rate_max_radps[k];
+            u[input::TILT_ROLL_RATE + k] =
+                finite_or_zero(u[input::TILT_ROLL_RATE + k]).clamp(-w, w);
+        }
+        let prev_rates = total_rates(self.u_last.as_slice());
+        for k in 0..3 {
+            u[input::ROT_ROLL_RATE + k] = finite_or_zero(u[input::ROT_ROLL_RATE + k]);
+        }
+        let rates = total_rates(u.as_slice());
+        for axis in 0..3 {
+            let dw = lim.acceleration[3 + axis] * dt_s;
+            let target = rates[axis].clamp(prev_rates[axis] - dw, prev_rates[axis] + dw);
+            let rot = input::ROT_ROLL_RATE + axis;
+            u[rot] += target - rates[axis];
+        }
+        u
+    }
+
+    fn command_for(&self, u0: &DVector<f64>, dt_s: f64) -> PlatformCommand {
+        let rates = total_rates(u0.as_slice());
+        let prev_rates = total_rates(self.u_last.as_slice());
+        let mut cmd = PlatformCommand {
+            pose: pose_of(&self.x),
+            velocity: Vector6::zeros(),
+            acceleration: Vector6::zeros(),
+        };
+        for k in 0..3 {
+            cmd.velocity[k] = self.x[state::VEL + k];
+            cmd.velocity[3 + k] = rates[k];
+            cmd.acceleration[k] = u0[input::ACCEL_X + k];
+            cmd.acceleration[3 + k] = (rates[k] - prev_rates[k]) / dt_s;
+        }
+        if cmd.is_finite() {
+            cmd
+        } else {
+            // Unreachable by construction; a held neutral is the safe answer if it ever is.
+            PlatformCommand::default()
+        }
+    }
+
+    /// Back to rest at neutral; the solver's structure is kept.
+    pub fn reset_state(&mut self) {
+        self.x.fill(0.0);
+        self.u_last.fill(0.0);
+        self.ref_x.fill(0.0);
+        self.started = false;
+        self.last_command = PlatformCommand::default();
+        self.plan = Plan::default();
+        self.mode = self.solved_mode();
+        self.time_in_mode_s = 0.0;
+        self.report.status = "unsolved".into();
+        self.report.iterations = 0;
+        self.report.solve_time_us = 0.0;
+    }
+}
+
+impl MotionCueing for Mpc {
+    fn id(&self) -> AlgorithmId {
+        AlgorithmId::Mpc
+    }
+
+    fn step(&mut self, input: &CueInput) -> PlatformCommand {
+        self.solve(input).command
+    }
+
+    fn state(&self) -> AlgorithmState {
+        AlgorithmState {
+            mode: self.mode,
+            blend: None,
+            time_in_mode_s: self.time_in_mode_s,
+            switch_count: 0,
+            last_switch_reason: None,
+            solvers: vec![self.report.clone()],
+        }
+    }
+
+    fn reset(&mut self) {
+        self.reset_state();
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,233 @@
+//! The `[mpc]` profile section: prediction grid, weights and solver settings.
+
+use serde::{Deserialize, Serialize};
+
+use crate::profile::{positive, ProfileError};
+
+/// What the MPC assumes the aircraft will do over its horizon.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ReferenceMode {
+    /// The current sample held: what a live simulator knows.
+    #[default]
+    Hold,
+    /// The trace's true future (`CueInput::preview`), for offline studies.
+    Preview,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MpcParams {
+    /// Reference over the horizon: `hold` or `preview`.
+    pub reference: ReferenceMode,
+    /// Length of the first, fine prediction intervals (s).
+    pub fine_step_s: f64,
+    /// Number of fine intervals.
+    pub fine_steps: usize,
+    /// Length of the coarse intervals that follow them (s): move blocking by construction.
+    pub coarse_step_s: f64,
+    /// Number of coarse intervals (may be 0).
+    pub coarse_steps: usize,
+    /// Leg-length constraints at the first grid point, every n-th after it, and the last.
+    pub leg_constraint_stride: usize,
+    /// Weight on the perceived specific-force error f̂ − f̂_ref per axis, per (m/s²)².
+    pub specific_force_weight: [f64; 3],
+    /// Weight on the perceived angular-velocity error ω̂ − ω̂_ref per axis, per (rad/s)².
+    pub angular_velocity_weight: [f64; 3],
+    /// Input weight S on the platform acceleration per axis, per (m/s²)².
+    pub acceleration_weight: [f64; 3],
+    /// Input weight S on the tilt-channel roll and pitch rates, per (rad/s)².
+    pub tilt_rate_weight: [f64; 2],
+    /// Input weight S on the rotational-channel roll, pitch and yaw rates, per (rad/s)².
+    pub rotation_rate_weight: [f64; 3],
+    /// Input-rate weight R on each change of acceleration between intervals.
+    pub acceleration_change_weight: [f64; 3],
+    /// Input-rate weight R on each change of tilt rate.
+    pub tilt_rate_change_weight: [f64; 2],
+    /// Input-rate weight R on each change of rotational rate.
+    pub rotation_rate_change_weight: [f64; 3],
+    /// Washout: weight on the platform position per axis, per m².
+    pub washout_position_weight: [f64; 3],
+    /// Washout: weight on the platform velocity per axis, per (m/s)².
+    pub washout_velocity_weight: [f64; 3],
+    /// Washout: weight on the tilt-coordination angles (roll, pitch), per rad².
+    pub washout_tilt_weight: [f64; 2],
+    /// Washout: weight on the rotational-channel angles (roll, pitch, yaw), per rad².
+    pub washout_rotation_weight: [f64; 3],
+    /// Natural frequency of the return to neutral after a failed solve (rad/s).
+    pub fallback_washout_radps: f64,
+    /// Solver time limit per step (ms); beyond it the step is a `max_time` failure.
+    pub time_limit_ms: f64,
+    /// Solver iteration limit.
+    pub max_iterations: u32,
+    /// Solver feasibility and duality-gap tolerance.
+    pub tolerance: f64,
+}
+
+impl MpcParams {
+    /// Interval lengths of the prediction grid (s).
+    pub fn grid(&self) -> Vec<f64> {
+        std::iter::repeat_n(self.fine_step_s, self.fine_steps)
+            .chain(std::iter::repeat_n(self.coarse_step_s, self.coarse_steps))
+            .collect()
+    }
+
+    pub fn horizon_s(&self) -> f64 {
+        self.grid().iter().sum()
+    }
+
+    pub fn validate(&self) -> Result<(), ProfileError> {
+        let err = |key: &str, reason: String| {
+            Err(ProfileError {
+                key: format!("mpc.{key}"),
+                reason,
+            })
+        };
+        positive("mpc.fine_step_s", self.fine_step_s)?;
+        if self.fine_step_s > 1.0 {
+            return err(
+                "fine_step_s",
+                format!("{} s: expected at most 1 s", self.fine_step_s),
+            );
+        }
+        if self.fine_steps == 0 {
+            return err("fine_steps", "expected at least one fine interval".into());
+        }
+        if self.coarse_steps > 0 {
+            positive("mpc.coarse_step_s", self.coarse_step_s)?;
+            if self.coarse_step_s > 2.0 {
+                return err(
+                    "coarse_step_s",
+                    format!("{} s: expected at most 2 s", self.coarse_step_s),
+                );
+            }
+        }
+        if self.fine_steps + self.coarse_steps > 100 {
+            return err(
+                "fine_steps",
+                "more than 100 intervals in all: the QP would not run in real time".into(),
+            );
+        }
+        let horizon = self.horizon_s();
+        if horizon < 1.5 - 1e-9 {
+            return err(
+                "coarse_steps",
+                format!(
+                    "horizon {horizon:.2} s: the MPC must see at least 1.5 s to plan the washout"
+                ),
+            );
+        }
+        if self.leg_constraint_stride == 0 {
+            return err(
+                "leg_constraint_stride",
+                "expected 1 (every grid point) or more".into(),
+            );
+        }
+        let non_negative = |key: &str, vals: &[f64]| -> Result<(), ProfileError> {
+            for (i, v) in vals.iter().enumerate() {
+                if !(v.is_finite() && *v >= 0.0) {
+                    return Err(ProfileError {
+                        key: format!("mpc.{key}[{i}]"),
+                        reason: format!("{v}: expected a finite weight of 0 or more"),
+                    });
+                }
+            }
+            Ok(())
+        };
+        let strictly_positive = |key: &str, vals: &[f64]| -> Result<(), ProfileError> {
+            for (i, v) in vals.iter().enumerate() {
+                positive(&format!("mpc.{key}[{i}]"), *v)?;
+            }
+            Ok(())
+        };
+        non_negative("specific_force_weight", &self.specific_force_weight)?;
+        non_negative("angular_velocity_weight", &self.angular_velocity_weight)?;
+        non_negative("acceleration_weight", &self.acceleration_weight)?;
+        non_negative("tilt_rate_weight", &self.tilt_rate_weight)?;
+        non_negative("rotation_rate_weight", &self.rotation_rate_weight)?;
+        // R > 0 keeps the QP strictly convex in the inputs whatever S is.
+        strictly_positive(
+            "acceleration_change_weight",
+            &self.acceleration_change_weight,
+        )?;
+        strictly_positive("tilt_rate_change_weight", &self.tilt_rate_change_weight)?;
+        strictly_positive(
+            "rotation_rate_change_weight",
+            &self.rotation_rate_change_weight,
+        )?;
+        // The platform's integrators (position, yaw, rotational angles) must be weighted for
+        // the terminal Riccati equation to have a stabilising solution.
+        strictly_positive("washout_position_weight", &self.washout_position_weight)?;
+        non_negative("washout_velocity_weight", &self.washout_velocity_weight)?;
+        non_negative("washout_tilt_weight", &self.washout_tilt_weight)?;
+        strictly_positive("washout_rotation_weight", &self.washout_rotation_weight)?;
+        positive("mpc.fallback_washout_radps", self.fallback_washout_radps)?;
+        positive("mpc.time_limit_ms", self.time_limit_ms)?;
+        if self.max_iterations == 0 {
+            return err("max_iterations", "expected at least 1".into());
+        }
+        positive("mpc.tolerance", self.tolerance)?;
+        if self.tolerance > 1e-2 {
+            return err(
+                "tolerance",
+                format!("{}: expected at most 1e-2", self.tolerance),
+            );
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::profile::tests::full_flight;
+
+    #[test]
+    fn invalid_values_name_their_key() {
+        let base = full_flight();
+        type Spoil = fn(&mut super::MpcParams);
+        let cases: [(&str, Spoil); 5] = [
+            ("mpc.coarse_steps", |m| m.coarse_steps = 1),
+            ("mpc.specific_force_weight[1]", |m| {
+                m.specific_force_weight[1] = -1.0
+            }),
+            ("mpc.washout_position_weight[2]", |m| {
+                m.washout_position_weight[2] = 0.0
+            }),
+            ("mpc.tolerance", |m| m.tolerance = f64::NAN),
+            ("mpc.leg_constraint_stride", |m| m.leg_constraint_stride = 0),
+        ];
+        for (key, spoil) in cases {
+            let mut p = base.clone();
+            spoil(&mut p.mpc);
+            let err = p.validate().unwrap_err();
+            assert_eq!(err.key, key, "{err}");
+        }
+        let mut p = base.clone();
+        p.mpc.fine_step_s = 0.005;
+        p.mpc.fine_steps = 100;
+        assert!(
+            p.validate().is_err(),
+            "a fine step shorter than a sample is refused"
+        );
+    }
+
+    #[test]
+    fn unknown_keys_are_refused_and_reference_parses() {
+        let toml = crate::formats::profile::DEFAULT_PROFILE_TOML;
+        let spoiled = toml.replace("reference = \"hold\"", "reference = \"hold\"\nhorizon = 3");
+        assert!(crate::formats::profile::parse_profile(&spoiled, "t").is_err());
+        let preview = toml.replace("reference = \"hold\"", "reference = \"preview\"");
+        let p = crate::formats::profile::parse_profile(&preview, "t").unwrap();
+        assert_eq!(p.mpc.reference, super::ReferenceMode::Preview);
+    }
+
+    #[test]
+    fn both_shipped_profiles_load() {
+        for path in ["profiles/full-flight.toml", "profiles/compact.toml"] {
+            let full = format!("{}/{path}", env!("CARGO_MANIFEST_DIR"));
+            let text = std::fs::read_to_string(&full).unwrap();
+            let p = crate::formats::profile::parse_profile(&text, path).unwrap();
+            assert!(p.mpc.horizon_s() >= 1.5);
+        }
+    }
+}

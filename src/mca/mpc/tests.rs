@@ -1,0 +1,441 @@
+use super::*;
+use crate::profile::tests::full_flight;
+
+/// The default profile with a solver time limit that a loaded machine and a debug build
+/// cannot hit: these tests are about the answers, the benchmark is about the time.
+fn profile() -> Profile {
+    let mut p = full_flight();
+    p.mpc.time_limit_ms = 10_000.0;
+    p
+}
+
+fn step(mpc: &mut Mpc, k: usize, sample: CueSample, applied: &PlatformCommand) -> MpcOutcome {
+    let input = CueInput {
+        k,
+        t_s: k as f64 * 0.01,
+        dt_s: 0.01,
+        sample,
+        preview: &[],
+        applied,
+    };
+    mpc.solve(&input)
+}
+
+fn sample(f: [f64; 3], w: [f64; 3]) -> CueSample {
+    CueSample {
+        delta_f_mps2: Vector3::from(f),
+        angular_velocity_radps: Vector3::from(w),
+    }
+}
+
+/// Runs `n` closed-loop steps (the command fed back as applied) and returns the outcomes.
+fn run(mpc: &mut Mpc, n: usize, input: impl Fn(f64) -> CueSample) -> Vec<MpcOutcome> {
+    let mut applied = PlatformCommand::default();
+    (0..n)
+        .map(|k| {
+            let out = step(mpc, k, input(k as f64 * 0.01), &applied);
+            applied = out.command;
+            out
+        })
+        .collect()
+}
+
+/// Dense symmetric P from the upper triangle the solver is given.
+fn dense_p(mpc: &Mpc) -> DMatrix<f64> {
+    let mut nz = Vec::new();
+    assert!(mpc.p_pattern.fill(&mpc.p_trip, &mut nz));
+    let u = mpc.p_pattern.dense(&nz);
+    let mut p = &u + u.transpose();
+    for i in 0..p.nrows() {
+        p[(i, i)] = u[(i, i)];
+    }
+    p
+}
+
+fn dense_a(mpc: &Mpc) -> DMatrix<f64> {
+    let mut nz = Vec::new();
+    assert!(mpc.a_pattern.fill(&mpc.a_trip, &mut nz));
+    mpc.a_pattern.dense(&nz)
+}
+
+#[test]
+fn qp_is_small_and_the_horizon_long_enough() {
+    let p = profile();
+    let mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let (nv, neq, nin) = mpc.qp_size();
+    assert_eq!((nv, neq), (6 * (NU + NX), 6 * NX));
+    assert!(nin > 0);
+    assert!(mpc.horizon_s() >= 1.5);
+    let cotc = Mpc::new(&p.mpc, &p, Terminal::Cotc).unwrap();
+    assert_eq!(cotc.qp_size().1, neq + 11);
+}
+
+#[test]
+fn first_move_equals_the_dense_kkt_optimum_when_no_constraint_is_active() {
+    let mut p = profile();
+    p.mpc.tolerance = 1e-9;
+    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    // A gentle motion, so that every limit stays far away, and a state away from rest.
+    let input = |t: f64| sample([0.3 * (0.5 * t).sin(), 0.2, 0.1], [0.02, -0.01, 0.03]);
+    let outs = run(&mut mpc, 10, input);
+    assert!(outs.iter().all(|o| o.feasible));
+    let solved_u0 = mpc.plan().inputs[0];
+    // Equality-constrained QP: [P Aᵀ; A 0] [z; λ] = [−q; b].
+    let (nv, neq) = (mpc.n_vars(), mpc.n_eq);
+    let p_dense = dense_p(&mpc);
+    let a_all = dense_a(&mpc);
+    let a_eq = a_all.rows(0, neq).into_owned();
+    let mut kkt = DMatrix::zeros(nv + neq, nv + neq);
+    kkt.view_mut((0, 0), (nv, nv)).copy_from(&p_dense);
+    kkt.view_mut((nv, 0), (neq, nv)).copy_from(&a_eq);
+    kkt.view_mut((0, nv), (nv, neq))
+        .copy_from(&a_eq.transpose());
+    let mut rhs = DVector::zeros(nv + neq);
+    for i in 0..nv {
+        rhs[i] = -mpc.q[i];
+    }
+    for i in 0..neq {
+        rhs[nv + i] = mpc.b[i];
+    }
+    let z = kkt.lu().solve(&rhs).expect("KKT matrix is regular");
+    // No inequality is active at the unconstrained optimum…
+    let a_in = a_all.rows(neq, a_all.nrows() - neq).into_owned();
+    let slack = DVector::from_row_slice(&mpc.b[neq..]) - &a_in * z.rows(0, nv);
+    assert!(
+        slack.min() > 1e-3,
+        "an inequality is active: {}",
+        slack.min()
+    );
+    // …so the interior-point solution's first move is the same.
+    for k in 0..NU {
+        assert!(
+            (z[k] - solved_u0[k]).abs() < 1e-5 * (1.0 + z[k].abs()),
+            "u0[{k}]: KKT {} vs solver {}",
+            z[k],
+            solved_u0[k]
+        );
+    }
+}
+
+#[test]
+fn riccati_terminal_weight_satisfies_its_equation() {
+    let p = profile();
+    let mpc = Mpc::new(&p.mpc, &p, Terminal::Cotc).unwrap();
+    let n = mpc.grid.len();
+    let last = &mpc.discrete[mpc.interval_model[n - 1]];
+    let w = mpc.stage_weight(n - 1);
+    let qx = mpc.stage_hessian(1.0) * w;
+    let r = DMatrix::from_diagonal(&(mpc.input_weight() * w + mpc.input_change_weight()));
+    let pn = mpc.terminal_weight.as_ref().unwrap();
+    let res = riccati::dare_residual(&last.a, &last.b, &qx, &r, pn);
+    assert!(res < 1e-9, "relative residual {res}");
+    // Symmetric and positive definite on the weighted states.
+    assert!((pn - pn.transpose()).amax() < 1e-9 * pn.amax());
+    assert!(pn[(state::POS, state::POS)] > 0.0);
+}
+
+#[test]
+fn cotc_meets_its_terminal_equalities() {
+    let p = profile();
+    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Cotc).unwrap();
+    let input = |t: f64| sample([0.4 * (t / 0.5).min(1.0), -0.2, 0.0], [0.0, 0.0, 0.02]);
+    let mut applied = PlatformCommand::default();
+    let mut checked = 0;
+    for k in 0..15 {
+        let out = step(&mut mpc, k, input(k as f64 * 0.01), &applied);
+        applied = out.command;
+        if !out.feasible {
+            continue;
+        }
+        checked += 1;
+        let z = &mpc.solver.as_ref().unwrap().solution.x;
+        let xc = Mpc::x_col(mpc.grid.len() - 1);
+        let x_n = DVector::from_row_slice(&z[xc..xc + NX]);
+        for s in 0..6 {
+            assert!(
+                x_n[state::POS + s].abs() < 1e-6,
+                "k {k}: state {s} = {}",
+                x_n[s]
+            );
+        }
+        let uc = Mpc::u_col(mpc.grid.len() - 1);
+        for a in 0..3 {
+            assert!(
+                z[uc + a].abs() < 1e-6,
+                "k {k}: last acceleration {}",
+                z[uc + a]
+            );
+        }
+        let target = terminal_tilt(&input(k as f64 * 0.01));
+        assert!((x_n[state::ROLL] - target[0]).abs() < 1e-6, "k {k}: roll");
+        assert!((x_n[state::PITCH] - target[1]).abs() < 1e-6, "k {k}: pitch");
+    }
+    assert!(checked >= 10, "COTC solved only {checked} of 15 steps");
+}
+
+#[test]
+fn cotc_on_a_sustained_6_mps2_surge_is_infeasible() {
+    let p = profile();
+    let surge = sample([6.0, 0.0, 0.0], [0.0; 3]);
+    for terminal in [Terminal::Cotc, Terminal::Free] {
+        let mut mpc = Mpc::new(&p.mpc, &p, terminal).unwrap();
+        // asin(6 / g) = 37.7° of tilt: beyond the 25° the platform has.
+        let outs = run(&mut mpc, 5, |_| surge);
+        let last = outs.last().unwrap();
+        assert!(outs.iter().all(|o| o.command.is_finite()));
+        match terminal {
+            Terminal::Cotc => {
+                assert!(!last.feasible);
+                assert_eq!(last.report.status, "primal_infeasible");
+                assert_eq!(last.mode, Mode::Fallback);
+            }
+            // Without terminal conditions the same input is simply cued as well as it can be.
+            Terminal::Free => assert!(last.feasible, "{:?}", last.report),
+        }
+    }
+}
+
+/// A 20 s surge / turn / heave manoeuvre, sampled at 10 Hz (the fine prediction step) to keep
+/// the debug build quick; the benchmark runs the same kind of input at 100 Hz.
+#[test]
+fn closed_loop_keeps_legs_in_stroke_without_clipping() {
+    let mut p = profile();
+    p.rate_hz = 10.0;
+    let dt = p.dt_s();
+    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let stewart = p.stewart();
+    let lim = p.limits.si();
+    let pulse = |t: f64, t0: f64, t1: f64| if t >= t0 && t < t1 { 1.0 } else { 0.0 };
+    let mut applied = PlatformCommand::default();
+    let mut worst_margin = f64::INFINITY;
+    let mut failures = 0;
+    let mut peak_x: f64 = 0.0;
+    for k in 0..(20.0 / dt) as usize {
+        let t = k as f64 * dt;
+        let s = sample(
+            [
+                4.0 * pulse(t, 1.0, 5.0) - 3.0 * pulse(t, 6.0, 8.0),
+                2.5 * pulse(t, 10.0, 16.0),
+                1.5 * (1.3 * t).sin() * pulse(t, 12.0, 20.0),
+            ],
+            [
+                0.2 * pulse(t, 9.0, 10.0) - 0.2 * pulse(t, 16.0, 17.0),
+                0.0,
+                0.15 * pulse(t, 10.0, 16.0),
+            ],
+        );
+        let input = CueInput {
+            k,
+            t_s: t,
+            dt_s: dt,
+            sample: s,
+            preview: &[],
+            applied: &applied,
+        };
+        let out = mpc.solve(&input);
+        let c = out.command;
+        assert!(c.is_finite(), "k {k}");
+        failures += usize::from(!out.feasible);
+        let margin = stewart.margins(&stewart.leg_lengths(&c.pose)).min();
+        worst_margin = worst_margin.min(margin);
+        for d in 0..6 {
+            assert!(
+                c.pose[d].abs() <= lim.excursion[d] * (1.0 + 1e-6) + 1e-9,
+                "k {k} pose {d}"
+            );
+            assert!(
+                c.velocity[d].abs() <= lim.velocity[d] * (1.0 + 1e-6) + 1e-9,
+                "k {k} vel {d}"
+            );
+        }
+        peak_x = peak_x.max(c.pose[0].abs());
+        // The raw command goes to the platform unchanged: the limiter would not act.
+        applied = c;
+    }
+    eprintln!("worst leg margin {worst_margin:.4} m, peak x {peak_x:.3} m");
+    assert_eq!(failures, 0, "every QP solved");
+    assert!(
+        worst_margin >= 0.0,
+        "a leg left its stroke: margin {worst_margin} m"
+    );
+    assert!(peak_x > 0.05, "the surge was cued ({peak_x} m)");
+}
+
+#[test]
+fn preview_sees_a_step_before_it_comes() {
+    let mut p = profile();
+    p.mpc.reference = ReferenceMode::Preview;
+    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let future: Vec<CueSample> = (0..300)
+        .map(|_| sample([2.0, 0.0, 0.0], [0.0; 3]))
+        .collect();
+    let applied = PlatformCommand::default();
+    let input = CueInput {
+        k: 0,
+        t_s: 0.0,
+        dt_s: 0.01,
+        sample: sample([0.0; 3], [0.0; 3]),
+        preview: &future,
+        applied: &applied,
+    };
+    let out = mpc.solve(&input);
+    assert!(out.feasible);
+    // Holding the current (zero) sample, the platform would stay at rest.
+    let moved = out
+        .command
+        .acceleration
+        .amax()
+        .max(out.command.velocity.amax());
+    assert!(moved > 1e-3, "it moves before the step ({:?})", out.command);
+}
+
+#[test]
+fn non_finite_input_never_yields_nan() {
+    let p = profile();
+    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let bad = sample(
+        [f64::NAN, f64::INFINITY, 0.0],
+        [f64::NAN, 0.0, f64::NEG_INFINITY],
+    );
+    let nan_cmd = PlatformCommand {
+        pose: Vector6::from_element(f64::NAN),
+        ..PlatformCommand::default()
+    };
+    for k in 0..5 {
+        let out = step(&mut mpc, k, bad, &nan_cmd);
+        assert!(out.command.is_finite());
+    }
+}
+
+#[test]
+fn failed_solve_follows_the_plan_then_washes_out() {
+    let p = profile();
+    // A time limit no solve can meet turns every step after the first into a failure.
+    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let outs = run(&mut mpc, 5, |_| sample([2.0, 0.0, 0.0], [0.0; 3]));
+    assert!(outs.iter().all(|o| o.feasible));
+    let plan_u0 = mpc.plan().inputs[0];
+    mpc.params.time_limit_ms = 1e-6;
+    let settings = mpc.settings();
+    mpc.solver
+        .as_mut()
+        .unwrap()
+        .update_settings(settings)
+        .unwrap();
+    let mut applied = outs.last().unwrap().command;
+    let mut last = None;
+    for k in 5..5 + 220 {
+        let out = step(&mut mpc, k, sample([2.0, 0.0, 0.0], [0.0; 3]), &applied);
+        assert!(!out.feasible && out.mode == Mode::Fallback);
+        assert!(out.command.is_finite());
+        if k == 5 {
+            // The previous plan, one step on: its first interval's input still.
+            assert!((out.command.acceleration[0] - plan_u0[0]).abs() < 1e-12);
+        }
+        applied = out.command;
+        last = Some(out);
+    }
+    // Beyond the plan's horizon the platform is on its way back to neutral, slowly.
+    let c = last.unwrap().command;
+    assert!(c.velocity.fixed_rows::<3>(3).amax() <= p.vestibular.canal_threshold_radps().amax());
+    assert_eq!(mpc.state().mode, Mode::Fallback);
+}
+
+/// Diagonal surge and sway together: x = y = 1.7 m would need a 4.8 m leg (DESIGN §3), so
+/// here the leg constraints, not the per-DoF boxes, must hold the platform back.
+#[test]
+fn leg_constraints_hold_a_diagonal_excursion_within_the_margin() {
+    let mut p = profile();
+    p.rate_hz = 10.0;
+    // Little washout and strong tracking push the platform toward the corner.
+    p.mpc.washout_position_weight = [0.01; 3];
+    p.mpc.washout_velocity_weight = [0.0; 3];
+    p.mpc.specific_force_weight = [10.0, 10.0, 1.0];
+    let dt = p.dt_s();
+    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let stewart = p.stewart();
+    let mut applied = PlatformCommand::default();
+    let mut worst = f64::INFINITY;
+    for k in 0..80 {
+        let t = k as f64 * dt;
+        let f = if t < 1.5 { 8.0 } else { 0.0 };
+        let input = CueInput {
+            k,
+            t_s: t,
+            dt_s: dt,
+            sample: sample([f, f, 0.0], [0.0; 3]),
+            preview: &[],
+            applied: &applied,
+        };
+        let out = mpc.solve(&input);
+        assert!(out.command.is_finite());
+        worst = worst.min(
+            stewart
+                .margins(&stewart.leg_lengths(&out.command.pose))
+                .min(),
+        );
+        applied = out.command;
+    }
+    eprintln!("worst leg margin {worst:.4} m");
+    // The constraint is reached and held: the limiter (which keeps leg_margin_m) would not
+    // need to act beyond a millimetre of linearisation error.
+    assert!(
+        worst < 0.1,
+        "the legs were not pushed to their limits ({worst} m)"
+    );
+    assert!(worst > p.limiter.leg_margin_m - 1e-3, "margin {worst} m");
+}
+
+#[test]
+fn compact_rig_builds_and_solves() {
+    let text = include_str!("../../../profiles/compact.toml");
+    let mut p = crate::formats::profile::parse_profile(text, "compact.toml").unwrap();
+    p.mpc.time_limit_ms = 10_000.0;
+    let stewart = p.stewart();
+    for terminal in [Terminal::Free, Terminal::Cotc] {
+        let mut mpc = Mpc::new(&p.mpc, &p, terminal).unwrap();
+        let outs = run(&mut mpc, 10, |_| sample([1.0, -0.5, 0.3], [0.05, 0.0, 0.1]));
+        assert!(outs.iter().all(|o| o.command.is_finite()));
+        if terminal == Terminal::Free {
+            assert!(
+                outs.iter().all(|o| o.feasible),
+                "{:?}",
+                outs.last().unwrap().report
+            );
+        }
+        for o in &outs {
+            assert!(stewart.fits(&o.command.pose, 0.0));
+        }
+    }
+}
+
+#[test]
+fn washout_gain_is_written_in_place_and_pulls_toward_neutral() {
+    let p = profile();
+    let surge = |_| sample([2.0, 0.0, 0.0], [0.0; 3]);
+    let mut nominal = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let mut strong = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    strong.set_washout_gain(50.0);
+    assert_eq!(strong.washout_gain(), 50.0);
+    let a = run(&mut nominal, 3, surge);
+    let b = run(&mut strong, 3, surge);
+    assert!(a.iter().chain(&b).all(|o| o.feasible));
+    // Same structure (the solver was updated, not rebuilt), smaller excursion planned.
+    assert_eq!(nominal.qp_nonzeros(), strong.qp_nonzeros());
+    let reach = |m: &Mpc| {
+        m.plan()
+            .poses
+            .iter()
+            .map(|q| q[0].abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(
+        reach(&strong) < reach(&nominal),
+        "{} vs {}",
+        reach(&strong),
+        reach(&nominal)
+    );
+    // Nonsense gains are ignored rather than poisoning the QP.
+    strong.set_washout_gain(f64::NAN);
+    assert_eq!(strong.washout_gain(), 1.0);
+}
