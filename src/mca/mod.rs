@@ -3,6 +3,7 @@
 
 pub mod limiter;
 pub mod mpc;
+pub mod smpc;
 pub mod switching;
 pub mod washout;
 
@@ -212,10 +213,9 @@ pub fn build(id: AlgorithmId, profile: &Profile) -> Result<Box<dyn MotionCueing>
         reason: e.to_string(),
     };
     match id {
-        AlgorithmId::Smpc => Err(BuildError::Setup {
-            algorithm: id,
-            reason: "the S-MPC lands in the next commit".into(),
-        }),
+        AlgorithmId::Smpc => smpc::Smpc::new(profile)
+            .map(|m| Box::new(m) as Box<dyn MotionCueing>)
+            .map_err(setup),
         AlgorithmId::Mpc => mpc::Mpc::new(&profile.mpc, profile, mpc::Terminal::Free)
             .map(|m| Box::new(m) as Box<dyn MotionCueing>)
             .map_err(setup),
