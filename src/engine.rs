@@ -65,6 +65,55 @@ struct Lane {
     vestibular: Vestibular,
 }
 
+/// What every lane's step shares.
+struct StepContext<'a> {
+    k: usize,
+    t_s: f64,
+    dt_s: f64,
+    sample: CueSample,
+    preview: &'a [CueSample],
+    stewart: &'a Stewart,
+    eye_m: &'a Vector3<f64>,
+}
+
+impl StepContext<'_> {
+    /// One algorithm, its limiter, and the perception of the command at the pilot's head.
+    fn step(&self, lane: &mut Lane) -> LaneFrame {
+        let applied = *lane.limiter.last();
+        let input = CueInput {
+            k: self.k,
+            t_s: self.t_s,
+            dt_s: self.dt_s,
+            sample: self.sample,
+            preview: self.preview,
+            applied: &applied,
+        };
+        let started = Instant::now();
+        let raw = lane.algorithm.step(&input);
+        let limited = lane.limiter.apply(&raw);
+        let step_time_us = started.elapsed().as_secs_f64() * 1e6;
+        let cmd = limited.command;
+        let head = head_motion(&cmd.pose, &cmd.velocity, &cmd.acceleration, self.eye_m);
+        let perceived = lane
+            .vestibular
+            .step(&head.delta_f_mps2, &head.angular_velocity_radps);
+        let length_m = self.stewart.leg_lengths(&cmd.pose);
+        LaneFrame {
+            id: lane.algorithm.id(),
+            command: cmd,
+            perceived,
+            legs: Legs {
+                length_m,
+                velocity_mps: self.stewart.leg_velocities(&cmd.pose, &cmd.velocity),
+                margin_m: self.stewart.margins(&length_m),
+            },
+            state: lane.algorithm.state(),
+            limiter_active: limited.acted,
+            step_time_us,
+        }
+    }
+}
+
 /// Steps a trace, sample by sample, through every chosen algorithm.
 pub struct Engine {
     profile: Profile,
@@ -75,6 +124,8 @@ pub struct Engine {
     preview_len: usize,
     reference: Vestibular,
     lanes: Vec<Lane>,
+    /// Step lanes on two threads (on unless set otherwise).
+    parallel: bool,
     k: usize,
 }
 
@@ -125,6 +176,8 @@ impl Engine {
             eye_m: profile.eye_point(),
             inputs,
             reference: Vestibular::new(&profile.vestibular, dt),
+            // Threads pay off only when some lane is expensive: the MPCs.
+            parallel: algorithms.iter().any(|a| *a != AlgorithmId::Cwf),
             lanes,
             k: 0,
         })
@@ -173,41 +226,38 @@ impl Engine {
         let reference = self
             .reference
             .step(&aircraft.delta_f_mps2(), &aircraft.angular_velocity_radps);
-        let mut lanes = Vec::with_capacity(self.lanes.len());
-        for lane in &mut self.lanes {
-            let applied = *lane.limiter.last();
-            let input = CueInput {
-                k,
-                t_s: aircraft.t_s,
-                dt_s: dt,
-                sample,
-                preview,
-                applied: &applied,
-            };
-            let started = Instant::now();
-            let raw = lane.algorithm.step(&input);
-            let limited = lane.limiter.apply(&raw);
-            let step_time_us = started.elapsed().as_secs_f64() * 1e6;
-            let cmd = limited.command;
-            let head = head_motion(&cmd.pose, &cmd.velocity, &cmd.acceleration, &self.eye_m);
-            let perceived = lane
-                .vestibular
-                .step(&head.delta_f_mps2, &head.angular_velocity_radps);
-            let length_m = self.stewart.leg_lengths(&cmd.pose);
-            lanes.push(LaneFrame {
-                id: lane.algorithm.id(),
-                command: cmd,
-                perceived,
-                legs: Legs {
-                    length_m,
-                    velocity_mps: self.stewart.leg_velocities(&cmd.pose, &cmd.velocity),
-                    margin_m: self.stewart.margins(&length_m),
-                },
-                state: lane.algorithm.state(),
-                limiter_active: limited.acted,
-                step_time_us,
-            });
-        }
+        let ctx = StepContext {
+            k,
+            t_s: aircraft.t_s,
+            dt_s: dt,
+            sample,
+            preview,
+            stewart: &self.stewart,
+            eye_m: &self.eye_m,
+        };
+        let lanes = match self.lanes.split_first_mut() {
+            // Lanes are independent: the first (the heaviest, in the console's order) steps
+            // here, the others on a second thread, so that on two cores a headless run of
+            // every algorithm costs about the slowest lane, not their sum.
+            Some((first, rest)) if !rest.is_empty() && self.parallel => {
+                std::thread::scope(|scope| {
+                    let others = scope.spawn(|| {
+                        rest.iter_mut()
+                            .map(|lane| ctx.step(lane))
+                            .collect::<Vec<_>>()
+                    });
+                    let mut out = vec![ctx.step(first)];
+                    // A panic in a lane is a bug; carry it here rather than drop the lane.
+                    out.extend(
+                        others
+                            .join()
+                            .unwrap_or_else(|e| std::panic::resume_unwind(e)),
+                    );
+                    out
+                })
+            }
+            _ => self.lanes.iter_mut().map(|lane| ctx.step(lane)).collect(),
+        };
         self.k += 1;
         Some(Frame {
             k,

@@ -192,3 +192,49 @@ fn unknown_algorithm_is_refused_with_the_known_ones() {
     let err = stderr(&out);
     assert!(err.contains("warp") && err.contains("cwf"), "{err}");
 }
+
+/// DESIGN §9 and the MPC issue: on every shipped trace the MPC and the S-MPC keep every leg
+/// in its stroke and the limiter acts in fewer than 1 % of steps. Runs the debug binary
+/// (hexcue at opt-level 1, dependencies optimised): about a millisecond an MPC step.
+#[test]
+fn mpcs_on_every_shipped_trace_stay_in_stroke_with_a_quiet_limiter() {
+    let dir = tempfile::tempdir().unwrap();
+    for trace in shipped_traces() {
+        let name = trace.file_stem().unwrap().to_string_lossy().into_owned();
+        let summary = dir.path().join(format!("{name}.json"));
+        let mcap = dir.path().join(format!("{name}.mcap"));
+        let out = hexcue(&[
+            "play".as_ref(),
+            "--headless".as_ref(),
+            "--trace".as_ref(),
+            trace.as_os_str(),
+            "--algorithms".as_ref(),
+            "smpc,mpc".as_ref(),
+            "--record".as_ref(),
+            mcap.as_os_str(),
+            "--summary".as_ref(),
+            summary.as_os_str(),
+        ]);
+        assert!(out.status.success(), "{name}: {}", stderr(&out));
+        let json = read_json(&summary);
+        check_summary(&json, &name, &["smpc", "mpc"]);
+        for alg in ["smpc", "mpc"] {
+            let a = &json["algorithms"][alg];
+            let limiter = a["limiter_fraction"].as_f64().unwrap();
+            assert!(
+                limiter < 0.01,
+                "{name} {alg}: the limiter acted in {:.2} % of steps",
+                100.0 * limiter
+            );
+        }
+        let (topics, _) = recorded_topics(&mcap);
+        for t in [
+            "/smpc/controller",
+            "/smpc/platform",
+            "/mpc/controller",
+            "/mpc/actuators",
+        ] {
+            assert!(topics.contains(t), "{name}: topic {t} missing");
+        }
+    }
+}

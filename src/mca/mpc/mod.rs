@@ -178,6 +178,10 @@ pub struct Mpc {
     u_last: DVector<f64>,
     ref_x: DVector<f64>,
     started: bool,
+    /// Low-passed aircraft Δf whose tilt is COTC's terminal condition (m/s²).
+    sustained_df_mps2: Vector3<f64>,
+    /// Roll and pitch COTC's last QP ended at (rad).
+    terminal_tilt_rad: [f64; 2],
     last_command: PlatformCommand,
     plan: Plan,
     report: SolverReport,
@@ -216,11 +220,11 @@ fn finite_or_zero(v: f64) -> f64 {
     }
 }
 
-/// Roll and pitch whose gravity gives the sample's Δf_y and Δf_x (DESIGN §1): φ = −asin(Δf_y/g),
+/// Roll and pitch whose gravity gives Δf_y and Δf_x (DESIGN §1): φ = −asin(Δf_y/g),
 /// θ = asin(Δf_x/g). Beyond 1 g no tilt can: ±π/2 then makes COTC infeasible, as it should be.
-pub fn terminal_tilt(sample: &CueSample) -> [f64; 2] {
+pub fn terminal_tilt(delta_f_mps2: &Vector3<f64>) -> [f64; 2] {
     let tilt = |f: f64| (finite_or_zero(f) / crate::G_MPS2).clamp(-1.0, 1.0).asin();
-    [-tilt(sample.delta_f_mps2.y), tilt(sample.delta_f_mps2.x)]
+    [-tilt(delta_f_mps2.y), tilt(delta_f_mps2.x)]
 }
 
 /// Total roll, pitch and yaw rates of an input.
@@ -288,6 +292,8 @@ impl Mpc {
             u_last: DVector::zeros(NU),
             ref_x: DVector::zeros(15),
             started: false,
+            sustained_df_mps2: Vector3::zeros(),
+            terminal_tilt_rad: [0.0; 2],
             last_command: PlatformCommand::default(),
             plan: Plan::default(),
             report: SolverReport {
@@ -919,7 +925,14 @@ impl Mpc {
             .fixed_rows::<3>(0)
             .into_owned();
         self.predict_reference(&input.sample, input.preview, dt_s);
-        let solution = self.solve_qp(terminal_tilt(&input.sample));
+        // COTC carries the *sustained* cue by tilt: the aircraft's Δf low-passed, so that a
+        // gust does not move the terminal tilt further than the tilt-rate limit can follow
+        // within the horizon (which would make COTC infeasible at every bump).
+        let alpha = 1.0 - (-dt_s / self.params.cotc_sustained_s).exp();
+        let df = input.sample.delta_f_mps2.map(finite_or_zero);
+        self.sustained_df_mps2 += (df - self.sustained_df_mps2) * alpha;
+        self.terminal_tilt_rad = terminal_tilt(&self.sustained_df_mps2);
+        let solution = self.solve_qp(self.terminal_tilt_rad);
         let prev_mode = self.mode;
         let (u0, feasible) = match solution {
             Some(u0) => (u0, true),
@@ -1079,7 +1092,14 @@ impl Mpc {
     }
 
     /// Back to rest at neutral; the solver's structure is kept.
+    /// Roll and pitch the last QP's COTC terminal condition asked for (rad).
+    pub fn terminal_tilt_rad(&self) -> [f64; 2] {
+        self.terminal_tilt_rad
+    }
+
     pub fn reset_state(&mut self) {
+        self.sustained_df_mps2 = Vector3::zeros();
+        self.terminal_tilt_rad = [0.0; 2];
         self.x.fill(0.0);
         self.u_last.fill(0.0);
         self.ref_x.fill(0.0);

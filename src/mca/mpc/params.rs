@@ -56,6 +56,9 @@ pub struct MpcParams {
     pub washout_rotation_weight: [f64; 3],
     /// Natural frequency of the return to neutral after a failed solve (rad/s).
     pub fallback_washout_radps: f64,
+    /// Time constant of the low-pass on the aircraft's Δf whose tilt is COTC's terminal
+    /// condition: the sustained part of the cue (s).
+    pub cotc_sustained_s: f64,
     /// Solver time limit per step (ms); beyond it the step is a `max_time` failure.
     pub time_limit_ms: f64,
     /// Solver iteration limit.
@@ -163,6 +166,7 @@ impl MpcParams {
         strictly_positive("washout_rotation_weight", &self.washout_rotation_weight)?;
         positive("mpc.fallback_washout_radps", self.fallback_washout_radps)?;
         positive("mpc.time_limit_ms", self.time_limit_ms)?;
+        positive("mpc.cotc_sustained_s", self.cotc_sustained_s)?;
         if self.max_iterations == 0 {
             return err("max_iterations", "expected at least 1".into());
         }

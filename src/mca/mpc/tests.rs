@@ -166,7 +166,7 @@ fn cotc_meets_its_terminal_equalities() {
                 z[uc + a]
             );
         }
-        let target = terminal_tilt(&input(k as f64 * 0.01));
+        let target = mpc.terminal_tilt_rad();
         assert!((x_n[state::ROLL] - target[0]).abs() < 1e-6, "k {k}: roll");
         assert!((x_n[state::PITCH] - target[1]).abs() < 1e-6, "k {k}: pitch");
     }
@@ -179,8 +179,9 @@ fn cotc_on_a_sustained_6_mps2_surge_is_infeasible() {
     let surge = sample([6.0, 0.0, 0.0], [0.0; 3]);
     for terminal in [Terminal::Cotc, Terminal::Free] {
         let mut mpc = Mpc::new(&p.mpc, &p, terminal).unwrap();
-        // asin(6 / g) = 37.7° of tilt: beyond the 25° the platform has.
-        let outs = run(&mut mpc, 5, |_| surge);
+        // asin(6 / g) = 37.7° of tilt: beyond the 25° the platform has, once the surge has
+        // lasted long enough to count as sustained (3 s, several cotc_sustained_s).
+        let outs = run(&mut mpc, 300, |_| surge);
         let last = outs.last().unwrap();
         assert!(outs.iter().all(|o| o.command.is_finite()));
         match terminal {
