@@ -55,10 +55,10 @@ pub struct PlotArgs {
     #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = crate::plot::timeline::DEFAULT_PANELS)]
     pub channels: Vec<String>,
     /// Start of the window (trace time, s). Default: the start of the recording.
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub from: Option<f64>,
     /// End of the window (trace time, s). Default: the end of the recording.
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub to: Option<f64>,
     /// The figure to write: .svg or .png.
     #[arg(short = 'o', long = "output", value_name = "FIG.svg|FIG.png")]
