@@ -443,10 +443,13 @@ pub fn draw<DB: DrawingBackend>(root: &Area<DB>, tl: &Timeline) -> DrawResult<DB
     root.fill(&WHITE)?;
     let (header, body) = root.split_vertically(HEADER_PX);
     header.draw(&Text::new(tl.title.clone(), (20, 10), font(19.0)))?;
-    let mut entries: Vec<(String, ShapeStyle)> = vec![(
-        "reference (aircraft)".to_string(),
-        REFERENCE_COLOR.stroke_width(2),
-    )];
+    let mut entries: Vec<(String, ShapeStyle)> = Vec::new();
+    if tl.panels.iter().any(|(p, _)| *p != Panel::Legs) {
+        entries.push((
+            "reference (aircraft)".to_string(),
+            REFERENCE_COLOR.stroke_width(2),
+        ));
+    }
     for &a in &tl.algorithms {
         entries.push((a.label().to_string(), algorithm_color(a).stroke_width(2)));
     }
@@ -515,8 +518,9 @@ fn draw_panel<DB: DrawingBackend>(
             RED.stroke_width(1),
         ))?;
     }
-    // The reference last, on top: it is what everything else is judged against.
-    for line in lines.iter().rev() {
+    // The reference first and wider, so that an algorithm that follows it shows as its
+    // colour on a black outline, and one that does not shows the reference beside it.
+    for line in lines {
         let width = if line.color == REFERENCE_COLOR { 2 } else { 1 };
         chart.draw_series(LineSeries::new(
             line.signal.points(),
