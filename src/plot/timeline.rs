@@ -316,6 +316,9 @@ pub fn read_timeline(recording: &Recording, request: &PlotRequest) -> Result<Tim
             }
         }
     }
+    if end <= 0.0 && request.from_s.is_none() {
+        bail!("{path}: the recording spans no time (its last step is at t = {end} s)");
+    }
     if from_s >= end {
         bail!(
             "--from {from_s}: {path} ends at t = {end} s; expected a start before the end of the recording"
