@@ -40,6 +40,58 @@ pub enum Command {
         /// Where to write the finished copy.
         output: PathBuf,
     },
+    /// Draw a recording: perceived signals of the reference and every algorithm against
+    /// time, the S-MPC's active controller shaded, and the leg usage.
+    Plot(PlotArgs),
+    /// Run the Objective Motion Cueing Test (ICAO 9625) on the algorithms: a table, JSON and
+    /// one Bode plot per test.
+    Omct(OmctArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct PlotArgs {
+    /// The recording (.mcap) to draw.
+    pub file: PathBuf,
+    /// Panels, comma-separated, top to bottom: fx, fy, fz (perceived specific force, m/s²),
+    /// wx, wy, wz (perceived angular velocity, °/s), legs (leg usage; alias workspace).
+    #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = crate::plot::timeline::DEFAULT_PANELS)]
+    pub channels: Vec<String>,
+    /// Start of the window (trace time, s). Default: the start of the recording.
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub from: Option<f64>,
+    /// End of the window (trace time, s). Default: the end of the recording.
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub to: Option<f64>,
+    /// The figure to write: .svg or .png.
+    #[arg(short = 'o', long = "output", value_name = "FIG.svg|FIG.png")]
+    pub output: PathBuf,
+    /// Figure width in pixels; long recordings are reduced to this many columns.
+    #[arg(long, value_name = "PX", default_value_t = 1200, value_parser = clap::value_parser!(u32).range(300..=8000))]
+    pub width: u32,
+}
+
+#[derive(Args, Debug)]
+pub struct OmctArgs {
+    /// Simulator profile (TOML). Default: the embedded profiles/full-flight.toml.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+    /// Algorithms to test, comma-separated.
+    #[arg(long, value_name = "LIST", value_delimiter = ',', default_values_t = default_algorithms())]
+    pub algorithms: Vec<String>,
+    /// Tests to run, comma-separated (default: all ten): roll-rate, pitch-rate, yaw-rate,
+    /// surge, sway, heave, pitch-to-surge, roll-to-sway, surge-to-pitch, sway-to-roll.
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    pub tests: Vec<String>,
+    /// How many of the twelve standard frequencies to measure (2..=12, spread evenly, both
+    /// ends kept): fewer for a quicker look at the slow MPCs.
+    #[arg(long, value_name = "N", default_value_t = 12, value_parser = clap::value_parser!(u8).range(2..=12))]
+    pub frequencies: u8,
+    /// Directory for omct.md, omct.json and one <test>.svg (or .png) per test.
+    #[arg(long, value_name = "DIR", default_value = "omct")]
+    pub out: PathBuf,
+    /// Format of the Bode plots.
+    #[arg(long, value_name = "FORMAT", default_value = "svg", value_parser = ["svg", "png"])]
+    pub format: String,
 }
 
 #[derive(Args, Debug, Default, Clone)]
@@ -382,6 +434,8 @@ pub fn run(cli: Cli) -> Result<()> {
             }
         }
         Command::Compare(args) => run_compare(&args),
+        Command::Plot(args) => run_plot(&args),
+        Command::Omct(args) => run_omct(&args),
         Command::Recover { input, output } => {
             let stats = crate::formats::recording::recover(&input, &output)?;
             eprintln!(
@@ -465,6 +519,130 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
             .with_context(|| format!("{}: cannot write the report", path.display())),
         None => print_stdout(&report),
     }
+}
+
+pub fn run_plot(args: &PlotArgs) -> Result<()> {
+    let request = crate::plot::timeline::PlotRequest {
+        panels: crate::plot::timeline::Panel::parse_list(&args.channels)?,
+        from_s: args.from,
+        to_s: args.to,
+        width_px: args.width,
+    };
+    if let (Some(from), Some(to)) = (args.from, args.to) {
+        // Checked before the file is read: a wrong window should not cost a long read.
+        if from >= to {
+            bail!("--from {from} --to {to}: expected --from before --to");
+        }
+    }
+    crate::plot::timeline::plot(&args.file, &request, &args.output)?;
+    eprintln!("wrote {}", args.output.display());
+    Ok(())
+}
+
+fn parse_tests(names: &[String]) -> Result<Vec<crate::omct::OmctTest>> {
+    use crate::omct::OmctTest;
+    let mut out = Vec::new();
+    for name in names.iter().map(|n| n.trim()).filter(|n| !n.is_empty()) {
+        let Some(t) = OmctTest::from_key(name) else {
+            let known: Vec<&str> = OmctTest::ALL.iter().map(|t| t.key()).collect();
+            bail!(
+                "--tests: unknown test `{name}`; expected one or more of {}",
+                known.join(", ")
+            );
+        };
+        if !out.contains(&t) {
+            out.push(t);
+        }
+    }
+    if out.is_empty() {
+        out = OmctTest::ALL.to_vec();
+    }
+    // The standard's order: direct tests, then cross-couplings.
+    out.sort_by_key(|t| OmctTest::ALL.iter().position(|a| a == t));
+    Ok(out)
+}
+
+pub fn run_omct(args: &OmctArgs) -> Result<()> {
+    use crate::formats::omct::OmctReport;
+    use crate::omct::{frequency_subset, run_all};
+
+    let profile = match &args.profile {
+        Some(path) => load_profile(path)?.0,
+        None => default_profile(),
+    };
+    let algorithms = parse_algorithms(&args.algorithms)?;
+    let tests = parse_tests(&args.tests)?;
+    let frequencies = frequency_subset(args.frequencies as usize);
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create the output directory", args.out.display()))?;
+
+    let total = algorithms.len() * tests.len() * frequencies.len();
+    let bar = std::io::stderr().is_terminal().then(|| {
+        let bar = indicatif::ProgressBar::new(total as u64);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} OMCT [{bar:40}] {pos}/{len} points ({elapsed}, {eta} left)",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let workers = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+        .min(total);
+    let started = std::time::Instant::now();
+    let on_point = |done: usize| {
+        if let Some(bar) = &bar {
+            bar.set_position(done as u64);
+        }
+    };
+    let curves = run_all(
+        &profile,
+        &algorithms,
+        &tests,
+        &frequencies,
+        workers,
+        &on_point,
+    );
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let curves = curves?;
+    let wall_s = started.elapsed().as_secs_f64();
+    let report = OmctReport {
+        profile: profile.name.clone(),
+        algorithms: algorithms.clone(),
+        tests: tests.clone(),
+        frequencies_radps: frequencies,
+        curves,
+    };
+    let write = |name: &str, text: String| -> Result<()> {
+        let path = args.out.join(name);
+        std::fs::write(&path, text).with_context(|| format!("{}: cannot write", path.display()))
+    };
+    write("omct.md", report.to_markdown())?;
+    write(
+        "omct.json",
+        serde_json::to_string_pretty(&report.to_json())? + "\n",
+    )?;
+    for &test in &tests {
+        let path = args.out.join(format!("{}.{}", test.key(), args.format));
+        crate::plot::bode::write(&path, test, &profile.name, &report.curves)?;
+    }
+    let names: Vec<&str> = algorithms.iter().map(|a| a.key()).collect();
+    eprintln!(
+        "OMCT of {} on {}: {} tests × {} frequencies in {:.1} s on {} threads; wrote {}/omct.md, omct.json and {} figures",
+        names.join(", "),
+        profile.name,
+        tests.len(),
+        report.frequencies_radps.len(),
+        wall_s,
+        workers,
+        args.out.display(),
+        tests.len()
+    );
+    Ok(())
 }
 
 fn default_algorithms() -> Vec<String> {

@@ -1,7 +1,7 @@
 //! hexcue: motion cueing for 6-DoF Stewart-platform flight simulators.
 //!
-//! The core (`model`, `mca`, `metrics`, `engine`, `profile`, `trace`) does no I/O; `formats`,
-//! `cli` and `tui` adapt it to files and the terminal. Frames and units: DESIGN.md §1 and
+//! The core (`model`, `mca`, `metrics`, `engine`, `profile`, `trace`, `omct`) does no I/O;
+//! `formats`, `plot`, `cli` and `tui` adapt it to files and the terminal. Frames and units: DESIGN.md §1 and
 //! `docs/design.md`.
 
 pub mod cli;
@@ -13,6 +13,7 @@ pub mod mca;
 pub mod metrics;
 pub mod model;
 pub mod omct;
+pub mod plot;
 pub mod profile;
 pub mod summary;
 pub mod trace;

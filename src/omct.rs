@@ -114,6 +114,27 @@ impl OmctTest {
         }
     }
 
+    pub fn from_key(key: &str) -> Option<OmctTest> {
+        let k = key.trim().to_ascii_lowercase();
+        OmctTest::ALL.into_iter().find(|t| t.key() == k)
+    }
+
+    /// What the test drives and what it measures, for people.
+    pub fn description(self) -> &'static str {
+        match self {
+            OmctTest::RollRate => "roll rate p → roll rate at the head",
+            OmctTest::PitchRate => "pitch rate q → pitch rate at the head",
+            OmctTest::YawRate => "yaw rate r → yaw rate at the head",
+            OmctTest::Surge => "surge specific force Δfx → Δfx at the head",
+            OmctTest::Sway => "sway specific force Δfy → Δfy at the head",
+            OmctTest::Heave => "heave specific force Δfz → Δfz at the head",
+            OmctTest::PitchToSurge => "pitch rate q → surge specific force Δfx at the head",
+            OmctTest::RollToSway => "roll rate p → sway specific force Δfy at the head",
+            OmctTest::SurgeToPitch => "surge specific force Δfx → pitch rate at the head",
+            OmctTest::SwayToRoll => "sway specific force Δfy → roll rate at the head",
+        }
+    }
+
     pub fn is_cross_coupling(self) -> bool {
         let (i, o) = self.channels();
         i != o
@@ -318,14 +339,122 @@ pub fn run_test(
         .iter()
         .map(|&w| measure_within_limits(profile, algorithm, test, w))
         .collect::<Result<Vec<_>, _>>()?;
+    Ok(curve(test, algorithm, points))
+}
+
+fn curve(test: OmctTest, algorithm: AlgorithmId, points: Vec<OmctPoint>) -> OmctCurve {
     let (i, o) = test.channels();
-    Ok(OmctCurve {
+    OmctCurve {
         test,
         algorithm,
         input_unit: i.unit(),
         output_unit: o.unit(),
         points,
-    })
+    }
+}
+
+/// `n` (2..=12) of the twelve standard frequencies, spread evenly with both ends kept: a
+/// quicker look that still measures at frequencies of the standard.
+pub fn frequency_subset(n: usize) -> Vec<f64> {
+    let all = frequencies_radps();
+    let n = n.clamp(2, all.len());
+    let mut out: Vec<f64> = (0..n)
+        .map(|k| all[((k * (all.len() - 1)) as f64 / (n - 1) as f64).round() as usize])
+        .collect();
+    out.dedup();
+    out
+}
+
+/// Runs every (algorithm, test, frequency) on `workers` threads and returns one curve per
+/// (algorithm, test), in the order of `algorithms` then `tests`. `on_point` is called after
+/// each measured frequency with the count done so far.
+///
+/// The unit of work is one frequency rather than one test: the MPCs cost about a millisecond
+/// a step and the low frequencies need the longest runs, so whole tests would leave a core
+/// idle at the end.
+pub fn run_all(
+    profile: &Profile,
+    algorithms: &[AlgorithmId],
+    tests: &[OmctTest],
+    frequencies: &[f64],
+    workers: usize,
+    on_point: &(dyn Fn(usize) + Sync),
+) -> Result<Vec<OmctCurve>, BuildError> {
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+    let mut jobs: Vec<(usize, usize, usize)> = Vec::new();
+    for a in 0..algorithms.len() {
+        for t in 0..tests.len() {
+            for f in 0..frequencies.len() {
+                jobs.push((a, t, f));
+            }
+        }
+    }
+    // Longest first (lowest frequency: most steps), so the last jobs are short ones.
+    let mut order: Vec<usize> = (0..jobs.len()).collect();
+    order.sort_by(|&x, &y| {
+        frequencies[jobs[x].2]
+            .total_cmp(&frequencies[jobs[y].2])
+            .then(x.cmp(&y))
+    });
+    let next = AtomicUsize::new(0);
+    let done = AtomicUsize::new(0);
+    let failed = AtomicBool::new(false);
+    let work = || {
+        let mut out = Vec::new();
+        while !failed.load(Ordering::Relaxed) {
+            let i = next.fetch_add(1, Ordering::Relaxed);
+            let Some(&j) = order.get(i) else { break };
+            let (a, t, f) = jobs[j];
+            let r = measure_within_limits(profile, algorithms[a], tests[t], frequencies[f]);
+            if r.is_err() {
+                failed.store(true, Ordering::Relaxed);
+            }
+            out.push((j, r));
+            on_point(done.fetch_add(1, Ordering::Relaxed) + 1);
+        }
+        out
+    };
+    let mut results: Vec<Option<OmctPoint>> = vec![None; jobs.len()];
+    let mut first_error = None;
+    let per_worker: Vec<_> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..workers.max(1)).map(|_| s.spawn(work)).collect();
+        handles.into_iter().map(|h| h.join()).collect()
+    });
+    for worker in per_worker {
+        // A worker that panicked is a bug; its points stay missing and are reported as NaN
+        // rather than taking the whole run down.
+        for (j, r) in worker.unwrap_or_default() {
+            match r {
+                Ok(p) => results[j] = Some(p),
+                Err(e) => first_error = first_error.or(Some(e)),
+            }
+        }
+    }
+    if let Some(e) = first_error {
+        return Err(e);
+    }
+    let mut curves = Vec::new();
+    let mut it = results.into_iter();
+    for &algorithm in algorithms {
+        for &test in tests {
+            let points = frequencies
+                .iter()
+                .map(|&w| {
+                    it.next().flatten().unwrap_or(OmctPoint {
+                        frequency_radps: w,
+                        amplitude: f64::NAN,
+                        gain: f64::NAN,
+                        phase_deg: f64::NAN,
+                        limiter_steps: 0,
+                        residual: f64::NAN,
+                    })
+                })
+                .collect();
+            curves.push(curve(test, algorithm, points));
+        }
+    }
+    Ok(curves)
 }
 
 #[cfg(test)]
@@ -342,6 +471,47 @@ mod tests {
         assert!((f[0] - 0.1).abs() < 1e-12 && (f[11] - 15.85).abs() < 1e-9);
         for k in 1..12 {
             assert!((f[k] / f[k - 1] - (158.5f64).powf(1.0 / 11.0)).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn frequency_subsets_keep_the_ends() {
+        let all = frequencies_radps();
+        assert_eq!(frequency_subset(12), all.to_vec());
+        let three = frequency_subset(3);
+        assert_eq!(three.len(), 3);
+        assert_eq!((three[0], three[2]), (all[0], all[11]));
+        assert_eq!(frequency_subset(0).len(), 2);
+        for t in OmctTest::ALL {
+            assert_eq!(OmctTest::from_key(t.key()), Some(t));
+        }
+    }
+
+    #[test]
+    fn run_all_matches_run_test() {
+        let profile = full_flight();
+        let f = frequency_subset(2);
+        let curves = run_all(
+            &profile,
+            &[AlgorithmId::Cwf],
+            &[OmctTest::Heave, OmctTest::Surge],
+            &f,
+            2,
+            &|_| {},
+        )
+        .unwrap();
+        assert_eq!(curves.len(), 2);
+        assert_eq!(
+            (curves[0].test, curves[1].test),
+            (OmctTest::Heave, OmctTest::Surge)
+        );
+        for c in &curves {
+            for (p, &w) in c.points.iter().zip(&f) {
+                assert_eq!(
+                    p,
+                    &measure_within_limits(&profile, c.algorithm, c.test, w).unwrap()
+                );
+            }
         }
     }
 
