@@ -223,6 +223,63 @@ fn discussion(results: &[TraceResult]) -> String {
         }
         let _ = writeln!(out, "{}.", facts.join(", "));
     }
+    out.push_str(&why(results));
+    out
+}
+
+/// The explanation the numbers support, when they support one.
+fn why(results: &[TraceResult]) -> String {
+    let fails_on_fx: Vec<&TraceResult> = results
+        .iter()
+        .filter(|r| ordering_holds(&r.summary, "fx", |m| m.rae) == Some(false))
+        .collect();
+    if fails_on_fx.is_empty() {
+        return String::new();
+    }
+    let never_switched = fails_on_fx
+        .iter()
+        .all(|r| r.summary.algorithms["smpc"].switches == 0);
+    let less_workspace = fails_on_fx.iter().all(|r| {
+        r.summary.algorithms["smpc"].max_leg_usage < r.summary.algorithms["mpc"].max_leg_usage
+    });
+    let mut out = String::from("\n### Why\n\n");
+    if never_switched {
+        out.push_str(
+            "Where the S-MPC loses to the MPC on fx it never left COTC: the MPC with terminal \
+             conditions was solved at every step, so the S-MPC *was* COTC throughout, and the \
+             comparison is COTC against the free MPC. COTC must end its 1.5 s horizon at \
+             neutral and at rest with the sustained cue carried by tilt; every surge cue it gives \
+             has to be one it can undo within the horizon. The free MPC has no such obligation \
+             and relies on its washout weights alone to come back",
+        );
+        if less_workspace {
+            out.push_str(", which it pays for in workspace: its peak leg usage is higher on every one of these traces");
+        }
+        out.push_str(
+            ". On the paper's stall the ordering S-MPC < MPC comes from the free MPC running \
+             into the workspace limits while COTC's terminal conditions keep margin; here the \
+             free MPC, with leg constraints linearised at every step, keeps its legs in stroke \
+             without the limiter, so that advantage of COTC does not appear on fx.",
+        );
+        let ratios: Vec<f64> = results
+            .iter()
+            .flat_map(|r| {
+                let a = &r.summary.algorithms;
+                let cwf = metric(&a["cwf"], "fx", |m| m.rae);
+                ["smpc", "mpc"].map(|k| cwf / metric(&a[k], "fx", |m| m.rae))
+            })
+            .filter(|v| v.is_finite())
+            .collect();
+        if let (Some(lo), Some(hi)) = (
+            ratios.iter().cloned().reduce(f64::min),
+            ratios.iter().cloned().reduce(f64::max),
+        ) {
+            let _ = write!(out, " On fx, both MPCs' RAE is {lo:.1} to {hi:.1} times lower than the CWF's on these traces.");
+        }
+        out.push('\n');
+    } else {
+        out.push_str("Where the ordering fails the S-MPC switched controllers; the switch reasons are in the recordings (`/smpc/controller`).\n");
+    }
     out
 }
 

@@ -787,18 +787,7 @@ impl Mpc {
             SupportedConeT::ZeroConeT(self.n_eq),
             SupportedConeT::NonnegativeConeT(self.b.len() - self.n_eq),
         ];
-        let mut solver = DefaultSolver::new(&p, &self.q, &a, &self.b, &cones, self.settings())
-            .map_err(|e| MpcError::Solver(e.to_string()))?;
-        // Clarabel measures its time limit from the start of the setup, on every solve: a
-        // setup slowed by a busy machine would otherwise make every later step `max_time`.
-        let setup_s = solver
-            .timers
-            .as_ref()
-            .map_or(0.0, |t| t.total_time().as_secs_f64());
-        let mut settings = self.settings();
-        settings.time_limit += setup_s;
-        solver
-            .update_settings(settings)
+        let solver = DefaultSolver::new(&p, &self.q, &a, &self.b, &cones, self.settings())
             .map_err(|e| MpcError::Solver(e.to_string()))?;
         self.solver = Some(solver);
         Ok(())
@@ -991,6 +980,11 @@ impl Mpc {
             self.report.solve_time_us = 0.0;
             return None;
         }
+        // Clarabel checks its time limit against the sum of its timers, some of which
+        // carry over from one solve to the next: over a few thousand solves the budget
+        // shrank to nothing and every step became max_time at iteration 0 (found by running
+        // the console on a loaded machine). Fresh timers make the limit this solve's own.
+        solver.timers = Some(clarabel::timers::Timers::default());
         let started = Instant::now();
         solver.solve();
         self.report.solve_time_us = started.elapsed().as_secs_f64() * 1e6;
