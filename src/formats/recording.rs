@@ -1036,13 +1036,26 @@ impl Recording {
             }
         }
         let finished = stopped.is_none();
-        let stopped = stopped.map(|e| format!("after {} bytes: {e}", source.bytes));
+        let stopped_error = stopped;
+        let stopped = stopped_error
+            .as_ref()
+            .map(|e| format!("after {} bytes: {e}", source.bytes));
         if !topics.values().any(|t| t == REFERENCE_TOPIC) {
-            if let (Some(reason), 0) = (&stopped, messages) {
-                return Err(RecordingError::Truncated {
-                    path: p,
-                    bytes: source.bytes,
-                    reason: reason.clone(),
+            if let (Some(reason), 0) = (stopped_error, messages) {
+                // A file that ends early and one with garbage where its records should be
+                // are different faults for the user: say which.
+                return Err(if matches!(reason, McapError::UnexpectedEof) {
+                    RecordingError::Truncated {
+                        path: p,
+                        bytes: source.bytes,
+                        reason: reason.to_string(),
+                    }
+                } else {
+                    RecordingError::Damaged {
+                        path: p,
+                        bytes: source.bytes,
+                        error: reason,
+                    }
                 });
             }
             let mut names: Vec<&str> = topics.values().map(String::as_str).collect();
