@@ -263,47 +263,111 @@ fn an_mcap_without_hexcue_topics_is_refused() {
     assert_refused(&review(&empty), &empty, &["no topics"]);
 }
 
-#[test]
-fn an_mcap_with_hexcue_topics_but_bad_messages_is_refused_by_name() {
-    // The real recording's records, with every `/aircraft` message replaced by JSON of the
-    // wrong shape: review must name the topic and what it expected, not panic.
-    let src = real_recording();
-    let reader = std::fs::read(src).unwrap();
-    let summary = mcap::Summary::read(&reader).unwrap().unwrap();
-    let path = scratch().join("bad-messages.mcap");
-    let mut w = mcap::Writer::new(std::io::BufWriter::new(
-        std::fs::File::create(&path).unwrap(),
-    ))
-    .unwrap();
-    for meta in mcap::read::LinearReader::new(&reader)
-        .unwrap()
-        .filter_map(|r| match r.unwrap() {
-            mcap::records::Record::Metadata(m) => Some(m),
-            _ => None,
-        })
-    {
-        w.write_metadata(&meta).unwrap();
+/// Copies a finished recording's metadata, attachments and messages into a new file written
+/// with `options`, passing each message's data through `data`.
+fn transcode(
+    src: &Path,
+    dst: &Path,
+    options: mcap::WriteOptions,
+    data: impl Fn(&str, Cow<'static, [u8]>) -> Cow<'static, [u8]>,
+) {
+    let bytes = std::fs::read(src).unwrap();
+    let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+    let file = std::io::BufWriter::new(std::fs::File::create(dst).unwrap());
+    let mut w = options.create(file).unwrap();
+    for record in mcap::read::LinearReader::new(&bytes).unwrap() {
+        if let mcap::records::Record::Metadata(m) = record.unwrap() {
+            w.write_metadata(&m).unwrap();
+        }
     }
     for a in &summary.attachment_indexes {
-        let att = mcap::read::attachment(&reader, a).unwrap();
-        w.attach(&att).unwrap();
+        w.attach(&mcap::read::attachment(&bytes, a).unwrap())
+            .unwrap();
     }
-    for m in mcap::MessageStream::new(&reader).unwrap() {
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
-        let data: Cow<[u8]> = if m.channel.topic == "/aircraft" {
-            Cow::Borrowed(br#"{"t":"soon","k":-1}"#)
-        } else {
-            m.data
-        };
+        let owned: Cow<'static, [u8]> = Cow::Owned(m.data.into_owned());
         w.write(&mcap::Message {
+            data: data(&m.channel.topic, owned),
             channel: m.channel,
             sequence: m.sequence,
             log_time: m.log_time,
             publish_time: m.publish_time,
-            data,
         })
         .unwrap();
     }
     w.finish().unwrap();
+}
+
+#[test]
+fn an_mcap_with_hexcue_topics_but_bad_messages_is_refused_by_name() {
+    // Every `/aircraft` message replaced by JSON of the wrong shape: review must name the
+    // topic and what it expected, not panic.
+    let path = scratch().join("bad-messages.mcap");
+    transcode(
+        real_recording(),
+        &path,
+        mcap::WriteOptions::new(),
+        |topic, d| {
+            if topic == "/aircraft" {
+                Cow::Borrowed(br#"{"t":"soon","k":-1}"#)
+            } else {
+                d
+            }
+        },
+    );
     assert_refused(&review(&path), &path, &["/aircraft", "expected"]);
+}
+
+#[test]
+fn an_unchunked_uncompressed_recording_reviews_the_same() {
+    // Other MCAP writers (and the fuzzer's seeds, where a CRC would stop every mutation of a
+    // message) put messages straight in the data section, without chunks or CRCs.
+    let path = scratch().join("unchunked.mcap");
+    transcode(
+        real_recording(),
+        &path,
+        mcap::WriteOptions::new()
+            .use_chunks(false)
+            .compression(None)
+            .calculate_data_section_crc(false)
+            .calculate_summary_section_crc(false)
+            .calculate_attachment_crcs(false),
+        |_, d| d,
+    );
+    let (a, b) = (review(real_recording()), review(&path));
+    assert!(b.status.success(), "{}", stderr(&b));
+    assert_eq!(stdout(&a), stdout(&b));
+    // HEXCUE_WRITE_FUZZ_SEED=1 also writes the fuzzer's seed of this form (docs/reliability.md).
+    if std::env::var_os("HEXCUE_WRITE_FUZZ_SEED").is_some() {
+        let seeds = repo().join("fuzz/seeds/recording");
+        transcode(
+            &seeds.join("tiny.mcap"),
+            &seeds.join("tiny-unchunked.mcap"),
+            mcap::WriteOptions::new()
+                .use_chunks(false)
+                .compression(None)
+                .calculate_data_section_crc(false)
+                .calculate_summary_section_crc(false)
+                .calculate_attachment_crcs(false),
+            |_, d| d,
+        );
+    }
+}
+
+#[test]
+fn recordings_the_fuzzer_found_are_refused_by_name() {
+    // tests/corpus/recordings: inputs that once panicked the reader (docs/reliability.md).
+    let dir = repo().join("tests/corpus/recordings");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    assert!(!files.is_empty());
+    for file in files {
+        assert_refused(&review(&file), &file, &["damaged MCAP"]);
+        let out = scratch().join("fuzz-found-recovered.mcap");
+        assert_refused(&recover(&file, &out), &file, &["damaged MCAP"]);
+    }
 }
