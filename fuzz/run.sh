@@ -42,6 +42,12 @@ max_len() {
     esac
 }
 
+# libFuzzer forks and writes to fuzz-N.log once -jobs is given at all: only for JOBS > 1.
+PARALLEL=()
+if [ "$JOBS" -gt 1 ]; then
+    PARALLEL=(-jobs="$JOBS" -workers="$JOBS")
+fi
+
 mkdir -p logs
 status=0
 for target in $TARGETS; do
@@ -51,7 +57,7 @@ for target in $TARGETS; do
     cargo "${TOOLCHAIN[@]}" fuzz run --sanitizer "$SANITIZER" --debug-assertions \
         "$target" "corpus/$target" "seeds/$target" -- \
         -max_total_time="$SECONDS_PER_TARGET" -max_len="$(max_len "$target")" \
-        -timeout=10 -rss_limit_mb=4096 -jobs="$JOBS" -workers="$JOBS" -print_final_stats=1 \
+        -timeout=10 -rss_limit_mb=4096 "${PARALLEL[@]}" -print_final_stats=1 \
         >"logs/$target.log" 2>&1
     rc=$?
     set -e

@@ -267,7 +267,7 @@ impl Shape {
                 }
             }
             Shape::Square { half, amp } => {
-                if ((t / half) as u64) % 2 == 0 {
+                if ((t / half) as u64).is_multiple_of(2) {
                     amp
                 } else {
                     -amp
