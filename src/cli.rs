@@ -382,9 +382,13 @@ fn print_stdout(text: &str) -> Result<()> {
 pub fn review_summary(path: &Path) -> Result<Summary> {
     let recording = Recording::open(path)?;
     if !recording.finished {
+        // Where and why reading stopped tells a file cut by a crash (ends mid-record) from
+        // one damaged in place (garbage after good chunks).
         eprintln!(
-            "warning: {}: the recording was not finished (cut short); reviewing what it holds",
-            path.display()
+            "warning: {}: the recording was not finished (no end magic; reading stopped {}); \
+             reviewing the steps before that",
+            path.display(),
+            recording.stopped.as_deref().unwrap_or("at its end")
         );
     }
     let profile = recording.profile.as_ref().map_err(|e| {

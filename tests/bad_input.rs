@@ -45,6 +45,16 @@ const BAD_TRACES: &[(&str, usize, &[&str])] = &[
     ("semicolon.csv", 0, &["comma"]),
     ("tab-separated.csv", 0, &["comma"]),
     ("short-row.csv", 17, &[]),
+    // A header that is only partly known: the missing column is named.
+    ("partial-header.csv", 1, &["missing column `p`"]),
+    ("duplicate-column.csv", 1, &["fx", "twice"]),
+    ("empty-field.csv", 3, &["fx", "empty"]),
+    ("hex-number.csv", 2, &["fx", "0x10"]),
+    ("long-row.csv", 4, &["8 field"]),
+    ("utf16-bom.csv", 1, &["UTF-8"]),
+    ("tiny-step.csv", 0, &["shorter than one step"]),
+    // Two rows a million seconds apart would resample to 10^8 samples: refused, not allocated.
+    ("two-rows-a-million-seconds.csv", 0, &["4000000 samples"]),
 ];
 
 #[test]
@@ -117,6 +127,19 @@ fn odd_but_valid_traces_are_accepted() {
 }
 
 #[test]
+fn odd_but_valid_headers_and_start_times_are_accepted_with_a_note() {
+    for (file, note) in [
+        ("late-start.csv", "shifted to start at 0"),
+        ("spaces-in-header.csv", ""),
+        ("upper-case-header.csv", ""),
+    ] {
+        let out = play_trace(file);
+        assert!(out.status.success(), "{file}: {}", stderr(&out));
+        assert!(stderr(&out).contains(note), "{file}: {}", stderr(&out));
+    }
+}
+
+#[test]
 fn a_missing_trace_file_is_named() {
     let out = play_trace("does-not-exist.csv");
     assert!(!out.status.success());
@@ -135,6 +158,21 @@ const BAD_PROFILES: &[(&str, &[&str])] = &[
     ("negative-rate.toml", &["cwf.tilt_rate_limit_dps"]),
     ("not-toml.toml", &[":1:"]),
     ("missing-section.toml", &["cwf"]),
+    // A wrong type one table down, and inside an array: the full key path is named.
+    (
+        "nested-wrong-type.toml",
+        &["limits.roll.excursion_deg", ":53:", "f64"],
+    ),
+    ("array-wrong-type.toml", &["eye_point_m", "\"up\""]),
+    ("array-short.toml", &["eye_point_m", "length 2"]),
+    ("unknown-nested-table.toml", &["`rol`", "roll"]),
+    ("table-as-value.toml", &["`geometry`"]),
+    ("duplicate-key.toml", &["`name`", "duplicate"]),
+    ("empty.toml", &["name"]),
+    // TOML has nan and inf literals; no geometry or rate may be one.
+    ("nan-rate.toml", &["rate_hz", "NaN"]),
+    ("inf-radius.toml", &["geometry.base_radius_m", "inf"]),
+    ("huge-rate.toml", &["rate_hz", "10000"]),
 ];
 
 #[test]

@@ -889,6 +889,11 @@ impl RecordSource {
                     }
                 }
                 Ok(LinearReadEvent::Record { opcode, data }) => {
+                    if opcode == mcap::records::op::ATTACHMENT {
+                        if let Err(e) = check_attachment_body(data) {
+                            return Some(Err(SourceError::Mcap(e)));
+                        }
+                    }
                     return Some(
                         mcap::parse_record(opcode, data)
                             .map(Record::into_owned)
@@ -898,6 +903,44 @@ impl RecordSource {
             }
         }
     }
+}
+
+/// Checks that an attachment record's body holds its fixed fields, two strings, its data
+/// and its CRC. `mcap::parse_record` (0.26) slices `body[header_len..len - 4]` without that
+/// check and panics on a body too short for its header: found by fuzzing the reader
+/// (docs/reliability.md). A damaged file must be an error, never a panic.
+fn check_attachment_body(body: &[u8]) -> Result<(), McapError> {
+    let too_short = |header: u64| McapError::BadAttachmentLength {
+        header,
+        available: body.len() as u64,
+    };
+    let u32_at = |at: usize| -> Option<u64> {
+        let b = body.get(at..at.checked_add(4)?)?;
+        Some(u64::from(u32::from_le_bytes(b.try_into().ok()?)))
+    };
+    // log_time, create_time, then the name and media type (u32 length + bytes each).
+    let mut at: usize = 16;
+    for _ in 0..2 {
+        let len = u32_at(at).ok_or_else(|| too_short(0))?;
+        at = at
+            .checked_add(4)
+            .and_then(|a| a.checked_add(usize::try_from(len).ok()?))
+            .ok_or_else(|| too_short(len))?;
+    }
+    let data_len = body
+        .get(at..at.saturating_add(8))
+        .and_then(|b| b.try_into().ok())
+        .map(u64::from_le_bytes)
+        .ok_or_else(|| too_short(0))?;
+    let end = (at as u64)
+        .checked_add(8)
+        .and_then(|e| e.checked_add(data_len))
+        .and_then(|e| e.checked_add(4))
+        .ok_or_else(|| too_short(data_len))?;
+    if end > body.len() as u64 {
+        return Err(too_short(data_len));
+    }
+    Ok(())
 }
 
 /// What a topic carries.
@@ -1036,13 +1079,26 @@ impl Recording {
             }
         }
         let finished = stopped.is_none();
-        let stopped = stopped.map(|e| format!("after {} bytes: {e}", source.bytes));
+        let stopped_error = stopped;
+        let stopped = stopped_error
+            .as_ref()
+            .map(|e| format!("after {} bytes: {e}", source.bytes));
         if !topics.values().any(|t| t == REFERENCE_TOPIC) {
-            if let (Some(reason), 0) = (&stopped, messages) {
-                return Err(RecordingError::Truncated {
-                    path: p,
-                    bytes: source.bytes,
-                    reason: reason.clone(),
+            if let (Some(reason), 0) = (stopped_error, messages) {
+                // A file that ends early and one with garbage where its records should be
+                // are different faults for the user: say which.
+                return Err(if matches!(reason, McapError::UnexpectedEof) {
+                    RecordingError::Truncated {
+                        path: p,
+                        bytes: source.bytes,
+                        reason: reason.to_string(),
+                    }
+                } else {
+                    RecordingError::Damaged {
+                        path: p,
+                        bytes: source.bytes,
+                        error: reason,
+                    }
                 });
             }
             let mut names: Vec<&str> = topics.values().map(String::as_str).collect();
@@ -1578,6 +1634,50 @@ mod tests {
             csv.push('\n');
         }
         csv
+    }
+
+    /// An MCAP whose only record after the header is an attachment of `body`.
+    fn mcap_with_attachment_body(body: &[u8]) -> Vec<u8> {
+        let mut bytes = mcap::MAGIC.to_vec();
+        // Header: empty profile and library strings.
+        bytes.push(mcap::records::op::HEADER);
+        bytes.extend(8u64.to_le_bytes());
+        bytes.extend([0u8; 8]);
+        bytes.push(mcap::records::op::ATTACHMENT);
+        bytes.extend((body.len() as u64).to_le_bytes());
+        bytes.extend(body);
+        bytes
+    }
+
+    #[test]
+    fn an_attachment_shorter_than_its_header_is_an_error_not_a_panic() {
+        // The shape of the fuzzer's finding: every field present but the CRC, so that the
+        // mcap crate's `body[header_len..len - 4]` starts past its end. Then other cuts.
+        let mut full = Vec::new();
+        full.extend(1u64.to_le_bytes());
+        full.extend(2u64.to_le_bytes());
+        full.extend(4u32.to_le_bytes());
+        full.extend(b"name");
+        full.extend(0u32.to_le_bytes());
+        full.extend(3u64.to_le_bytes());
+        full.extend(b"abc");
+        full.extend(0u32.to_le_bytes());
+        assert!(check_attachment_body(&full).is_ok());
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("short-attachment.mcap");
+        for cut in 0..full.len() {
+            std::fs::write(&path, mcap_with_attachment_body(&full[..cut])).unwrap();
+            let e = Recording::open(&path).unwrap_err().to_string();
+            assert!(e.contains("short-attachment.mcap"), "cut {cut}: {e}");
+        }
+        // A length field so large that adding to it overflows.
+        let mut huge = full.clone();
+        huge[16..20].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(check_attachment_body(&huge).is_err());
+        let mut huge = full;
+        let at = 16 + 4 + 4 + 4;
+        huge[at..at + 8].copy_from_slice(&u64::MAX.to_le_bytes());
+        assert!(check_attachment_body(&huge).is_err());
     }
 
     fn meta(trace: &Trace) -> RecordingMeta {

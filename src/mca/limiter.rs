@@ -16,6 +16,10 @@ use crate::profile::DofLimits;
 /// algorithm that sits exactly on a limit does not trigger the limiter.
 const RATE_TOLERANCE: f64 = 1e-6;
 
+/// Bound on the braking look-ahead: at the shipped limits a stop takes at most about 15
+/// steps; a profile with far lower accelerations is checked over this many.
+const MAX_BRAKING_STEPS: usize = 1000;
+
 #[derive(Clone, Debug)]
 pub struct WorkspaceLimiter {
     stewart: Stewart,
@@ -23,6 +27,10 @@ pub struct WorkspaceLimiter {
     leg_margin_m: f64,
     dt_s: f64,
     last: PlatformCommand,
+    /// Velocity of the issued poses, (p_k − p_{k−1})/dt. An actuator controller follows the
+    /// poses, so this, not the velocity an algorithm reports, is what the rate limits bind;
+    /// it differs from the reported one when the limiter hands control back.
+    last_rate: Vector6<f64>,
 }
 
 /// What the limiter did at one step.
@@ -41,11 +49,13 @@ impl WorkspaceLimiter {
             leg_margin_m,
             dt_s,
             last: PlatformCommand::default(),
+            last_rate: Vector6::zeros(),
         }
     }
 
     pub fn reset(&mut self) {
         self.last = PlatformCommand::default();
+        self.last_rate = Vector6::zeros();
     }
 
     /// The last command issued.
@@ -57,7 +67,10 @@ impl WorkspaceLimiter {
         (0..6).all(|i| pose[i].abs() <= self.limits.excursion[i])
     }
 
-    /// True when the command can be issued as it is after the previous one.
+    /// True when the command can be issued as it is after the previous one: inside the
+    /// workspace, within the rate limits both as reported and as implied by the issued poses
+    /// (so that handing control back from the limiter to the algorithm is not a jolt), and
+    /// able to brake to a stop, at the acceleration limits, before any end stop.
     fn acceptable(&self, cmd: &PlatformCommand) -> bool {
         if !cmd.is_finite()
             || !self.within_excursion(&cmd.pose)
@@ -66,12 +79,59 @@ impl WorkspaceLimiter {
             return false;
         }
         let slack = 1.0 + RATE_TOLERANCE;
-        (0..6).all(|i| {
-            let step = (cmd.pose[i] - self.last.pose[i]).abs() / self.dt_s;
+        let dt = self.dt_s;
+        let rates_ok = (0..6).all(|i| {
+            let rate = (cmd.pose[i] - self.last.pose[i]) / dt;
+            let rate_change = (rate - self.last_rate[i]) / dt;
             cmd.velocity[i].abs() <= self.limits.velocity[i] * slack
-                && step <= self.limits.velocity[i] * slack + 1e-9
+                && rate.abs() <= self.limits.velocity[i] * slack + 1e-9
                 && cmd.acceleration[i].abs() <= self.limits.acceleration[i] * slack
-        })
+                && rate_change.abs() <= self.limits.acceleration[i] * slack + 1e-9
+        });
+        rates_ok && self.can_stop(&cmd.pose, &((cmd.pose - self.last.pose) / dt))
+    }
+
+    /// Whether a platform at `pose` moving at `rate` can brake every DoF at its
+    /// acceleration limit and come to rest with every pose on the way inside the excursions
+    /// and every leg's margin. Without this look-ahead the limiter would take over only once
+    /// a leg is already at its margin, too late to stop without breaking the acceleration
+    /// limit.
+    ///
+    /// The braking path is simulated step by step exactly as [`Self::brake`] issues it, not
+    /// checked at its end point only: the leg-length floor is not convex, so a path between
+    /// two poses that fit can leave the stroke. With the same arithmetic, a state that passes
+    /// is one whose braking step passes again, so braking never needs the last resort.
+    fn can_stop(&self, pose: &Vector6<f64>, rate: &Vector6<f64>) -> bool {
+        let (mut p, mut v) = (*pose, *rate);
+        for _ in 0..MAX_BRAKING_STEPS {
+            if v.iter().all(|x| *x == 0.0) {
+                return true;
+            }
+            (p, v) = self.brake(&p, &v);
+            if !self.within_excursion(&p) || !self.stewart.fits(&p, self.leg_margin_m) {
+                return false;
+            }
+        }
+        // Limits so low that stopping takes longer: at least the point reached must fit.
+        true
+    }
+
+    /// One step of braking from `pose` at `rate`: every DoF decelerates toward rest at its
+    /// acceleration limit. Returns the next pose and rate.
+    fn brake(&self, pose: &Vector6<f64>, rate: &Vector6<f64>) -> (Vector6<f64>, Vector6<f64>) {
+        let dt = self.dt_s;
+        let mut p = *pose;
+        let mut v = *rate;
+        for i in 0..6 {
+            let a_max = self.limits.acceleration[i];
+            v[i] += (-v[i] / dt).clamp(-a_max, a_max) * dt;
+            // Exactly zero once within one step of rest, so that the simulation ends.
+            if v[i].abs() < 1e-12 {
+                v[i] = 0.0;
+            }
+            p[i] += v[i] * dt;
+        }
+        (p, v)
     }
 
     /// Largest s in [0, 1] such that s·pose keeps every leg's margin (bisection; the neutral
@@ -102,6 +162,7 @@ impl WorkspaceLimiter {
 
     pub fn apply(&mut self, desired: &PlatformCommand) -> Limited {
         if self.acceptable(desired) {
+            self.last_rate = (desired.pose - self.last.pose) / self.dt_s;
             self.last = *desired;
             return Limited {
                 command: *desired,
@@ -111,6 +172,9 @@ impl WorkspaceLimiter {
         let dt = self.dt_s;
         let target = self.safe_pose(&desired.pose);
         let prev = self.last;
+        // The speed the platform really has: that of the poses issued, not the velocity the
+        // algorithm reported for its last accepted command.
+        let prev_rate = self.last_rate;
         let mut out = PlatformCommand::default();
         for i in 0..6 {
             let (v_max, a_max, x_max) = (
@@ -119,31 +183,53 @@ impl WorkspaceLimiter {
                 self.limits.excursion[i],
             );
             let err = target[i] - prev.pose[i];
-            // Approach speed from which the DoF can still stop at the target and before its
-            // excursion limit, braking at a_max in steps of dt.
-            let to_limit = if err >= 0.0 {
-                x_max - prev.pose[i]
+            // Where the target is the algorithm's own pose, it moves at the algorithm's
+            // velocity: tracking relative to it catches up with a moving command instead of
+            // lagging behind it, so that control is handed back within a few steps. A
+            // clamped or scaled target is taken as standing still.
+            let target_rate = if target[i] == desired.pose[i] && desired.velocity[i].is_finite() {
+                desired.velocity[i].clamp(-v_max, v_max)
             } else {
-                x_max + prev.pose[i]
+                0.0
             };
-            let braking = stopping_speed(err.abs().min(to_limit.max(0.0)), a_max, dt);
-            let wanted = (err / dt).clamp(-v_max, v_max).clamp(-braking, braking);
-            let acc = ((wanted - prev.velocity[i]) / dt).clamp(-a_max, a_max);
-            out.velocity[i] = prev.velocity[i] + acc * dt;
+            // Closing speed from which the DoF can still stop on the target, braking at
+            // a_max in steps of dt; then the speed from which it can stop before its
+            // excursion limit in the direction it moves.
+            let closing = stopping_speed(err.abs(), a_max, dt);
+            let wanted = target_rate + (err / dt - target_rate).clamp(-closing, closing);
+            let to_upper = stopping_speed((x_max - prev.pose[i]).max(0.0), a_max, dt);
+            let to_lower = stopping_speed((x_max + prev.pose[i]).max(0.0), a_max, dt);
+            let wanted = wanted.clamp(-to_lower, to_upper).clamp(-v_max, v_max);
+            let acc = ((wanted - prev_rate[i]) / dt).clamp(-a_max, a_max);
+            out.velocity[i] = prev_rate[i] + acc * dt;
             out.pose[i] = prev.pose[i] + out.velocity[i] * dt;
             out.acceleration[i] = acc;
         }
-        // The rate-bounded path can still leave the workspace (legs are not boxes): then the
-        // pose is pulled back and the derivatives follow from the pose actually issued.
+        // The path toward the target is bounded per DoF, but legs are not boxes: a step that
+        // could no longer stop before a leg's margin becomes braking instead, every DoF
+        // decelerating at its limit, so that the platform comes to rest inside the stroke
+        // without breaking a rate limit.
+        if !self.stewart.fits(&out.pose, self.leg_margin_m)
+            || !self.can_stop(&out.pose, &out.velocity)
+        {
+            let (pose, rate) = self.brake(&prev.pose, &prev_rate);
+            out.pose = pose;
+            out.acceleration = (rate - prev_rate) / dt;
+            out.velocity = rate;
+        }
+        // Last resort, when even braking leaves the workspace (a state no accepted command
+        // leads to, barring rounding): position wins over the rate limits, the pose is pulled
+        // back and the derivatives follow from the pose actually issued.
         let safe = self.safe_pose(&out.pose);
         if safe != out.pose {
             out.pose = safe;
             for i in 0..6 {
                 let v = (safe[i] - prev.pose[i]) / dt;
-                out.acceleration[i] = (v - prev.velocity[i]) / dt;
+                out.acceleration[i] = (v - prev_rate[i]) / dt;
                 out.velocity[i] = v;
             }
         }
+        self.last_rate = out.velocity;
         self.last = out;
         Limited {
             command: out,
@@ -173,9 +259,11 @@ mod tests {
     #[test]
     fn a_command_within_limits_passes_untouched() {
         let mut l = limiter();
+        // From rest, a first step of 1 mm and 0.2 mrad: 0.1 m/s and 0.02 rad/s reached in
+        // one step, 10 m/s² and 2 rad/s², within the 10 m/s² and 3.5 rad/s² limits.
         let cmd = PlatformCommand {
-            pose: Vector6::new(0.001, 0.0, 0.0, 0.0, 0.0005, 0.0),
-            velocity: Vector6::new(0.1, 0.0, 0.0, 0.0, 0.05, 0.0),
+            pose: Vector6::new(0.001, 0.0, 0.0, 0.0, 0.0002, 0.0),
+            velocity: Vector6::new(0.1, 0.0, 0.0, 0.0, 0.02, 0.0),
             acceleration: Vector6::new(1.0, 0.0, 0.0, 0.0, 0.0, 0.0),
         };
         let out = l.apply(&cmd);
@@ -229,6 +317,79 @@ mod tests {
             assert!(out.acted && out.command.is_finite());
             assert!(out.command.pose.norm() < 1e-12);
         }
+    }
+
+    /// Issues `desired(k)` for `steps` steps and checks the issued poses themselves (what an
+    /// actuator controller follows): inside the legs' margin and within the velocity and
+    /// acceleration limits as finite differences.
+    fn check_issued(steps: usize, desired: impl Fn(usize, &PlatformCommand) -> PlatformCommand) {
+        let p = full_flight();
+        let (s, lim, dt) = (p.stewart(), p.limits.si(), p.dt_s());
+        let mut l = limiter();
+        let (mut prev_pose, mut prev_rate) = (Vector6::zeros(), Vector6::<f64>::zeros());
+        for k in 0..steps {
+            let cmd = desired(k, l.last());
+            let c = l.apply(&cmd).command;
+            assert!(
+                s.fits(&c.pose, p.limiter.leg_margin_m - 1e-9),
+                "k={k} {:?}",
+                c.pose
+            );
+            let rate = (c.pose - prev_pose) / dt;
+            for i in 0..6 {
+                assert!(
+                    rate[i].abs() <= lim.velocity[i] * (1.0 + 1e-6) + 1e-9,
+                    "k={k} dof {i} v {}",
+                    rate[i]
+                );
+                let acc = (rate[i] - prev_rate[i]) / dt;
+                assert!(
+                    acc.abs() <= lim.acceleration[i] * (1.0 + 1e-6) + 1e-9,
+                    "k={k} dof {i} a {acc}"
+                );
+            }
+            (prev_pose, prev_rate) = (c.pose, rate);
+        }
+    }
+
+    #[test]
+    fn handing_control_back_is_not_a_jolt() {
+        // Found by tests/adversarial.rs: after tracking a target beyond the surge limit, the
+        // algorithm's next command was within every limit on its own, so it was accepted,
+        // but its pose was 14 mm from the last one: 1.4 m/s for one step after 0.47 m/s, an
+        // implied 89 m/s² then −113 m/s² against a 10 m/s² limit.
+        check_issued(400, |k, last| {
+            if k < 200 {
+                PlatformCommand {
+                    pose: Vector6::new(5.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+                    ..Default::default()
+                }
+            } else {
+                // A smooth, slow command that starts off the limiter's path.
+                PlatformCommand {
+                    pose: Vector6::new(0.9 + 0.001 * (k - 200) as f64, 0.0, 0.0, 0.0, 0.0, 0.0),
+                    velocity: Vector6::new(0.1, 0.0, 0.0, 0.0, 0.0, 0.0),
+                    ..*last
+                }
+            }
+        });
+    }
+
+    #[test]
+    fn a_fast_approach_to_the_legs_brakes_in_time() {
+        // A diagonal surge and sway at full speed, each DoF within all its own limits, toward
+        // the corner that no leg reaches: the limiter must brake before the legs' margin,
+        // not stop dead at it.
+        check_issued(600, |k, _| {
+            let t = k as f64 * 0.01;
+            let x = (1.5 * t).min(1.7);
+            let v = if x < 1.7 { 1.5 } else { 0.0 };
+            PlatformCommand {
+                pose: Vector6::new(x, x, 0.0, 0.0, 0.0, 0.0),
+                velocity: Vector6::new(v, v, 0.0, 0.0, 0.0, 0.0),
+                ..Default::default()
+            }
+        });
     }
 
     #[test]

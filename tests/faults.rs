@@ -1,0 +1,541 @@
+//! Faults injected into the real binary: SIGKILL mid-recording, SIGTERM and SIGHUP to the
+//! console under a pseudo-terminal, a closed stdout, a storm of resizes. The terminal must
+//! be restored, recordings finished (or, after SIGKILL, readable up to the last second), and
+//! nothing may panic.
+
+mod common;
+
+use std::fs::File;
+use std::io::{Read, Write};
+use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use common::*;
+
+fn scratch() -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("faults");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A 10-minute synthetic trace at 100 Hz (60,000 rows): long enough that no run here ends
+/// before it is interrupted.
+fn long_trace() -> &'static Path {
+    static PATH: OnceLock<PathBuf> = OnceLock::new();
+    PATH.get_or_init(|| {
+        let path = scratch().join("long.csv");
+        let mut text = String::from("t,fx,fy,fz,p,q,r\n");
+        for k in 0..60_000 {
+            let t = k as f64 / 100.0;
+            text += &format!(
+                "{t:.2},{:.4},{:.4},{:.4},{:.4},0,{:.4}\n",
+                2.0 * (0.3 * t).sin(),
+                1.5 * (0.17 * t).sin(),
+                -9.81 + 0.5 * (1.1 * t).sin(),
+                0.1 * (0.5 * t).sin(),
+                0.05 * (0.2 * t).cos()
+            );
+        }
+        std::fs::write(&path, text).unwrap();
+        path
+    })
+}
+
+fn signal(child: &Child, sig: i32) {
+    // SAFETY: kill(2) on the pid of a child we own and have not reaped.
+    let rc = unsafe { libc::kill(child.id() as libc::pid_t, sig) };
+    assert_eq!(rc, 0, "kill({}, {sig})", child.id());
+}
+
+fn wait_with_timeout(child: &mut Child, limit: Duration) -> std::process::ExitStatus {
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            return status;
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            panic!("hexcue did not exit within {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn review(path: &Path) -> std::process::Output {
+    hexcue(&["review".as_ref(), path.as_os_str(), "--headless".as_ref()])
+}
+
+fn table_steps(text: &str) -> usize {
+    let first = text.lines().next().unwrap_or_default();
+    let words: Vec<&str> = first.split_whitespace().collect();
+    let i = words
+        .iter()
+        .position(|w| *w == "steps")
+        .expect("a step count");
+    words[i - 1].parse().unwrap()
+}
+
+/// The newest message log time of any chunk whose header reached the file (ns), found by
+/// walking the MCAP records by hand, so that a torn last chunk counts too: this is what the
+/// session had handed to the OS when it died.
+fn last_flushed_log_time(path: &Path) -> Option<u64> {
+    let bytes = std::fs::read(path).unwrap();
+    let mut at = 8; // the magic
+    let mut newest = None;
+    while at + 9 <= bytes.len() {
+        let op = bytes[at];
+        let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+        let body = at + 9;
+        // Chunk: message_start_time u64, message_end_time u64, …
+        if op == 0x06 && body + 16 <= bytes.len() {
+            let end = u64::from_le_bytes(bytes[body + 8..body + 16].try_into().unwrap());
+            newest = newest.max(Some(end));
+        }
+        at = body.saturating_add(len);
+    }
+    newest
+}
+
+fn metadata_start_ns(path: &Path) -> u64 {
+    let out = hexcue(&["review".as_ref(), path.as_os_str(), "--headless".as_ref()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    // The recording says when it started; read it with the library's reader.
+    hexcue::formats::recording::Recording::open(path)
+        .unwrap()
+        .start_unix_ns
+}
+
+#[test]
+fn a_headless_recording_killed_mid_run_reviews_and_recovers() {
+    let file = scratch().join("killed-headless.mcap");
+    let _ = std::fs::remove_file(&file);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_hexcue"))
+        .args(["play", "--headless", "--algorithms", "cwf", "--trace"])
+        .arg(long_trace())
+        .arg("--record")
+        .arg(&file)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Until at least five seconds of trace are on disk, read as review would.
+    let start = Instant::now();
+    loop {
+        std::thread::sleep(Duration::from_millis(50));
+        let steps = hexcue::formats::recording::Recording::open(&file).map_or(0, |r| r.steps);
+        if steps >= 500 {
+            break;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "nothing recorded"
+        );
+    }
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "the run ended before it was killed: make the trace longer"
+    );
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+
+    let flushed_ns = last_flushed_log_time(&file).expect("a chunk on disk");
+    let out = review(&file);
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("not finished"), "{err}");
+    let steps = table_steps(&stdout(&out));
+    assert!(steps > 100, "{steps} steps");
+    // Everything handed to the OS is read, but for at most the last second.
+    let start_ns = metadata_start_ns(&file);
+    let flushed_t = (flushed_ns - start_ns) as f64 * 1e-9;
+    let read_t = (steps - 1) as f64 / 100.0;
+    eprintln!("killed headless: flushed up to t = {flushed_t:.2} s, read {steps} steps to t = {read_t:.2} s");
+    assert!(
+        flushed_t - read_t <= 1.0,
+        "flushed up to t = {flushed_t} s, read up to {read_t} s"
+    );
+
+    let fixed = scratch().join("killed-headless-recovered.mcap");
+    let rec = hexcue(&["recover".as_ref(), file.as_os_str(), fixed.as_os_str()]);
+    assert!(rec.status.success(), "{}", stderr(&rec));
+    let again = review(&fixed);
+    assert!(again.status.success(), "{}", stderr(&again));
+    assert!(
+        !stderr(&again).contains("not finished"),
+        "{}",
+        stderr(&again)
+    );
+    assert_eq!(table_steps(&stdout(&again)), steps);
+}
+
+#[test]
+fn a_headless_run_stopped_by_sigterm_or_sighup_finishes_its_recording() {
+    for (sig, name) in [(libc::SIGTERM, "sigterm"), (libc::SIGHUP, "sighup")] {
+        let file = scratch().join(format!("headless-{name}.mcap"));
+        let mut child = Command::new(env!("CARGO_BIN_EXE_hexcue"))
+            .args(["play", "--headless", "--algorithms", "cwf", "--trace"])
+            .arg(long_trace())
+            .arg("--record")
+            .arg(&file)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(1500));
+        signal(&child, sig);
+        let status = wait_with_timeout(&mut child, Duration::from_secs(30));
+        let mut err = String::new();
+        child
+            .stderr
+            .take()
+            .unwrap()
+            .read_to_string(&mut err)
+            .unwrap();
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(status.success(), "{name}: {status:?} {err}");
+        assert!(err.contains("stopped by a signal"), "{name}: {err}");
+        let out = review(&file);
+        assert!(out.status.success(), "{}", stderr(&out));
+        assert!(!stderr(&out).contains("not finished"), "{}", stderr(&out));
+    }
+}
+
+#[test]
+fn a_closed_stdout_ends_a_headless_run_cleanly() {
+    for record in [false, true] {
+        let file = scratch().join("closed-stdout.mcap");
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_hexcue"));
+        cmd.args(["play", "--headless", "--algorithms", "cwf"]);
+        if record {
+            cmd.arg("--record").arg(&file);
+        }
+        let mut child = cmd
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // `| head -1`: read one line, then close the pipe.
+        let mut stdout = child.stdout.take().unwrap();
+        let mut first = Vec::new();
+        let mut byte = [0u8; 1];
+        while stdout.read(&mut byte).unwrap() == 1 && byte[0] != b'\n' {
+            first.push(byte[0]);
+        }
+        drop(stdout);
+        let status = wait_with_timeout(&mut child, Duration::from_secs(60));
+        let mut err = String::new();
+        child
+            .stderr
+            .take()
+            .unwrap()
+            .read_to_string(&mut err)
+            .unwrap();
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(status.success(), "{status:?}: {err}");
+        assert!(String::from_utf8_lossy(&first).starts_with("trace "));
+        if record {
+            let out = review(&file);
+            assert!(out.status.success(), "{}", stderr(&out));
+            assert!(!stderr(&out).contains("not finished"));
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The console under a pseudo-terminal.
+
+struct PtySession {
+    child: Child,
+    master: File,
+    /// Kept open so that the terminal's modes can be read after the child exits.
+    slave: OwnedFd,
+    output: Arc<Mutex<Vec<u8>>>,
+}
+
+fn winsize(cols: u16, rows: u16) -> libc::winsize {
+    libc::winsize {
+        ws_row: rows,
+        ws_col: cols,
+        ws_xpixel: 0,
+        ws_ypixel: 0,
+    }
+}
+
+/// Starts hexcue on a new pseudo-terminal, as its controlling terminal (so that resizes
+/// send it SIGWINCH as a real terminal would).
+fn spawn_pty(args: &[&std::ffi::OsStr], cols: u16, rows: u16) -> PtySession {
+    let (mut master, mut slave) = (0, 0);
+    let ws = winsize(cols, rows);
+    // SAFETY: openpty writes two fds into the pointers given; no name buffer, default termios.
+    let rc = unsafe {
+        libc::openpty(
+            &mut master,
+            &mut slave,
+            std::ptr::null_mut(),
+            std::ptr::null(),
+            &ws,
+        )
+    };
+    assert_eq!(rc, 0, "openpty: {}", std::io::Error::last_os_error());
+    // SAFETY: both fds were just returned by openpty and are owned here.
+    let (master, slave) = unsafe { (File::from_raw_fd(master), OwnedFd::from_raw_fd(slave)) };
+    let stdio = || Stdio::from(slave.try_clone().unwrap());
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_hexcue"));
+    cmd.args(args)
+        .current_dir(repo())
+        .env("TERM", "xterm-256color")
+        .env_remove("NO_COLOR")
+        .stdin(stdio())
+        .stdout(stdio())
+        .stderr(stdio());
+    // SAFETY: only async-signal-safe calls between fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            if libc::setsid() < 0 || libc::ioctl(0, libc::TIOCSCTTY, 0) < 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let child = cmd.spawn().unwrap();
+    let output = Arc::new(Mutex::new(Vec::new()));
+    let sink = output.clone();
+    let mut reader = master.try_clone().unwrap();
+    // Drains the terminal so that the console never blocks on a full pty buffer; ends with
+    // an error (EIO) or never, which is fine for a test process.
+    std::thread::spawn(move || {
+        let mut buf = [0u8; 8192];
+        while let Ok(n) = reader.read(&mut buf) {
+            if n == 0 {
+                break;
+            }
+            sink.lock().unwrap().extend_from_slice(&buf[..n]);
+        }
+    });
+    PtySession {
+        child,
+        master,
+        slave,
+        output,
+    }
+}
+
+impl PtySession {
+    fn text(&self) -> String {
+        String::from_utf8_lossy(&self.output.lock().unwrap()).into_owned()
+    }
+
+    fn wait_for(&self, what: &str, limit: Duration) {
+        let start = Instant::now();
+        while !self.text().contains(what) {
+            assert!(
+                start.elapsed() < limit,
+                "no `{what}` on the terminal within {limit:?}:\n{}",
+                self.text()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    fn resize(&self, cols: u16, rows: u16) {
+        let ws = winsize(cols, rows);
+        // SAFETY: TIOCSWINSZ on our own pty master with a valid winsize.
+        let rc = unsafe { libc::ioctl(self.master.as_raw_fd(), libc::TIOCSWINSZ, &ws) };
+        assert_eq!(rc, 0, "{}", std::io::Error::last_os_error());
+    }
+
+    /// The terminal is back in cooked mode with echo, as the shell left it.
+    fn assert_modes_restored(&self) {
+        // SAFETY: tcgetattr on an open fd into a zeroed termios.
+        let mut t: libc::termios = unsafe { std::mem::zeroed() };
+        assert_eq!(
+            unsafe { libc::tcgetattr(self.slave.as_raw_fd(), &mut t) },
+            0
+        );
+        assert!(
+            t.c_lflag & libc::ICANON != 0 && t.c_lflag & libc::ECHO != 0,
+            "the terminal was left in raw mode (lflag {:o})",
+            t.c_lflag
+        );
+    }
+
+    /// The alternate screen was entered and then left, and the cursor shown again after it
+    /// was last hidden.
+    fn assert_screen_restored(&self) {
+        let text = self.text();
+        let entered = text
+            .rfind("\x1b[?1049h")
+            .expect("the console entered the alternate screen");
+        let left = text.rfind("\x1b[?1049l");
+        assert!(
+            left.is_some_and(|l| l > entered),
+            "the alternate screen was not left"
+        );
+        let hidden = text.rfind("\x1b[?25l");
+        let shown = text.rfind("\x1b[?25h");
+        assert!(
+            shown.is_some() && shown > hidden,
+            "the cursor was left hidden (last hide at {hidden:?}, last show at {shown:?})"
+        );
+    }
+}
+
+fn console_record_then_signal(sig: i32, name: &str) {
+    let file = scratch().join(format!("console-{name}.mcap"));
+    let _ = std::fs::remove_file(&file);
+    let mut s = spawn_pty(
+        &[
+            "play".as_ref(),
+            "--algorithms".as_ref(),
+            "cwf".as_ref(),
+            "--trace".as_ref(),
+            long_trace().as_os_str(),
+            "--record".as_ref(),
+            file.as_os_str(),
+        ],
+        100,
+        30,
+    );
+    s.wait_for("REC", Duration::from_secs(30));
+    std::thread::sleep(Duration::from_millis(1500));
+    signal(&s.child, sig);
+    let status = wait_with_timeout(&mut s.child, Duration::from_secs(30));
+    let text = s.text();
+    assert!(!text.contains("panicked"), "{text}");
+    // A session ended by a signal says so and exits non-zero, after cleaning up.
+    assert!(!status.success(), "{name}: {status:?}");
+    assert!(
+        text.contains(&format!("stopped by {}", name.to_uppercase())),
+        "{text}"
+    );
+    s.assert_screen_restored();
+    s.assert_modes_restored();
+    let out = review(&file);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!stderr(&out).contains("not finished"), "{}", stderr(&out));
+    assert!(table_steps(&stdout(&out)) > 50);
+}
+
+#[test]
+fn the_console_stopped_by_sigterm_restores_the_terminal_and_finishes_the_recording() {
+    console_record_then_signal(libc::SIGTERM, "sigterm");
+}
+
+#[test]
+fn the_console_stopped_by_sighup_restores_the_terminal_and_finishes_the_recording() {
+    console_record_then_signal(libc::SIGHUP, "sighup");
+}
+
+#[test]
+fn a_console_recording_killed_loses_at_most_a_second() {
+    // The console plays at ×1, so a step's log time (recording start + trace time) is close
+    // to the wall-clock time at which it was recorded: the gap between the kill and the last
+    // step read bounds what was lost (from above: it also holds the start-up delay).
+    let file = scratch().join("console-killed.mcap");
+    let _ = std::fs::remove_file(&file);
+    let mut s = spawn_pty(
+        &[
+            "play".as_ref(),
+            "--algorithms".as_ref(),
+            "cwf".as_ref(),
+            "--trace".as_ref(),
+            long_trace().as_os_str(),
+            "--record".as_ref(),
+            file.as_os_str(),
+        ],
+        100,
+        30,
+    );
+    s.wait_for("REC", Duration::from_secs(30));
+    std::thread::sleep(Duration::from_millis(3500));
+    let killed_ns = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .unwrap()
+        .as_nanos() as u64;
+    s.child.kill().unwrap();
+    s.child.wait().unwrap();
+
+    let out = review(&file);
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("not finished"), "{err}");
+    let steps = table_steps(&stdout(&out));
+    let rec = hexcue::formats::recording::Recording::open(&file).unwrap();
+    let last_ns = rec.start_unix_ns + ((steps - 1) as f64 * 0.01 * 1e9) as u64;
+    let lost_s = killed_ns.saturating_sub(last_ns) as f64 * 1e-9;
+    eprintln!("killed console: {steps} steps read, the last {lost_s:.3} s before the kill");
+    // One second of flush interval, plus the start-up delay and a step or two.
+    assert!(
+        lost_s <= 1.25,
+        "killed {lost_s:.3} s after the last step read ({steps} steps read)"
+    );
+    let fixed = scratch().join("console-killed-recovered.mcap");
+    let r = hexcue(&["recover".as_ref(), file.as_os_str(), fixed.as_os_str()]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let again = review(&fixed);
+    assert!(
+        !stderr(&again).contains("not finished"),
+        "{}",
+        stderr(&again)
+    );
+    assert_eq!(table_steps(&stdout(&again)), steps);
+}
+
+#[test]
+fn a_storm_of_resizes_does_not_panic_the_console() {
+    let mut s = spawn_pty(
+        &[
+            "play".as_ref(),
+            "--algorithms".as_ref(),
+            "cwf".as_ref(),
+            "--trace".as_ref(),
+            long_trace().as_os_str(),
+        ],
+        80,
+        24,
+    );
+    s.wait_for("\x1b[?1049h", Duration::from_secs(30));
+    // Sizes from absurdly small to very large, in a reproducible order; each change sends
+    // SIGWINCH to the console, as a terminal emulator being dragged does.
+    let sizes = [
+        (1, 1),
+        (0, 0),
+        (2, 300),
+        (300, 2),
+        (80, 24),
+        (10, 5),
+        (500, 200),
+        (79, 23),
+        (3, 3),
+        (120, 40),
+    ];
+    for i in 0..300 {
+        let (c, r) = sizes[(i * 7) % sizes.len()];
+        s.resize(c, r);
+        if i % 3 == 0 {
+            signal(&s.child, libc::SIGWINCH);
+        }
+        std::thread::sleep(Duration::from_millis(3));
+    }
+    s.resize(80, 24);
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(
+        s.child.try_wait().unwrap().is_none(),
+        "the console exited during the storm:\n{}",
+        s.text()
+    );
+    s.master.write_all(b"q").unwrap();
+    let status = wait_with_timeout(&mut s.child, Duration::from_secs(30));
+    let text = s.text();
+    assert!(!text.contains("panicked"), "{text}");
+    assert!(status.success(), "{status:?}");
+    s.assert_screen_restored();
+    s.assert_modes_restored();
+}

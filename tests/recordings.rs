@@ -1,0 +1,373 @@
+//! Bad recordings: a real recording made by the binary, then cut, scrambled, replaced by a
+//! file that is not MCAP, or by an MCAP that is not hexcue's. `review --headless` and
+//! `recover` must refuse each with the file and the reason (non-zero exit, no panic), or,
+//! for a file cut after its first chunk, review it as unfinished with a warning.
+
+mod common;
+
+use std::borrow::Cow;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use common::*;
+
+fn scratch() -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("recordings-corpus");
+    std::fs::create_dir_all(&dir).expect("the scratch directory can be made");
+    dir
+}
+
+/// One real recording (the embedded trace, CWF), made once per test binary.
+fn real_recording() -> &'static Path {
+    static PATH: OnceLock<PathBuf> = OnceLock::new();
+    PATH.get_or_init(|| {
+        let path = scratch().join("real.mcap");
+        let out = hexcue(&[
+            "play".as_ref(),
+            "--headless".as_ref(),
+            "--algorithms".as_ref(),
+            "cwf".as_ref(),
+            "--record".as_ref(),
+            path.as_os_str(),
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        path
+    })
+}
+
+fn review(path: &Path) -> std::process::Output {
+    hexcue(&["review".as_ref(), path.as_os_str(), "--headless".as_ref()])
+}
+
+fn recover(input: &Path, output: &Path) -> std::process::Output {
+    hexcue(&["recover".as_ref(), input.as_os_str(), output.as_os_str()])
+}
+
+/// Steps in a headless table's first line: "trace … profile …  N steps at R Hz".
+fn table_steps(out: &std::process::Output) -> usize {
+    let text = stdout(out);
+    let first = text.lines().next().unwrap_or_default();
+    let words: Vec<&str> = first.split_whitespace().collect();
+    words
+        .iter()
+        .position(|w| *w == "steps")
+        .and_then(|i| words.get(i.wrapping_sub(1)))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no step count in the table:\n{text}"))
+}
+
+/// A refusal: non-zero, the file named, the reason's words present, nothing on stdout.
+fn assert_refused(out: &std::process::Output, file: &Path, words: &[&str]) {
+    let err = stderr(out);
+    assert!(
+        !out.status.success(),
+        "{} was accepted:\n{err}",
+        file.display()
+    );
+    let name = file.file_name().unwrap().to_string_lossy();
+    assert!(
+        err.contains(name.as_ref()),
+        "the error does not name {name}:\n{err}"
+    );
+    for w in words {
+        assert!(err.contains(w), "{name}: the error lacks `{w}`:\n{err}");
+    }
+    assert!(stdout(out).is_empty(), "{name}: stdout on failure");
+}
+
+#[test]
+fn the_whole_recording_reviews_cleanly() {
+    let out = review(real_recording());
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!stderr(&out).contains("not finished"), "{}", stderr(&out));
+    assert_eq!(table_steps(&out), 5500);
+}
+
+#[test]
+fn a_recording_cut_at_every_tenth_is_refused_or_reviewed_as_unfinished() {
+    let bytes = std::fs::read(real_recording()).unwrap();
+    let full_steps = 5500;
+    // Every tenth, plus cuts inside the magic, the header and the first records.
+    let mut cuts: Vec<usize> = (0..10).map(|i| bytes.len() * i / 10).collect();
+    cuts.extend([1, 7, 8, 9, 20, 100, 1000]);
+    let mut reviewed = Vec::new();
+    for cut in cuts {
+        let path = scratch().join(format!("cut-{cut}.mcap"));
+        std::fs::write(&path, &bytes[..cut]).unwrap();
+        let out = review(&path);
+        let err = stderr(&out);
+        if out.status.success() {
+            assert!(
+                err.contains("cut-") && err.contains("not finished"),
+                "cut at {cut}: no warning that the file is unfinished:\n{err}"
+            );
+            let steps = table_steps(&out);
+            assert!(steps < full_steps, "cut at {cut}: {steps} steps");
+            reviewed.push((cut, steps));
+            let fixed = scratch().join(format!("cut-{cut}-recovered.mcap"));
+            let rec = recover(&path, &fixed);
+            assert!(rec.status.success(), "recover cut {cut}: {}", stderr(&rec));
+            let again = review(&fixed);
+            assert!(again.status.success(), "{}", stderr(&again));
+            assert!(
+                !stderr(&again).contains("not finished"),
+                "the recovered copy of cut {cut} is unfinished:\n{}",
+                stderr(&again)
+            );
+            assert_eq!(table_steps(&again), steps, "recovered cut {cut}");
+        } else {
+            // Only a cut before the first complete chunk may be refused, and it says why.
+            let reason = if cut < 8 {
+                "not an MCAP file"
+            } else {
+                "before its first message"
+            };
+            assert_refused(&out, &path, &[reason]);
+            let fixed = scratch().join(format!("cut-{cut}-recovered.mcap"));
+            assert_refused(&recover(&path, &fixed), &path, &[reason]);
+            assert!(!fixed.exists() || std::fs::metadata(&fixed).unwrap().len() == 0);
+        }
+    }
+    // From 20 % on, the cuts are well past the attachments: each must review, and a longer
+    // prefix never reads fewer steps.
+    let big: Vec<_> = reviewed
+        .iter()
+        .filter(|(cut, _)| *cut >= bytes.len() / 5)
+        .collect();
+    assert!(big.len() >= 8, "{reviewed:?}");
+    assert!(big.windows(2).all(|w| w[0].1 <= w[1].1), "{reviewed:?}");
+    // At 90 % of the bytes, about 90 % of the steps (the attachments are at the front).
+    let last = big.last().unwrap().1;
+    assert!(last > full_steps * 8 / 10, "{reviewed:?}");
+}
+
+/// xorshift64*: reproducible noise without a dependency.
+fn noise(seed: u64, len: usize) -> Vec<u8> {
+    let mut s = seed;
+    (0..len)
+        .map(|_| {
+            s ^= s >> 12;
+            s ^= s << 25;
+            s ^= s >> 27;
+            (s.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 56) as u8
+        })
+        .collect()
+}
+
+#[test]
+fn random_bytes_are_refused() {
+    for (name, bytes) in [
+        ("random.mcap", noise(1, 65_536)),
+        // Past the magic check, garbage records.
+        ("magic-then-random.mcap", {
+            let mut b = b"\x89MCAP0\r\n".to_vec();
+            b.extend(noise(2, 65_536));
+            b
+        }),
+        // A real header and metadata, then noise where the chunks were.
+        ("real-head-random-tail.mcap", {
+            let real = std::fs::read(real_recording()).unwrap();
+            let mut b = real[..real.len() / 4].to_vec();
+            b.extend(noise(3, 200_000));
+            b
+        }),
+    ] {
+        let path = scratch().join(name);
+        std::fs::write(&path, &bytes).unwrap();
+        let out = review(&path);
+        if name == "real-head-random-tail.mcap" {
+            // What came before the noise is a real recording's: it reviews as unfinished,
+            // read up to the noise, which is named as where reading stopped.
+            assert!(out.status.success(), "{}", stderr(&out));
+            assert!(stderr(&out).contains("not finished"), "{}", stderr(&out));
+        } else {
+            assert_refused(&out, &path, &[]);
+            let err = stderr(&out);
+            assert!(
+                err.contains("not an MCAP file") || err.contains("damaged MCAP"),
+                "{name}: {err}"
+            );
+            let fixed = scratch().join(format!("{name}.recovered"));
+            assert_refused(&recover(&path, &fixed), &path, &[]);
+        }
+    }
+}
+
+#[test]
+fn a_file_that_is_not_mcap_is_refused() {
+    for (name, bytes) in [
+        (
+            "profile.mcap",
+            std::fs::read(repo().join("profiles/full-flight.toml")).unwrap(),
+        ),
+        (
+            "trace.mcap",
+            std::fs::read(repo().join("recordings/traces/landing.csv")).unwrap(),
+        ),
+        ("empty.mcap", Vec::new()),
+    ] {
+        let path = scratch().join(name);
+        std::fs::write(&path, &bytes).unwrap();
+        assert_refused(&review(&path), &path, &["not an MCAP file"]);
+        let out = scratch().join(format!("{name}.recovered"));
+        assert_refused(&recover(&path, &out), &path, &["not an MCAP file"]);
+    }
+    let missing = scratch().join("does-not-exist.mcap");
+    assert_refused(&review(&missing), &missing, &["cannot open"]);
+}
+
+/// A well-formed, finished MCAP with JSON channels that hexcue did not write.
+fn foreign_mcap(path: &Path, topics: &[&str]) {
+    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut w = mcap::Writer::new(file).unwrap();
+    let schema = w
+        .add_schema("imu", "jsonschema", br#"{"type":"object"}"#)
+        .unwrap();
+    let channels: Vec<u16> = topics
+        .iter()
+        .map(|t| w.add_channel(schema, t, "json", &BTreeMap::new()).unwrap())
+        .collect();
+    for k in 0..100u64 {
+        for &c in &channels {
+            let msg = format!(r#"{{"t":{},"ax":0.1}}"#, k as f64 * 0.01);
+            w.write_to_known_channel(
+                &mcap::records::MessageHeader {
+                    channel_id: c,
+                    sequence: k as u32,
+                    log_time: 1_000_000_000 + k * 10_000_000,
+                    publish_time: 1_000_000_000 + k * 10_000_000,
+                },
+                msg.as_bytes(),
+            )
+            .unwrap();
+        }
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn an_mcap_without_hexcue_topics_is_refused() {
+    let path = scratch().join("foreign.mcap");
+    foreign_mcap(&path, &["/imu", "/gps"]);
+    let words = ["not a hexcue recording", "/aircraft/perceived", "/imu"];
+    assert_refused(&review(&path), &path, &words);
+    assert_refused(
+        &recover(&path, &scratch().join("foreign-recovered.mcap")),
+        &path,
+        &words,
+    );
+    // An MCAP with no channel at all says so.
+    let empty = scratch().join("no-channels.mcap");
+    foreign_mcap(&empty, &[]);
+    assert_refused(&review(&empty), &empty, &["no topics"]);
+}
+
+/// Copies a finished recording's metadata, attachments and messages into a new file written
+/// with `options`, passing each message's data through `data`.
+fn transcode(
+    src: &Path,
+    dst: &Path,
+    options: mcap::WriteOptions,
+    data: impl Fn(&str, Cow<'static, [u8]>) -> Cow<'static, [u8]>,
+) {
+    let bytes = std::fs::read(src).unwrap();
+    let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+    let file = std::io::BufWriter::new(std::fs::File::create(dst).unwrap());
+    let mut w = options.create(file).unwrap();
+    for record in mcap::read::LinearReader::new(&bytes).unwrap() {
+        if let mcap::records::Record::Metadata(m) = record.unwrap() {
+            w.write_metadata(&m).unwrap();
+        }
+    }
+    for a in &summary.attachment_indexes {
+        w.attach(&mcap::read::attachment(&bytes, a).unwrap())
+            .unwrap();
+    }
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let owned: Cow<'static, [u8]> = Cow::Owned(m.data.into_owned());
+        w.write(&mcap::Message {
+            data: data(&m.channel.topic, owned),
+            channel: m.channel,
+            sequence: m.sequence,
+            log_time: m.log_time,
+            publish_time: m.publish_time,
+        })
+        .unwrap();
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn an_mcap_with_hexcue_topics_but_bad_messages_is_refused_by_name() {
+    // Every `/aircraft` message replaced by JSON of the wrong shape: review must name the
+    // topic and what it expected, not panic.
+    let path = scratch().join("bad-messages.mcap");
+    transcode(
+        real_recording(),
+        &path,
+        mcap::WriteOptions::new(),
+        |topic, d| {
+            if topic == "/aircraft" {
+                Cow::Borrowed(br#"{"t":"soon","k":-1}"#)
+            } else {
+                d
+            }
+        },
+    );
+    assert_refused(&review(&path), &path, &["/aircraft", "expected"]);
+}
+
+#[test]
+fn an_unchunked_uncompressed_recording_reviews_the_same() {
+    // Other MCAP writers (and the fuzzer's seeds, where a CRC would stop every mutation of a
+    // message) put messages straight in the data section, without chunks or CRCs.
+    let path = scratch().join("unchunked.mcap");
+    transcode(
+        real_recording(),
+        &path,
+        mcap::WriteOptions::new()
+            .use_chunks(false)
+            .compression(None)
+            .calculate_data_section_crc(false)
+            .calculate_summary_section_crc(false)
+            .calculate_attachment_crcs(false),
+        |_, d| d,
+    );
+    let (a, b) = (review(real_recording()), review(&path));
+    assert!(b.status.success(), "{}", stderr(&b));
+    assert_eq!(stdout(&a), stdout(&b));
+    // HEXCUE_WRITE_FUZZ_SEED=1 also writes the fuzzer's seed of this form (docs/reliability.md).
+    if std::env::var_os("HEXCUE_WRITE_FUZZ_SEED").is_some() {
+        let seeds = repo().join("fuzz/seeds/recording");
+        transcode(
+            &seeds.join("tiny.mcap"),
+            &seeds.join("tiny-unchunked.mcap"),
+            mcap::WriteOptions::new()
+                .use_chunks(false)
+                .compression(None)
+                .calculate_data_section_crc(false)
+                .calculate_summary_section_crc(false)
+                .calculate_attachment_crcs(false),
+            |_, d| d,
+        );
+    }
+}
+
+#[test]
+fn recordings_the_fuzzer_found_are_refused_by_name() {
+    // tests/corpus/recordings: inputs that once panicked the reader (docs/reliability.md).
+    let dir = repo().join("tests/corpus/recordings");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    assert!(!files.is_empty());
+    for file in files {
+        assert_refused(&review(&file), &file, &["damaged MCAP"]);
+        let out = scratch().join("fuzz-found-recovered.mcap");
+        assert_refused(&recover(&file, &out), &file, &["damaged MCAP"]);
+    }
+}
