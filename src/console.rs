@@ -42,13 +42,18 @@ fn require_terminal() -> Result<()> {
     Ok(())
 }
 
-/// A session ended by SIGTERM, SIGHUP or Ctrl-C exits non-zero, naming the signal, once the
-/// terminal is restored and every recording finished.
+/// A session ended by SIGTERM, SIGHUP or Ctrl-C exits with 128 + the signal's number, as
+/// shells report a process killed by it, once the terminal is restored and every recording
+/// finished.
 fn exit_for_signal(signal: Option<&str>) -> Result<()> {
-    match signal {
-        None => Ok(()),
-        Some(name) => bail!("stopped by {name}"),
-    }
+    let Some(name) = signal else { return Ok(()) };
+    let number = match name {
+        "SIGHUP" => signal_hook::consts::SIGHUP,
+        "SIGINT" => signal_hook::consts::SIGINT,
+        _ => signal_hook::consts::SIGTERM,
+    };
+    eprintln!("hexcue: stopped by {name}");
+    std::process::exit(128 + number);
 }
 
 pub fn run_live(args: &PlayArgs) -> Result<()> {

@@ -409,8 +409,9 @@ fn console_record_then_signal(sig: i32, name: &str) {
     let status = wait_with_timeout(&mut s.child, Duration::from_secs(30));
     let text = s.text();
     assert!(!text.contains("panicked"), "{text}");
-    // A session ended by a signal says so and exits non-zero, after cleaning up.
-    assert!(!status.success(), "{name}: {status:?}");
+    // A session ended by a signal says so and exits as shells report that signal (128 + n),
+    // after cleaning up.
+    assert_eq!(status.code(), Some(128 + sig), "{name}: {status:?}");
     assert!(
         text.contains(&format!("stopped by {}", name.to_uppercase())),
         "{text}"

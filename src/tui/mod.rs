@@ -18,9 +18,10 @@ pub mod view;
 
 use std::io::Write;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
-use std::sync::Arc;
-use std::time::Duration;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use ratatui::crossterm::event::{self, Event};
@@ -76,6 +77,11 @@ pub trait FrameSource: Send {
     fn algorithms(&self) -> Vec<AlgorithmId>;
     /// Frames per second of trace time.
     fn rate_hz(&self) -> f64;
+    /// Trace time of the first frame (s): a recording started with `r` mid-session begins
+    /// later than 0.
+    fn start_t_s(&self) -> f64 {
+        0.0
+    }
     fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -142,6 +148,9 @@ impl FrameSource for RecordedFrames {
     }
     fn rate_hz(&self) -> f64 {
         self.rate_hz
+    }
+    fn start_t_s(&self) -> f64 {
+        self.frames.first().map_or(0.0, |f| f.t_s)
     }
 }
 
@@ -272,14 +281,36 @@ fn run_terminal(
     .context("installing signal handlers")?;
     let signal_handle = signals.handle();
     let (sig_tx, sig_rx) = mpsc::channel();
+    let stopper: Arc<Mutex<Option<player::Stopper>>> = Arc::new(Mutex::new(None));
+    let ui_done = Arc::new(AtomicBool::new(false));
+    let (stopper_for_signals, ui_done_for_signals) = (stopper.clone(), ui_done.clone());
     let signal_thread = std::thread::Builder::new()
         .name("hexcue-signals".into())
         .spawn(move || {
-            for sig in signals.forever() {
-                if sig_tx.send(sig).is_err() {
-                    break;
-                }
+            // The first signal ends the session; the thread has nothing more to do after it.
+            let Some(sig) = signals.forever().next() else {
+                return;
+            };
+            if sig_tx.send(sig).is_err() {
+                return;
             }
+            // The interface normally quits within a frame. When the terminal has gone (an SSH
+            // link dropped), the terminal library can spin on the dead device and never hand
+            // control back: then stop the engine from here, which finishes the recording, and
+            // leave with the signal's status.
+            let until = Instant::now() + SIGNAL_GRACE;
+            while Instant::now() < until && !ui_done_for_signals.load(Ordering::Acquire) {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            if ui_done_for_signals.load(Ordering::Acquire) {
+                return;
+            }
+            let s = stopper_for_signals.lock().ok().and_then(|g| g.clone());
+            if let Some(s) = s {
+                s.stop_and_wait(Duration::from_secs(10));
+            }
+            ratatui::restore();
+            std::process::exit(128 + sig);
         })
         .context("starting the signal thread")?;
 
@@ -292,6 +323,9 @@ fn run_terminal(
             return Err(e.context("starting the engine thread"));
         }
     };
+    if let Ok(mut slot) = stopper.lock() {
+        *slot = Some(session.stopper());
+    }
     let mut app = App::new(Arc::new(info), &profile, theme);
     let result = match ratatui::try_init() {
         Ok(mut terminal) => {
@@ -308,6 +342,7 @@ fn run_terminal(
             Err(anyhow::Error::new(e).context("opening the terminal"))
         }
     };
+    ui_done.store(true, Ordering::Release);
     // Whatever ended the interface, the engine thread finishes the recording before we go.
     let recordings = session.shutdown();
     signal_handle.close();
@@ -319,6 +354,10 @@ fn run_terminal(
     }
     result.map(|signal| Outcome { recordings, signal })
 }
+
+/// How long the interface has to quit after a signal before the signal thread stops the
+/// engine itself.
+const SIGNAL_GRACE: Duration = Duration::from_secs(2);
 
 fn events_signal(app: &App) -> Option<&'static str> {
     app.quit_signal()

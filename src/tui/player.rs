@@ -118,6 +118,8 @@ pub struct Snapshot {
     pub position: usize,
     pub len: usize,
     pub rate_hz: f64,
+    /// Trace time of the first frame (s): 0 live, later for a recording started mid-session.
+    pub start_t_s: f64,
     /// Lanes in the order of the frames.
     pub algorithms: Vec<AlgorithmId>,
     pub paused: bool,
@@ -148,6 +150,7 @@ impl Snapshot {
             position: 0,
             len,
             rate_hz,
+            start_t_s: 0.0,
             algorithms,
             paused: true,
             speed: REAL_TIME,
@@ -170,8 +173,9 @@ impl Snapshot {
         self.last.as_ref().map_or(0.0, |f| f.t_s)
     }
 
+    /// Trace time of the last frame (s).
     pub fn duration_s(&self) -> f64 {
-        self.len.saturating_sub(1) as f64 / self.rate_hz.max(f64::MIN_POSITIVE)
+        self.start_t_s + self.len.saturating_sub(1) as f64 / self.rate_hz.max(f64::MIN_POSITIVE)
     }
 }
 
@@ -552,12 +556,15 @@ impl Player {
             position: self.source.position(),
             len: self.source.len(),
             rate_hz: self.rate_hz,
+            start_t_s: self.source.start_t_s(),
             algorithms: self.algorithms.clone(),
             paused: self.paused,
             speed: self.speed,
             looping: self.looping,
             at_end: self.at_end(),
-            seeking_to_s: self.target.map(|k| k as f64 / self.rate_hz),
+            seeking_to_s: self
+                .target
+                .map(|k| self.source.start_t_s() + k as f64 / self.rate_hz),
             can_record: self.recording_setup.is_some(),
             recording: self.recording.as_ref().map(|r| RecordingStatus {
                 path: r.path.display().to_string(),
@@ -613,9 +620,41 @@ pub struct Session {
     commands: Sender<Command>,
     latest: Arc<Mutex<Arc<Snapshot>>>,
     thread: Option<JoinHandle<Vec<String>>>,
+    finished: Arc<std::sync::atomic::AtomicBool>,
+}
+
+/// Stops the engine thread from elsewhere (the signal thread), when the interface thread can
+/// no longer do it: a terminal that has gone away can leave it stuck in the terminal library.
+#[derive(Clone)]
+pub struct Stopper {
+    commands: Sender<Command>,
+    finished: Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl Stopper {
+    /// Asks the engine thread to quit (which finishes every recording) and waits for it, at
+    /// most `max`; true when it has finished.
+    pub fn stop_and_wait(&self, max: Duration) -> bool {
+        let _ = self.commands.send(Command::Quit);
+        let until = Instant::now() + max;
+        while Instant::now() < until {
+            if self.finished.load(std::sync::atomic::Ordering::Acquire) {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        self.finished.load(std::sync::atomic::Ordering::Acquire)
+    }
 }
 
 impl Session {
+    pub fn stopper(&self) -> Stopper {
+        Stopper {
+            commands: self.commands.clone(),
+            finished: self.finished.clone(),
+        }
+    }
+
     pub fn send(&self, cmd: Command) {
         // A send fails only once the engine thread has ended, which quitting handles.
         let _ = self.commands.send(cmd);
@@ -668,13 +707,20 @@ pub fn spawn(
     let first = player.snapshot(Instant::now());
     let latest = Arc::new(Mutex::new(Arc::new(first)));
     let shared = latest.clone();
+    let finished = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let done = finished.clone();
     let thread = std::thread::Builder::new()
         .name("hexcue-engine".into())
-        .spawn(move || engine_loop(player, rx, shared))?;
+        .spawn(move || {
+            let lines = engine_loop(player, rx, shared);
+            done.store(true, std::sync::atomic::Ordering::Release);
+            lines
+        })?;
     Ok(Session {
         commands: tx,
         latest,
         thread: Some(thread),
+        finished,
     })
 }
 

@@ -12,6 +12,8 @@ use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
 use ratatui::style::Color;
 use ratatui::Terminal;
 
+use crate::trace::AircraftSample;
+
 use super::app::{run_ui, EventSource, UiEvent};
 use super::player::{self, Command, Player, PlayerOptions, RecordingSetup, Snapshot, Wait};
 use super::*;
@@ -72,6 +74,30 @@ fn engine(algs: &[AlgorithmId]) -> (Box<dyn FrameSource>, Profile, SessionInfo) 
     let info = SessionInfo::for_trace(&trace, &profile);
     let engine = Engine::new(&profile, trace, algs).unwrap();
     (Box::new(engine), profile, info)
+}
+
+/// The manoeuvre twenty times over (10 min): long enough that playing "as fast as possible"
+/// can be seen and paused before the end, however fast the build.
+fn long_engine(algs: &[AlgorithmId]) -> (Box<dyn FrameSource>, Profile, SessionInfo) {
+    let profile = full_flight();
+    let one = manoeuvre();
+    let mut trace = one.clone();
+    trace.samples = (0..20)
+        .flat_map(|rep| {
+            let offset = rep as f64 * one.samples.len() as f64 * one.dt_s();
+            one.samples.iter().map(move |s| AircraftSample {
+                t_s: s.t_s + offset,
+                ..*s
+            })
+        })
+        .collect();
+    let trace = Arc::new(trace);
+    let info = SessionInfo::for_trace(&trace, &profile);
+    (
+        Box::new(Engine::new(&profile, trace, algs).unwrap()),
+        profile,
+        info,
+    )
 }
 
 fn recording_opts(counters: &Counters, dir: &std::path::Path) -> PlayerOptions {
@@ -502,6 +528,42 @@ fn review_has_no_recording() {
     assert!(p.shutdown().is_empty());
 }
 
+#[test]
+fn review_of_a_recording_started_mid_session_keeps_trace_time() {
+    // A recording toggled on with `r` at t = 8.5 s: its clock and duration are trace time,
+    // so the position never runs past the duration and Home goes to 8.5 s.
+    let (mut source, profile, info) = engine(&[AlgorithmId::Cwf]);
+    let frames: Vec<Frame> = std::iter::from_fn(|| source.next_frame())
+        .skip(850)
+        .take(300)
+        .collect();
+    let last_t = frames.last().unwrap().t_s;
+    let review = RecordedFrames::new(frames.clone(), 100.0);
+    let opts = PlayerOptions {
+        start_paused: true,
+        recording: None,
+    };
+    let mut p = Player::new(Box::new(review), &profile, &info, opts);
+    p.apply(Command::SeekBy(2.0), Instant::now());
+    settle(&mut p);
+    let s = p.snapshot(Instant::now());
+    assert!(
+        (s.duration_s() - last_t).abs() < 1e-9,
+        "{} vs {last_t}",
+        s.duration_s()
+    );
+    assert!(s.t_s() <= s.duration_s() && s.t_s() >= 8.5, "{}", s.t_s());
+    p.apply(Command::Home, Instant::now());
+    settle(&mut p);
+    let s = p.snapshot(Instant::now());
+    assert!(
+        s.t_s() < 8.52,
+        "Home shows the first recorded step: {}",
+        s.t_s()
+    );
+    assert!(p.shutdown().is_empty());
+}
+
 /// Events fed by the test, one at a time.
 struct Scripted(mpsc::Receiver<UiEvent>);
 
@@ -542,7 +604,7 @@ fn wait_for(
 fn the_console_loop_runs_headless_from_keys() {
     let counters = Counters::default();
     let dir = tempfile::tempdir().unwrap();
-    let (source, profile, info) = engine(&[AlgorithmId::Cwf]);
+    let (source, profile, info) = long_engine(&[AlgorithmId::Cwf]);
     let session = player::spawn(
         source,
         &profile,

@@ -79,11 +79,13 @@ fn status_line(app: &App) -> Line<'static> {
         format!("  {}", app.info.trace_name),
         th.title(),
     ));
-    if let Some(d) = &app.info.description {
-        spans.push(Span::styled(format!(" ({d})"), th.text()));
-    }
+    // The profile before the sidecar's description: a long scenario text is what narrow
+    // terminals should cut, not which simulator this is.
     spans.push(Span::styled("  profile ", th.dim()));
     spans.push(Span::styled(app.info.profile_name.clone(), th.text()));
+    if let Some(d) = &app.info.description {
+        spans.push(Span::styled(format!("  {d}"), th.text()));
+    }
     Line::from(spans)
 }
 
