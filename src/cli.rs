@@ -20,9 +20,13 @@ use crate::summary::{Summary, SummaryBuilder};
 #[derive(Parser, Debug)]
 #[command(name = "hexcue", version, about = "Motion cueing console for 6-DoF Stewart-platform flight simulators: \
 classical washout, MPC and switchable MPC side by side", long_about = None)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Option<Command>,
+    /// With no command, `hexcue` is `hexcue play` and takes its options.
+    #[command(flatten)]
+    pub play: PlayArgs,
 }
 
 #[derive(Subcommand, Debug)]
@@ -116,6 +120,10 @@ pub struct PlayArgs {
     /// Algorithms to run, comma-separated.
     #[arg(long, value_name = "LIST", value_delimiter = ',', default_values_t = AlgorithmId::ALL.iter().map(|a| a.key().to_string()).collect::<Vec<_>>())]
     pub algorithms: Vec<String>,
+    /// Let the MPCs see the trace's true future over their horizon (offline studies), instead
+    /// of holding the current sample as a live simulator must. Overrides `[mpc] reference`.
+    #[arg(long)]
+    pub preview: bool,
 }
 
 #[derive(Args, Debug)]
@@ -187,6 +195,10 @@ pub fn load_session(args: &PlayArgs) -> Result<Session> {
         None => default_trace(profile.rate_hz),
     };
     let algorithms = parse_algorithms(&args.algorithms)?;
+    let mut profile = profile;
+    if args.preview {
+        profile.mpc.reference = crate::mca::mpc::params::ReferenceMode::Preview;
+    }
     Ok(Session {
         profile,
         profile_toml,
@@ -405,10 +417,7 @@ pub fn review_summary(path: &Path) -> Result<Summary> {
 }
 
 pub fn run(cli: Cli) -> Result<()> {
-    match cli.command.unwrap_or(Command::Play(PlayArgs {
-        algorithms: default_algorithms(),
-        ..Default::default()
-    })) {
+    match cli.command.unwrap_or(Command::Play(cli.play)) {
         Command::Play(args) => {
             if args.headless {
                 let summary = run_headless(&args)?;
