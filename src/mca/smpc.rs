@@ -298,4 +298,110 @@ mod tests {
             "{solvers:?}"
         );
     }
+
+    fn drive(
+        smpc: &mut super::Smpc,
+        start: crate::mca::PlatformCommand,
+        samples: &[crate::mca::CueSample],
+    ) -> Vec<(crate::mca::PlatformCommand, Mode)> {
+        use crate::mca::{CueInput, MotionCueing};
+        let mut applied = start;
+        samples
+            .iter()
+            .enumerate()
+            .map(|(k, sample)| {
+                let input = CueInput {
+                    k,
+                    t_s: k as f64 * 0.01,
+                    dt_s: 0.01,
+                    sample: *sample,
+                    preview: &[],
+                    applied: &applied,
+                };
+                applied = smpc.step(&input);
+                (applied, smpc.state().mode)
+            })
+            .collect()
+    }
+
+    /// Smooth: no step in velocity larger than the platform's acceleration limit allows.
+    fn assert_smooth(
+        out: &[(crate::mca::PlatformCommand, Mode)],
+        profile: &crate::profile::Profile,
+    ) {
+        let lim = profile.limits.si();
+        for w in out.windows(2) {
+            let (a, b) = (&w[0].0, &w[1].0);
+            assert!(b.is_finite(), "{b:?}");
+            for i in 0..6 {
+                let dv = (b.velocity[i] - a.velocity[i]).abs();
+                assert!(
+                    dv <= lim.acceleration[i] * 0.01 * 1.05 + 1e-9,
+                    "dof {i}: velocity jump {dv}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn with_no_time_for_either_qp_the_platform_washes_out_smoothly() {
+        use crate::mca::{CueSample, PlatformCommand};
+        let mut profile = full_flight();
+        // A zero time budget: every QP of both MPCs ends max_time.
+        profile.mpc.time_limit_ms = 1e-9;
+        let mut smpc = super::Smpc::new(&profile).unwrap();
+        let displaced = PlatformCommand {
+            pose: nalgebra::Vector6::new(0.5, -0.3, 0.1, 0.05, 0.08, 0.1),
+            ..Default::default()
+        };
+        let out = drive(&mut smpc, displaced, &vec![CueSample::default(); 3000]);
+        assert!(
+            out.iter().all(|(_, m)| *m == Mode::Fallback),
+            "both QPs failed: fallback throughout"
+        );
+        let state = {
+            use crate::mca::MotionCueing;
+            smpc.state()
+        };
+        assert!(
+            state.solvers.iter().all(|s| s.status == "max_time"),
+            "{:?}",
+            state.solvers
+        );
+        assert_smooth(&out, &profile);
+        let last = out.last().unwrap().0;
+        assert!(
+            last.pose.norm() < 0.01 && last.velocity.norm() < 0.01,
+            "back near neutral after 30 s: {last:?}"
+        );
+    }
+
+    #[test]
+    fn a_nan_in_the_reference_never_reaches_the_platform() {
+        use crate::mca::{CueSample, PlatformCommand};
+        let profile = full_flight();
+        let mut smpc = super::Smpc::new(&profile).unwrap();
+        let mut samples = vec![
+            CueSample {
+                delta_f_mps2: Vector3::new(2.0, 1.0, 0.0),
+                angular_velocity_radps: Vector3::new(0.05, 0.0, 0.02)
+            };
+            200
+        ];
+        samples.extend(vec![
+            CueSample {
+                delta_f_mps2: Vector3::new(f64::NAN, 1.0, f64::NAN),
+                angular_velocity_radps: Vector3::new(f64::NAN, 0.0, 0.0)
+            };
+            300
+        ]);
+        samples.extend(vec![CueSample::default(); 1500]);
+        let out = drive(&mut smpc, PlatformCommand::default(), &samples);
+        assert_smooth(&out, &profile);
+        let stewart = profile.stewart();
+        assert!(
+            out.iter().all(|(c, _)| stewart.fits(&c.pose, 0.0)),
+            "legs in stroke throughout"
+        );
+    }
 }
