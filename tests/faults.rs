@@ -177,8 +177,10 @@ fn a_headless_recording_killed_mid_run_reviews_and_recovers() {
 fn a_headless_run_stopped_by_sigterm_or_sighup_finishes_its_recording() {
     for (sig, name) in [(libc::SIGTERM, "sigterm"), (libc::SIGHUP, "sighup")] {
         let file = scratch().join(format!("headless-{name}.mcap"));
+        // The MPC takes about a minute over this trace, so the signal lands mid-run (the CWF
+        // alone finishes in well under the 1.5 s wait).
         let mut child = Command::new(env!("CARGO_BIN_EXE_hexcue"))
-            .args(["play", "--headless", "--algorithms", "cwf", "--trace"])
+            .args(["play", "--headless", "--algorithms", "mpc", "--trace"])
             .arg(long_trace())
             .arg("--record")
             .arg(&file)

@@ -331,6 +331,9 @@ fn run_terminal(
         Ok(mut terminal) => {
             let mut events = TerminalEvents { signals: sig_rx };
             let r = app::run_ui(&mut terminal, &mut events, &session, &mut app);
+            // The loop has handed control back: the signal thread must not step in, even if
+            // restoring a terminal that does not answer takes a while.
+            ui_done.store(true, Ordering::Release);
             // Some terminals (tmux after a resize) carry alternate-screen rows over to the
             // main screen on exit: blank them first. A dead terminal makes this fail; fine.
             let _ = terminal.clear();
