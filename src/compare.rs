@@ -256,10 +256,10 @@ fn why(results: &[TraceResult]) -> String {
             out.push_str(", which it pays for in workspace: its peak leg usage is higher on every one of these traces");
         }
         out.push_str(
-            ". On the paper's stall the ordering S-MPC < MPC comes from the free MPC running \
-             into the workspace limits while COTC's terminal conditions keep margin; here the \
-             free MPC, with leg constraints linearised at every step, keeps its legs in stroke \
-             without the limiter, so that advantage of COTC does not appear on fx.",
+            ". A likely reason the paper finds S-MPC < MPC on its stall is that its MPC \
+             without terminal conditions runs into the workspace limits, where COTC keeps margin; \
+             here the free MPC, with leg constraints linearised at every step, keeps its legs in \
+             stroke without the limiter, so that advantage of COTC does not show on fx.",
         );
         let ratios: Vec<f64> = results
             .iter()
