@@ -154,21 +154,44 @@ pub struct ReviewArgs {
     pub summary: Option<PathBuf>,
 }
 
-/// Parses `--algorithms`; unknown names are refused with the list of known ones.
-pub fn parse_algorithms(names: &[String]) -> Result<Vec<AlgorithmId>> {
+/// Parses a comma-separated option into known values, in the order given and without
+/// repeats; an unknown name is refused with the list of known ones.
+fn parse_keys<T: Copy + PartialEq>(
+    names: &[String],
+    option: &str,
+    what: &str,
+    all: &[T],
+    key: fn(T) -> &'static str,
+) -> Result<Vec<T>> {
     let mut out = Vec::new();
     for name in names.iter().map(|n| n.trim()).filter(|n| !n.is_empty()) {
-        let Some(id) = AlgorithmId::from_key(name) else {
-            let known: Vec<&str> = AlgorithmId::ALL.iter().map(|a| a.key()).collect();
+        let Some(v) = all
+            .iter()
+            .copied()
+            .find(|v| key(*v).eq_ignore_ascii_case(name))
+        else {
+            let known: Vec<&str> = all.iter().map(|v| key(*v)).collect();
             bail!(
-                "--algorithms: unknown algorithm `{name}`; expected one or more of {}",
+                "{option}: unknown {what} `{name}`; expected one or more of {}",
                 known.join(", ")
             );
         };
-        if !out.contains(&id) {
-            out.push(id);
+        if !out.contains(&v) {
+            out.push(v);
         }
     }
+    Ok(out)
+}
+
+/// Parses `--algorithms`; unknown names are refused with the list of known ones.
+pub fn parse_algorithms(names: &[String]) -> Result<Vec<AlgorithmId>> {
+    let mut out = parse_keys(
+        names,
+        "--algorithms",
+        "algorithm",
+        AlgorithmId::ALL,
+        AlgorithmId::key,
+    )?;
     if out.is_empty() {
         bail!("--algorithms: expected at least one algorithm");
     }
@@ -554,19 +577,7 @@ pub fn run_plot(args: &PlotArgs) -> Result<()> {
 
 fn parse_tests(names: &[String]) -> Result<Vec<crate::omct::OmctTest>> {
     use crate::omct::OmctTest;
-    let mut out = Vec::new();
-    for name in names.iter().map(|n| n.trim()).filter(|n| !n.is_empty()) {
-        let Some(t) = OmctTest::from_key(name) else {
-            let known: Vec<&str> = OmctTest::ALL.iter().map(|t| t.key()).collect();
-            bail!(
-                "--tests: unknown test `{name}`; expected one or more of {}",
-                known.join(", ")
-            );
-        };
-        if !out.contains(&t) {
-            out.push(t);
-        }
-    }
+    let mut out = parse_keys(names, "--tests", "test", &OmctTest::ALL, OmctTest::key)?;
     if out.is_empty() {
         out = OmctTest::ALL.to_vec();
     }
