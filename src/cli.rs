@@ -439,36 +439,41 @@ pub fn review_summary(path: &Path) -> Result<Summary> {
     Ok(builder.finish())
 }
 
+/// Headless: compute the summary, write it where `--summary` says and print the table.
+/// Otherwise the console, which has no use for `--summary`.
+fn headless_or_console(
+    headless: bool,
+    summary_path: Option<&Path>,
+    summarise: impl FnOnce() -> Result<Summary>,
+    console: impl FnOnce() -> Result<()>,
+) -> Result<()> {
+    if !headless {
+        if summary_path.is_some() {
+            bail!("--summary goes with --headless");
+        }
+        return console();
+    }
+    let summary = summarise()?;
+    if let Some(path) = summary_path {
+        write_summary(path, &summary)?;
+    }
+    print_stdout(&format_table(&summary))
+}
+
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command.unwrap_or(Command::Play(cli.play)) {
-        Command::Play(args) => {
-            if args.headless {
-                let summary = run_headless(&args)?;
-                if let Some(path) = &args.summary {
-                    write_summary(path, &summary)?;
-                }
-                print_stdout(&format_table(&summary))
-            } else {
-                if args.summary.is_some() {
-                    bail!("--summary goes with --headless");
-                }
-                crate::console::run_live(&args)
-            }
-        }
-        Command::Review(args) => {
-            if args.headless {
-                let summary = review_summary(&args.file)?;
-                if let Some(path) = &args.summary {
-                    write_summary(path, &summary)?;
-                }
-                print_stdout(&format_table(&summary))
-            } else {
-                if args.summary.is_some() {
-                    bail!("--summary goes with --headless");
-                }
-                crate::console::run_review(&args.file)
-            }
-        }
+        Command::Play(args) => headless_or_console(
+            args.headless,
+            args.summary.as_deref(),
+            || run_headless(&args),
+            || crate::console::run_live(&args),
+        ),
+        Command::Review(args) => headless_or_console(
+            args.headless,
+            args.summary.as_deref(),
+            || review_summary(&args.file),
+            || crate::console::run_review(&args.file),
+        ),
         Command::Compare(args) => run_compare(&args),
         Command::Plot(args) => run_plot(&args),
         Command::Omct(args) => run_omct(&args),
