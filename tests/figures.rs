@@ -26,16 +26,7 @@ fn small_recording(dir: &Path) -> PathBuf {
     }
     std::fs::write(&trace, csv).unwrap();
     let mcap = dir.join("wiggle.mcap");
-    let out = hexcue(&[
-        "play".as_ref(),
-        "--headless".as_ref(),
-        "--trace".as_ref(),
-        trace.as_os_str(),
-        "--algorithms".as_ref(),
-        "cwf".as_ref(),
-        "--record".as_ref(),
-        mcap.as_os_str(),
-    ]);
+    let out = play_recorded(&trace, "cwf", &mcap, None);
     assert!(out.status.success(), "{}", stderr(&out));
     mcap
 }

@@ -65,18 +65,7 @@ fn cwf_on_every_shipped_trace_records_and_reviews() {
         let name = trace.file_stem().unwrap().to_string_lossy().into_owned();
         let mcap = dir.path().join(format!("{name}.mcap"));
         let summary = dir.path().join(format!("{name}.json"));
-        let out = hexcue(&[
-            "play".as_ref(),
-            "--headless".as_ref(),
-            "--trace".as_ref(),
-            trace.as_os_str(),
-            "--algorithms".as_ref(),
-            "cwf".as_ref(),
-            "--record".as_ref(),
-            mcap.as_os_str(),
-            "--summary".as_ref(),
-            summary.as_os_str(),
-        ]);
+        let out = play_recorded(&trace, "cwf", &mcap, Some(&summary));
         assert!(out.status.success(), "{name}: {}", stderr(&out));
         let table = stdout(&out);
         assert!(table.contains("cwf") && table.contains("RAE"), "{table}");
@@ -203,18 +192,7 @@ fn mpcs_on_every_shipped_trace_stay_in_stroke_with_a_quiet_limiter() {
         let name = trace.file_stem().unwrap().to_string_lossy().into_owned();
         let summary = dir.path().join(format!("{name}.json"));
         let mcap = dir.path().join(format!("{name}.mcap"));
-        let out = hexcue(&[
-            "play".as_ref(),
-            "--headless".as_ref(),
-            "--trace".as_ref(),
-            trace.as_os_str(),
-            "--algorithms".as_ref(),
-            "smpc,mpc".as_ref(),
-            "--record".as_ref(),
-            mcap.as_os_str(),
-            "--summary".as_ref(),
-            summary.as_os_str(),
-        ]);
+        let out = play_recorded(&trace, "smpc,mpc", &mcap, Some(&summary));
         assert!(out.status.success(), "{name}: {}", stderr(&out));
         let json = read_json(&summary);
         check_summary(&json, &name, &["smpc", "mpc"]);

@@ -50,3 +50,27 @@ pub fn read_json(path: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
+
+/// `hexcue play --headless` on `trace` with `algorithms`, recording to `mcap` and, when
+/// given, writing the summary to `summary`.
+pub fn play_recorded(
+    trace: &Path,
+    algorithms: &str,
+    mcap: &Path,
+    summary: Option<&Path>,
+) -> Output {
+    let mut args: Vec<&std::ffi::OsStr> = vec![
+        "play".as_ref(),
+        "--headless".as_ref(),
+        "--trace".as_ref(),
+        trace.as_os_str(),
+        "--algorithms".as_ref(),
+        algorithms.as_ref(),
+        "--record".as_ref(),
+        mcap.as_os_str(),
+    ];
+    if let Some(s) = summary {
+        args.extend(["--summary".as_ref(), s.as_os_str()]);
+    }
+    hexcue(&args)
+}
