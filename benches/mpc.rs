@@ -93,7 +93,12 @@ fn profile() -> hexcue::profile::Profile {
 
 fn bench(terminal: Terminal) {
     let profile = profile();
-    let mut mpc = match Mpc::new(&profile.mpc, &profile, terminal) {
+    // COTC runs with its own tuning ([smpc.cotc]: a longer horizon), as in the S-MPC.
+    let params = match terminal {
+        Terminal::Cotc => profile.cotc_params(),
+        Terminal::Free => profile.mpc.clone(),
+    };
+    let mut mpc = match Mpc::new(&params, &profile, terminal) {
         Ok(m) => m,
         Err(e) => {
             eprintln!("cannot build the MPC: {e}");

@@ -41,7 +41,8 @@ pub struct Profile {
     pub vestibular: VestibularParams,
     pub cwf: WashoutParams,
     pub mpc: MpcParams,
-    /// The switchable MPC's supervisor, mixer and weight regulator; its two MPCs use `[mpc]`.
+    /// The switchable MPC's supervisor, mixer and weight regulator; its two MPCs use `[mpc]`,
+    /// COTC with the overrides of `[smpc.cotc]`.
     pub smpc: crate::mca::switching::SwitchingParams,
 }
 
@@ -138,6 +139,11 @@ impl Profile {
     }
 
     /// Every check that TOML's types cannot express. The first problem found is reported.
+    /// COTC's parameters: `[mpc]` with the overrides of `[smpc.cotc]`.
+    pub fn cotc_params(&self) -> MpcParams {
+        self.smpc.cotc.apply(&self.mpc)
+    }
+
     pub fn validate(&self) -> Result<(), ProfileError> {
         let err = |key: &str, reason: String| {
             Err(ProfileError {
@@ -301,6 +307,7 @@ impl Profile {
         self.cwf.validate()?;
         self.mpc.validate()?;
         self.smpc.validate("smpc")?;
+        self.smpc.cotc.validate(&self.mpc)?;
         if self.mpc.fine_step_s < self.dt_s() - 1e-12 {
             return err(
                 "mpc.fine_step_s",

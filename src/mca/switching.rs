@@ -4,6 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::mpc::CotcOverrides;
 use super::PlatformCommand;
 use crate::profile::{positive, ProfileError};
 
@@ -28,6 +29,9 @@ pub struct SwitchingParams {
     pub awr_neutral_usage: f64,
     /// Time constant of the relaxation back toward the nominal weights (s).
     pub awr_relax_s: f64,
+    /// COTC's own horizon and translational washout (`[smpc.cotc]`); `[mpc]` otherwise.
+    #[serde(default)]
+    pub cotc: CotcOverrides,
 }
 
 impl SwitchingParams {
@@ -334,6 +338,7 @@ mod tests {
             awr_max_scale: 5.0,
             awr_neutral_usage: 0.2,
             awr_relax_s: 1.0,
+            cotc: CotcOverrides::default(),
         }
     }
 

@@ -18,8 +18,8 @@ use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, S
 use nalgebra::{DMatrix, DVector, Matrix6, Vector3, Vector6};
 
 use self::model::{input, pose_of, state, PredictionModel, NU, NX, POSE_STATE};
-pub use self::params::MpcParams;
 use self::params::ReferenceMode;
+pub use self::params::{CotcOverrides, MpcParams};
 use self::qp::{CscPattern, Triplets};
 use super::{
     AlgorithmId, AlgorithmState, CueInput, CueSample, Mode, MotionCueing, PlatformCommand,
@@ -724,7 +724,8 @@ impl Mpc {
         // at that point (the leg length is convex in the translation, so a tangent at the
         // current pose underestimates it further along); around the current pose when there
         // is no fresh plan.
-        let fresh = self.plan.elapsed_s < 1e-12 && self.plan.poses.len() == self.grid.len();
+        // The plan may be another controller's (`follow`), on another grid: it is read by time.
+        let fresh = self.plan.elapsed_s < 1e-12 && !self.plan.poses.is_empty();
         let (mut leg_offset, mut leg_jacobian) = (Vec::new(), Vec::new());
         let mut t_end = 0.0;
         for i in 0..self.grid.len() {
@@ -1089,6 +1090,25 @@ impl Mpc {
     /// Roll and pitch the last QP's COTC terminal condition asked for (rad).
     pub fn terminal_tilt_rad(&self) -> [f64; 2] {
         self.terminal_tilt_rad
+    }
+
+    /// Standby: takes over `leader`'s running state (the platform motion it commanded, its
+    /// split of roll and pitch into tilt and rotation, the aircraft's perception it tracks)
+    /// instead of solving. A controller kept in standby this way can be woken at any step and
+    /// solve from the motion actually commanded; its report says `standby`.
+    pub fn follow(&mut self, leader: &Mpc) {
+        debug_assert_eq!(self.x.len(), leader.x.len());
+        self.x.copy_from(&leader.x);
+        self.u_last.copy_from(&leader.u_last);
+        self.ref_x.copy_from(&leader.ref_x);
+        self.started = leader.started;
+        self.sustained_df_mps2 = leader.sustained_df_mps2;
+        self.terminal_tilt_rad = leader.terminal_tilt_rad;
+        self.last_command = leader.last_command;
+        self.plan.clone_from(&leader.plan);
+        self.report.status = "standby".into();
+        self.report.iterations = 0;
+        self.report.solve_time_us = 0.0;
     }
 
     pub fn reset_state(&mut self) {

@@ -79,7 +79,13 @@ impl MpcParams {
         self.grid().iter().sum()
     }
 
+    /// Validates the parameters of an MPC without terminal conditions.
     pub fn validate(&self) -> Result<(), ProfileError> {
+        self.validate_as(false)
+    }
+
+    /// Validates the parameters of an MPC with (`true`, COTC) or without terminal conditions.
+    pub fn validate_as(&self, terminal_conditions: bool) -> Result<(), ProfileError> {
         let err = |key: &str, reason: String| {
             Err(ProfileError {
                 key: format!("mpc.{key}"),
@@ -158,9 +164,16 @@ impl MpcParams {
             "rotation_rate_change_weight",
             &self.rotation_rate_change_weight,
         )?;
-        // The platform's integrators (position, yaw, rotational angles) must be weighted for
-        // the terminal Riccati equation to have a stabilising solution.
-        strictly_positive("washout_position_weight", &self.washout_position_weight)?;
+        // Without terminal conditions the washout is the only way back to neutral, so every
+        // position must be weighted. COTC's terminal equalities bring the platform to rest at
+        // neutral themselves: it may leave the position unweighted (its terminal Riccati
+        // weight is then the cost-to-go of everything else, and stability comes from the
+        // equalities). The rotational angles have no terminal condition in either.
+        if terminal_conditions {
+            non_negative("washout_position_weight", &self.washout_position_weight)?;
+        } else {
+            strictly_positive("washout_position_weight", &self.washout_position_weight)?;
+        }
         non_negative("washout_velocity_weight", &self.washout_velocity_weight)?;
         non_negative("washout_tilt_weight", &self.washout_tilt_weight)?;
         strictly_positive("washout_rotation_weight", &self.washout_rotation_weight)?;
@@ -178,6 +191,75 @@ impl MpcParams {
             );
         }
         Ok(())
+    }
+}
+
+/// Where COTC's tuning departs from `[mpc]` (the profile's `[smpc.cotc]` table): its own
+/// prediction grid after the fine intervals, and its own translational washout. Absent keys
+/// keep the `[mpc]` values.
+///
+/// Why COTC is tuned apart: its terminal conditions already bring the platform to rest at
+/// neutral by the end of the horizon, so the washout terms that stand in for them in the free
+/// MPC only take cue away; and a plan that must be undone within the horizon is gentler, and
+/// gives more cue, when the horizon is longer (docs/mpc.md, "COTC's own tuning").
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CotcOverrides {
+    /// Length of COTC's coarse intervals (s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coarse_step_s: Option<f64>,
+    /// Number of COTC's coarse intervals.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coarse_steps: Option<usize>,
+    /// COTC's washout weight on the platform position per axis, per m².
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub washout_position_weight: Option<[f64; 3]>,
+    /// COTC's washout weight on the platform velocity per axis, per (m/s)².
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub washout_velocity_weight: Option<[f64; 3]>,
+}
+
+impl CotcOverrides {
+    /// COTC's parameters: `[mpc]` with these overrides applied.
+    pub fn apply(&self, mpc: &MpcParams) -> MpcParams {
+        let mut m = mpc.clone();
+        if let Some(v) = self.coarse_step_s {
+            m.coarse_step_s = v;
+        }
+        if let Some(v) = self.coarse_steps {
+            m.coarse_steps = v;
+        }
+        if let Some(v) = self.washout_position_weight {
+            m.washout_position_weight = v;
+        }
+        if let Some(v) = self.washout_velocity_weight {
+            m.washout_velocity_weight = v;
+        }
+        m
+    }
+
+    /// Validates COTC's parameters; an error names the key under `smpc.cotc` when it is one
+    /// of the overrides, under `mpc` otherwise.
+    pub fn validate(&self, mpc: &MpcParams) -> Result<(), ProfileError> {
+        self.apply(mpc).validate_as(true).map_err(|mut e| {
+            let field = e.key.trim_start_matches("mpc.");
+            let name = field.split('[').next().unwrap_or(field);
+            let overridden = match name {
+                "coarse_step_s" => self.coarse_step_s.is_some(),
+                "coarse_steps" => self.coarse_steps.is_some(),
+                "washout_position_weight" => self.washout_position_weight.is_some(),
+                "washout_velocity_weight" => self.washout_velocity_weight.is_some(),
+                _ => false,
+            };
+            if overridden {
+                e.key = format!("smpc.cotc.{field}");
+            }
+            e.reason = format!(
+                "{} (in COTC's tuning, [mpc] with [smpc.cotc] applied)",
+                e.reason
+            );
+            e
+        })
     }
 }
 
@@ -213,6 +295,55 @@ mod tests {
             p.validate().is_err(),
             "a fine step shorter than a sample is refused"
         );
+    }
+
+    #[test]
+    fn cotc_overrides_apply_over_mpc_and_errors_name_their_table() {
+        let p = full_flight();
+        let cotc = p.cotc_params();
+        // The shipped COTC: a longer horizon, no surge / sway washout, [mpc] otherwise.
+        assert!(cotc.horizon_s() > p.mpc.horizon_s());
+        assert_eq!(cotc.washout_position_weight[0], 0.0);
+        assert_eq!(cotc.specific_force_weight, p.mpc.specific_force_weight);
+        assert_eq!(cotc.fine_steps, p.mpc.fine_steps);
+        // No overrides: COTC is [mpc].
+        assert_eq!(super::CotcOverrides::default().apply(&p.mpc), p.mpc);
+
+        // An unweighted position is refused for the free MPC, not for COTC.
+        let mut bad = p.clone();
+        bad.mpc.washout_position_weight[0] = 0.0;
+        assert_eq!(
+            bad.validate().unwrap_err().key,
+            "mpc.washout_position_weight[0]"
+        );
+        // An invalid override names [smpc.cotc]…
+        let mut bad = p.clone();
+        bad.smpc.cotc.coarse_steps = Some(0);
+        bad.smpc.cotc.coarse_step_s = Some(0.3);
+        let err = bad.validate().unwrap_err();
+        assert_eq!(err.key, "smpc.cotc.coarse_steps", "{err}");
+        assert!(err.reason.contains("COTC"), "{err}");
+        let mut bad = p.clone();
+        bad.smpc.cotc.washout_velocity_weight = Some([0.0, f64::NAN, 0.0]);
+        assert_eq!(
+            bad.validate().unwrap_err().key,
+            "smpc.cotc.washout_velocity_weight[1]"
+        );
+    }
+
+    #[test]
+    fn cotc_table_is_optional_and_refuses_unknown_keys() {
+        let toml = crate::formats::profile::DEFAULT_PROFILE_TOML;
+        let start = toml
+            .find("[smpc.cotc]")
+            .expect("the default profile tunes COTC");
+        let without = &toml[..start];
+        let p = crate::formats::profile::parse_profile(without, "t").unwrap();
+        assert_eq!(p.cotc_params(), p.mpc);
+        let spoiled = toml.replace("[smpc.cotc]\n", "[smpc.cotc]\nhorizon_s = 3.0\n");
+        let err = crate::formats::profile::parse_profile(&spoiled, "t").unwrap_err();
+        let text = err.to_string();
+        assert!(text.contains("horizon_s"), "{text}");
     }
 
     #[test]

@@ -120,6 +120,19 @@ fn first_move_equals_the_dense_kkt_optimum_when_no_constraint_is_active() {
 #[test]
 fn riccati_terminal_weight_satisfies_its_equation() {
     let p = profile();
+    // COTC's shipped tuning leaves surge and sway position unweighted: the Riccati weight is
+    // then the cost-to-go of the rest and must still satisfy its equation.
+    let shipped = Mpc::new(&p.cotc_params(), &p, Terminal::Cotc).unwrap();
+    let n = shipped.grid.len();
+    let last = &shipped.discrete[shipped.interval_model[n - 1]];
+    let w = shipped.stage_weight(n - 1);
+    let qx = shipped.stage_hessian(1.0) * w;
+    let r = DMatrix::from_diagonal(&(shipped.input_weight() * w + shipped.input_change_weight()));
+    let pn = shipped.terminal_weight.as_ref().unwrap();
+    let res = riccati::dare_residual(&last.a, &last.b, &qx, &r, pn);
+    assert!(res < 1e-9, "shipped COTC tuning: relative residual {res}");
+    assert!(pn.iter().all(|v| v.is_finite()));
+
     let mpc = Mpc::new(&p.mpc, &p, Terminal::Cotc).unwrap();
     let n = mpc.grid.len();
     let last = &mpc.discrete[mpc.interval_model[n - 1]];
@@ -137,7 +150,14 @@ fn riccati_terminal_weight_satisfies_its_equation() {
 #[test]
 fn cotc_meets_its_terminal_equalities() {
     let p = profile();
-    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Cotc).unwrap();
+    // With the [mpc] tuning and with COTC's own (longer horizon, no surge / sway washout).
+    for params in [p.mpc.clone(), p.cotc_params()] {
+        cotc_meets_its_terminal_equalities_with(&p, &params);
+    }
+}
+
+fn cotc_meets_its_terminal_equalities_with(p: &crate::profile::Profile, params: &MpcParams) {
+    let mut mpc = Mpc::new(params, p, Terminal::Cotc).unwrap();
     let input = |t: f64| sample([0.4 * (t / 0.5).min(1.0), -0.2, 0.0], [0.0, 0.0, 0.02]);
     let mut applied = PlatformCommand::default();
     let mut checked = 0;
