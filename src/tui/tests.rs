@@ -152,7 +152,7 @@ fn dressed_snapshot() -> (App, Snapshot) {
         blend: Some(0.42),
         time_in_mode_s: 0.3,
         switch_count: 3,
-        last_switch_reason: Some("cotc infeasible: |Δf| beyond tilt".into()),
+        last_switch_reason: Some("COTC not solved (primal_infeasible)".into()),
         solvers: vec![
             SolverReport {
                 name: "cotc".into(),
@@ -230,9 +230,44 @@ fn renders_at_80x24() {
 fn renders_at_200x50() {
     let (app, _) = dressed_snapshot();
     let text = screen(&draw(&app, 200, 50));
-    assert!(text.contains("why cotc infeasible"), "{text}");
+    assert!(text.contains("why COTC not solved"), "{text}");
     assert!(text.contains("◆ bank 45°"), "{text}");
     insta::assert_snapshot!("console_200x50", text);
+}
+
+#[test]
+fn a_long_switch_reason_wraps_and_a_standby_solver_is_marked() {
+    let (mut app, mut s) = dressed_snapshot();
+    let reason = "errors within ε = 0.30 m/s² for 1.5 s and COTC solved";
+    let lane = &mut s.last.as_mut().unwrap().lanes[0];
+    lane.state.mode = Mode::Cotc;
+    lane.state.blend = None;
+    lane.state.last_switch_reason = Some(reason.into());
+    lane.state.solvers[0].status = "solved".into();
+    lane.state.solvers[1] = SolverReport {
+        name: "free".into(),
+        status: "standby".into(),
+        iterations: 0,
+        solve_time_us: 0.0,
+    };
+    lane.state.solvers[0].solve_time_us = 999.7;
+    app.snapshot = Arc::new(s);
+    // At 80 columns a lane is about 26 wide: the reason in its short form, not cut.
+    let text = screen(&draw(&app, 80, 24));
+    assert!(text.contains("why |e|<ε 1.5s, COTC ok"), "{text}");
+    assert!(text.contains("· free standby"), "{text}");
+    assert!(!text.contains("1000µs"), "{text}");
+    assert!(text.contains("1.0ms"), "{text}");
+    // Wide enough, in full.
+    let text = screen(&draw(&app, 200, 50));
+    assert!(text.contains(reason), "{text}");
+}
+
+#[test]
+fn a_failed_cotc_reason_is_short_at_80_columns() {
+    let (app, _) = dressed_snapshot();
+    let text = screen(&draw(&app, 80, 24));
+    assert!(text.contains("why COTC infeas"), "{text}");
 }
 
 #[test]

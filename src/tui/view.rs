@@ -320,12 +320,28 @@ fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'stat
     }
     let mut lines = vec![Line::from(first)];
     if let Some(why) = &st.last_switch_reason {
+        let width = w.saturating_sub(4);
+        // The full reason when it fits; at 80 columns its short form, so that the line does
+        // not end in an ellipsis where the cause was.
+        let text = if why.chars().count() <= width {
+            why.clone()
+        } else {
+            truncate(&short_reason(why), width)
+        };
         lines.push(Line::from(vec![
             Span::styled("why ", th.dim()),
-            Span::styled(truncate(why, w.saturating_sub(4)), th.text()),
+            Span::styled(text, th.text()),
         ]));
     }
     for sv in &st.solvers {
+        if sv.status == "standby" {
+            // Not solved this step by design (the other controller is in charge and solved).
+            lines.push(Line::from(Span::styled(
+                format!("· {} standby", sv.name),
+                th.dim(),
+            )));
+            continue;
+        }
         let ok = sv.status == "solved";
         let (mark, style) = if ok {
             ("✓", th.ok())
@@ -365,11 +381,32 @@ fn status_word(status: &str) -> &str {
 fn fmt_us(us: f64) -> String {
     if !us.is_finite() {
         "-".into()
-    } else if us < 1000.0 {
+    } else if us < 999.5 {
+        // Not `< 1000`: 999.7 µs would print as "1000µs".
         format!("{us:.0}µs")
     } else {
         format!("{:.1}ms", us / 1000.0)
     }
+}
+
+/// The supervisor's reasons (`Supervisor::update`) in a few characters: "COTC infeas" for
+/// "COTC not solved (primal_infeasible)", "|e|<ε 1.5s, COTC ok" for the return.
+fn short_reason(why: &str) -> String {
+    if let Some(status) = why
+        .strip_prefix("COTC not solved (")
+        .and_then(|r| r.strip_suffix(')'))
+    {
+        return format!("COTC {}", status_word(status));
+    }
+    if why.starts_with("errors within") {
+        let dwell = why
+            .split(" for ")
+            .nth(1)
+            .and_then(|r| r.split(' ').next())
+            .unwrap_or("");
+        return format!("|e|<ε {dwell}s, COTC ok");
+    }
+    why.to_string()
 }
 
 fn truncate(s: &str, n: usize) -> String {
