@@ -93,8 +93,8 @@ fn main() {
         let _ = std::fs::remove_dir_all(&dir);
         tr.duration_s() / started.elapsed().as_secs_f64()
     };
-    // 3. Engine-level step times of the MPC and the S-MPC (both QPs, on the two cores, with the
-    // supervisor and mixer), wall clock, over the stall.
+    // 3. Engine-level step times of the MPC and the S-MPC (COTC, the free MPC beside it when it
+    // is needed, the supervisor and the mixer), wall clock, over the stall.
     for (id, target) in [
         (AlgorithmId::Mpc, "median ≤ 1 ms, p99 ≤ 4 ms"),
         (AlgorithmId::Smpc, "median ≤ 2 ms, p99 ≤ 6 ms"),

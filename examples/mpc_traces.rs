@@ -90,7 +90,8 @@ fn main() {
                 })
             }),
             ("cotc", {
-                let mut m = Mpc::new(&profile.mpc, &profile, Terminal::Cotc).expect("cotc");
+                let mut m =
+                    Mpc::new(&profile.cotc_params(), &profile, Terminal::Cotc).expect("cotc");
                 Box::new(move |i: &CueInput| {
                     let o = m.solve(i);
                     (o.command, o.feasible)

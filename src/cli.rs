@@ -554,7 +554,7 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
             .map(|p| format!(" --profile {}", p.display()))
             .unwrap_or_default()
     );
-    let report = crate::compare::render_markdown(&results, &profile.name, &command);
+    let report = crate::compare::render_markdown(&results, &profile, &command);
     match &args.out {
         Some(path) => std::fs::write(path, report)
             .with_context(|| format!("{}: cannot write the report", path.display())),
