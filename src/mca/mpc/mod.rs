@@ -160,6 +160,12 @@ pub struct Mpc {
     /// Nonzero entries of each discrete A and B, fixed so that the pattern never changes.
     a_entries: Vec<Vec<(usize, usize, f64)>>,
     b_entries: Vec<Vec<(usize, usize, f64)>>,
+    /// Lever-arm jump of the state for a rate change at a boundary (`lever_arm_jump`), and its
+    /// nonzeros propagated over each interval (Φ·E: the jump happens at the interval's start).
+    lever_jump: DMatrix<f64>,
+    e_entries: Vec<Vec<(usize, usize, f64)>>,
+    /// Φ·E over one trace step, for the MPC's own state.
+    trace_e: DMatrix<f64>,
     trace_model: DiscreteStateSpace,
     /// Aircraft reference perception model: per grid interval and per trace step.
     ref_discrete: Vec<DiscreteStateSpace>,
@@ -176,6 +182,8 @@ pub struct Mpc {
     // Running state.
     x: DVector<f64>,
     u_last: DVector<f64>,
+    /// The input of the trace step before `u_last`'s, for the lever-arm jump between them.
+    u_before: DVector<f64>,
     ref_x: DVector<f64>,
     started: bool,
     /// Low-passed aircraft Δf whose tilt is COTC's terminal condition (m/s²).
@@ -260,6 +268,9 @@ impl Mpc {
             .collect();
         let discrete: Vec<DiscreteStateSpace> =
             lengths.iter().map(|h| model.discretise(*h)).collect();
+        let lever_jump = model.lever_arm_jump(&profile.eye_point());
+        let trace_model = model.discretise(dt_s);
+        let trace_e = &trace_model.a * &lever_jump;
         let ref_model = profile.vestibular.perception_model();
         let ref_discrete = lengths
             .iter()
@@ -273,9 +284,15 @@ impl Mpc {
             dt_s,
             a_entries: discrete.iter().map(|d| nonzeros(&d.a)).collect(),
             b_entries: discrete.iter().map(|d| nonzeros(&d.b)).collect(),
+            e_entries: discrete
+                .iter()
+                .map(|d| nonzeros(&(&d.a * &lever_jump)))
+                .collect(),
+            lever_jump,
+            trace_e,
             discrete,
             interval_model,
-            trace_model: model.discretise(dt_s),
+            trace_model,
             ref_discrete,
             ref_trace: ref_model.discretise_zoh(dt_s),
             ref_continuous: ref_model,
@@ -290,6 +307,7 @@ impl Mpc {
             washout_gain: 1.0,
             x: DVector::zeros(NX),
             u_last: DVector::zeros(NU),
+            u_before: DVector::zeros(NU),
             ref_x: DVector::zeros(15),
             started: false,
             sustained_df_mps2: Vector3::zeros(),
@@ -575,7 +593,8 @@ impl Mpc {
         t.clear();
         b.clear();
         let mut row = 0;
-        // x_{i+1} − A x_i − B u_i = 0, with x_0 known.
+        // x_{i+1} − A x_i − B u_i − ΦE (u_i − u_{i−1}) = 0, with x_0 and u_{−1} (the applied
+        // input) known: ΦE is the lever-arm jump at the interval's start.
         for i in 0..n {
             let m = self.interval_model[i];
             let (xc, uc) = (Self::x_col(i), Self::u_col(i));
@@ -591,8 +610,17 @@ impl Mpc {
             for &(r, c, v) in &self.b_entries[m] {
                 t.push(row + r, uc + c, -v);
             }
+            for &(r, c, v) in &self.e_entries[m] {
+                t.push(row + r, uc + c, -v);
+                if i > 0 {
+                    t.push(row + r, Self::u_col(i - 1) + c, v);
+                }
+            }
             if i == 0 {
-                let ax0 = &self.discrete[m].a * d.x0;
+                let mut ax0 = &self.discrete[m].a * d.x0;
+                for &(r, c, v) in &self.e_entries[m] {
+                    ax0[r] -= v * d.u_prev[c];
+                }
                 b.extend(ax0.iter());
             } else {
                 b.extend(std::iter::repeat_n(0.0, NX));
@@ -839,9 +867,14 @@ impl Mpc {
         if self.started {
             if (dt_s - self.trace_model.dt_s).abs() > 1e-12 {
                 self.trace_model = self.model.discretise(dt_s);
+                self.trace_e = &self.trace_model.a * &self.lever_jump;
             }
-            self.x = &self.trace_model.a * &self.x + &self.trace_model.b * &self.u_last;
+            let jump = &self.u_last - &self.u_before;
+            self.x = &self.trace_model.a * &self.x
+                + &self.trace_model.b * &self.u_last
+                + &self.trace_e * jump;
         }
+        self.u_before.copy_from(&self.u_last);
         self.started = true;
     }
 
@@ -1100,6 +1133,7 @@ impl Mpc {
         debug_assert_eq!(self.x.len(), leader.x.len());
         self.x.copy_from(&leader.x);
         self.u_last.copy_from(&leader.u_last);
+        self.u_before.copy_from(&leader.u_before);
         self.ref_x.copy_from(&leader.ref_x);
         self.started = leader.started;
         self.sustained_df_mps2 = leader.sustained_df_mps2;
@@ -1116,6 +1150,7 @@ impl Mpc {
         self.terminal_tilt_rad = [0.0; 2];
         self.x.fill(0.0);
         self.u_last.fill(0.0);
+        self.u_before.fill(0.0);
         self.ref_x.fill(0.0);
         self.started = false;
         self.last_command = PlatformCommand::default();

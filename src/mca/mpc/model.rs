@@ -78,6 +78,39 @@ impl PredictionModel {
         self.continuous.discretise_zoh(dt_s)
     }
 
+    /// The jump of the state when the angular rates step by Δu at an interval boundary, with
+    /// the pilot's head at `eye_m` from the platform centre (platform frame).
+    ///
+    /// A rate held over each interval makes the angular acceleration an impulse Δω·δ(t) at
+    /// the boundary, and the lever arm turns it into an impulse Δω × r of the head's
+    /// acceleration. The otoliths (a strictly proper filter of the specific force) then jump
+    /// by B_f·(Δω × r). The platform's own position and velocity do not jump: they are the
+    /// centre's. Returns E (NX × NU) with x(0⁺) = x(0⁻) + E·Δu; without it the MPC cannot see
+    /// that pitching the cabin pushes a head 1.2 m above the joints fore and aft.
+    pub fn lever_arm_jump(&self, eye_m: &nalgebra::Vector3<f64>) -> DMatrix<f64> {
+        // L: Δu ↦ Δω × r, with Δω the total (tilt + rotational) rate change.
+        let mut l = DMatrix::zeros(3, NU);
+        let (rx, ry, rz) = (eye_m.x, eye_m.y, eye_m.z);
+        for c in [input::TILT_ROLL_RATE, input::ROT_ROLL_RATE] {
+            l[(1, c)] = -rz;
+            l[(2, c)] = ry;
+        }
+        for c in [input::TILT_PITCH_RATE, input::ROT_PITCH_RATE] {
+            l[(0, c)] = rz;
+            l[(2, c)] = -rx;
+        }
+        l[(0, input::ROT_YAW_RATE)] = -ry;
+        l[(1, input::ROT_YAW_RATE)] = rx;
+        let b = &self.continuous.b;
+        let mut e = DMatrix::zeros(NX, NU);
+        for r in state::VEST..NX {
+            for c in 0..NU {
+                e[(r, c)] = (0..3).map(|k| b[(r, input::ACCEL_X + k)] * l[(k, c)]).sum();
+            }
+        }
+        e
+    }
+
     /// Rows of C giving f̂ (0..3) and ω̂ (3..6).
     pub fn perceived_rows(&self) -> DMatrix<f64> {
         self.continuous.c.rows(0, 6).into_owned()
