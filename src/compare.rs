@@ -232,6 +232,23 @@ fn discussion(results: &[TraceResult], profile: &crate::profile::Profile) -> Str
     out
 }
 
+/// The smallest and largest ratio of the CWF's fx RAE to either MPC's, over every trace.
+fn fx_margin_over_cwf(results: &[TraceResult]) -> Option<(f64, f64)> {
+    let ratios: Vec<f64> = results
+        .iter()
+        .flat_map(|r| {
+            let a = &r.summary.algorithms;
+            let cwf = metric(&a["cwf"], "fx", |m| m.rae);
+            ["smpc", "mpc"].map(|k| cwf / metric(&a[k], "fx", |m| m.rae))
+        })
+        .filter(|v| v.is_finite())
+        .collect();
+    Some((
+        ratios.iter().cloned().reduce(f64::min)?,
+        ratios.iter().cloned().reduce(f64::max)?,
+    ))
+}
+
 /// Where the S-MPC never left COTC, the comparison is COTC against the free MPC: what the
 /// profile gives each of them, and the MPCs' margin over the CWF.
 fn why_it_holds(results: &[TraceResult], profile: &crate::profile::Profile) -> String {
@@ -259,19 +276,7 @@ fn why_it_holds(results: &[TraceResult], profile: &crate::profile::Profile) -> S
              weights to come back, and they cost it cue.",
         );
     }
-    let ratios: Vec<f64> = results
-        .iter()
-        .flat_map(|r| {
-            let a = &r.summary.algorithms;
-            let cwf = metric(&a["cwf"], "fx", |m| m.rae);
-            ["smpc", "mpc"].map(|k| cwf / metric(&a[k], "fx", |m| m.rae))
-        })
-        .filter(|v| v.is_finite())
-        .collect();
-    if let (Some(lo), Some(hi)) = (
-        ratios.iter().cloned().reduce(f64::min),
-        ratios.iter().cloned().reduce(f64::max),
-    ) {
+    if let Some((lo, hi)) = fx_margin_over_cwf(results) {
         let _ = write!(
             out,
             " On fx, both MPCs' RAE is {lo:.1} to {hi:.1} times lower than the CWF's. How the \
@@ -316,19 +321,7 @@ fn why(results: &[TraceResult], profile: &crate::profile::Profile) -> String {
              here the free MPC, with leg constraints linearised at every step, keeps its legs in \
              stroke without the limiter, so that advantage of COTC does not show on fx.",
         );
-        let ratios: Vec<f64> = results
-            .iter()
-            .flat_map(|r| {
-                let a = &r.summary.algorithms;
-                let cwf = metric(&a["cwf"], "fx", |m| m.rae);
-                ["smpc", "mpc"].map(|k| cwf / metric(&a[k], "fx", |m| m.rae))
-            })
-            .filter(|v| v.is_finite())
-            .collect();
-        if let (Some(lo), Some(hi)) = (
-            ratios.iter().cloned().reduce(f64::min),
-            ratios.iter().cloned().reduce(f64::max),
-        ) {
+        if let Some((lo, hi)) = fx_margin_over_cwf(results) {
             let _ = write!(out, " On fx, both MPCs' RAE is {lo:.1} to {hi:.1} times lower than the CWF's on these traces.");
         }
         out.push('\n');
