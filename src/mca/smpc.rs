@@ -111,10 +111,13 @@ impl MotionCueing for Smpc {
             let (c, f) = self.solve_both(input);
             (c, Some(f))
         };
-        let judge = match (&free, active_before) {
+        // The free MPC is solved whenever it can be picked: it is only in standby while COTC
+        // is solved and in charge, and the supervisor never leaves a solved COTC.
+        let pick = |c: Controller| match (&free, c) {
             (Some(f), Controller::Free) => f,
             _ => &cotc,
         };
+        let judge = pick(active_before);
         let error = judge.reference_f_mps2 - judge.perceived_f_mps2;
         let decision = self.supervisor.update(
             &SupervisorInput {
@@ -129,12 +132,6 @@ impl MotionCueing for Smpc {
             self.outgoing = active_before;
             self.mixer.start();
         }
-        // The free MPC is solved whenever it can be picked: it is only in standby while COTC
-        // is solved and in charge, and the supervisor never leaves a solved COTC.
-        let pick = |c: Controller| match (&free, c) {
-            (Some(f), Controller::Free) => f,
-            _ => &cotc,
-        };
         let active = self.supervisor.active();
         let new_mode;
         let command = if self.mixer.is_blending() {
