@@ -336,11 +336,7 @@ impl Mpc {
         };
         mpc.mode = mpc.solved_mode();
         if terminal == Terminal::Cotc {
-            let n = mpc.grid.len();
-            let last = &mpc.discrete[mpc.interval_model[n - 1]];
-            let w = mpc.stage_weight(n - 1);
-            let qx = mpc.stage_hessian(1.0) * w;
-            let r = DMatrix::from_diagonal(&(mpc.input_weight() * w + mpc.input_change_weight()));
+            let (last, qx, r) = mpc.terminal_riccati_data();
             mpc.terminal_weight = Some(riccati::solve_dare(&last.a, &last.b, &qx, &r)?);
         }
         mpc.build_solver()?;
@@ -412,6 +408,17 @@ impl Mpc {
 
     pub fn washout_gain(&self) -> f64 {
         self.washout_gain
+    }
+
+    /// The Riccati equation of COTC's terminal weight: the last interval's model, its state
+    /// weight (perceived and washout terms at the nominal gain) and input weight w·S + R.
+    fn terminal_riccati_data(&self) -> (&DiscreteStateSpace, DMatrix<f64>, DMatrix<f64>) {
+        let n = self.grid.len();
+        let last = &self.discrete[self.interval_model[n - 1]];
+        let w = self.stage_weight(n - 1);
+        let qx = self.stage_hessian(1.0) * w;
+        let r = DMatrix::from_diagonal(&(self.input_weight() * w + self.input_change_weight()));
+        (last, qx, r)
     }
 
     fn stage_weight(&self, interval: usize) -> f64 {

@@ -122,26 +122,25 @@ fn riccati_terminal_weight_satisfies_its_equation() {
     let p = profile();
     // COTC's shipped tuning leaves surge and sway position unweighted: the Riccati weight is
     // then the cost-to-go of the rest and must still satisfy its equation.
+    let residual = |mpc: &Mpc| {
+        let (last, qx, r) = mpc.terminal_riccati_data();
+        let pn = mpc.terminal_weight.as_ref().unwrap();
+        riccati::dare_residual(&last.a, &last.b, &qx, &r, pn)
+    };
     let shipped = Mpc::new(&p.cotc_params(), &p, Terminal::Cotc).unwrap();
-    let n = shipped.grid.len();
-    let last = &shipped.discrete[shipped.interval_model[n - 1]];
-    let w = shipped.stage_weight(n - 1);
-    let qx = shipped.stage_hessian(1.0) * w;
-    let r = DMatrix::from_diagonal(&(shipped.input_weight() * w + shipped.input_change_weight()));
-    let pn = shipped.terminal_weight.as_ref().unwrap();
-    let res = riccati::dare_residual(&last.a, &last.b, &qx, &r, pn);
+    let res = residual(&shipped);
     assert!(res < 1e-9, "shipped COTC tuning: relative residual {res}");
-    assert!(pn.iter().all(|v| v.is_finite()));
+    assert!(shipped
+        .terminal_weight
+        .as_ref()
+        .unwrap()
+        .iter()
+        .all(|v| v.is_finite()));
 
     let mpc = Mpc::new(&p.mpc, &p, Terminal::Cotc).unwrap();
-    let n = mpc.grid.len();
-    let last = &mpc.discrete[mpc.interval_model[n - 1]];
-    let w = mpc.stage_weight(n - 1);
-    let qx = mpc.stage_hessian(1.0) * w;
-    let r = DMatrix::from_diagonal(&(mpc.input_weight() * w + mpc.input_change_weight()));
-    let pn = mpc.terminal_weight.as_ref().unwrap();
-    let res = riccati::dare_residual(&last.a, &last.b, &qx, &r, pn);
+    let res = residual(&mpc);
     assert!(res < 1e-9, "relative residual {res}");
+    let pn = mpc.terminal_weight.as_ref().unwrap();
     // Symmetric and positive definite on the weighted states.
     assert!((pn - pn.transpose()).amax() < 1e-9 * pn.amax());
     assert!(pn[(state::POS, state::POS)] > 0.0);
