@@ -15,6 +15,7 @@ pub mod model;
 pub mod omct;
 pub mod plot;
 pub mod profile;
+pub mod qp;
 pub mod summary;
 pub mod trace;
 pub mod tui;

@@ -1,0 +1,761 @@
+//! Dense strictly convex QP by a dual active-set method (Goldfarb–Idnani), warm-started from
+//! a working set. The algorithm, its warm start and its degeneracy handling: `docs/qp.md`.
+//!
+//! ```text
+//! minimise   ½ uᵀ H u + gᵀ u
+//! subject to a_kᵀ u = b_k            k < n_eq          (equality rows)
+//!            lo_k ≤ a_kᵀ u ≤ hi_k    n_eq ≤ k < m      (inequality rows; ±∞ for one side)
+//! ```
+//!
+//! H (symmetric positive definite) is factored once by [`ActiveSetQp::set_hessian`] and kept
+//! until it is set again; the rows, bounds and gradient are overwritten before every solve.
+//! Every buffer is allocated when the solver is made (or when the row count first grows),
+//! so a solve allocates nothing. A solve never panics: bad data gives
+//! [`QpStatus::NumericalError`].
+//!
+//! Hand-written because no crate offers this under a permissive licence: `quadprog` is
+//! GPL-2.0, there is no DAQP crate, and `osqp-sys` fetches its sources at build time.
+
+use std::time::{Duration, Instant};
+
+#[cfg(test)]
+mod tests;
+
+/// How a solve ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum QpStatus {
+    /// Optimal to the primal tolerance; the solution, objective and active set are valid.
+    Solved,
+    /// No point satisfies the rows (the dual is unbounded).
+    Infeasible,
+    MaxIterations,
+    MaxTime,
+    /// Non-finite data, no factored Hessian, or a breakdown in the factor updates.
+    NumericalError,
+}
+
+impl QpStatus {
+    /// In words, in the snake case of the solver reports.
+    pub fn word(self) -> &'static str {
+        match self {
+            QpStatus::Solved => "solved",
+            QpStatus::Infeasible => "primal_infeasible",
+            QpStatus::MaxIterations => "max_iterations",
+            QpStatus::MaxTime => "max_time",
+            QpStatus::NumericalError => "numerical_error",
+        }
+    }
+}
+
+/// Which side of a row is held.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    /// a_kᵀu = lo_k.
+    Lower,
+    /// a_kᵀu = hi_k.
+    Upper,
+    /// An equality row.
+    Equal,
+}
+
+/// One row of a working set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ActiveRow {
+    pub row: usize,
+    pub side: Side,
+}
+
+/// Limits of one solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QpSettings {
+    /// Cap on the add/drop steps of the main loop.
+    pub max_iterations: u32,
+    /// Wall-time limit; `None` for none.
+    pub time_limit: Option<Duration>,
+    /// A row counts as satisfied when it is violated by at most this times (|a_k| + |bound|):
+    /// relative to the bound, absolute for bounds near zero, and the same for a row scaled by
+    /// any factor.
+    pub primal_tolerance: f64,
+}
+
+impl Default for QpSettings {
+    fn default() -> Self {
+        QpSettings {
+            max_iterations: 500,
+            time_limit: None,
+            primal_tolerance: 1e-9,
+        }
+    }
+}
+
+/// The Hessian given to [`ActiveSetQp::set_hessian`] was rejected.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum QpError {
+    #[error("Hessian: expected {expected} values (n × n, column-major), got {got}")]
+    Dimension { expected: usize, got: usize },
+    #[error("Hessian is not positive definite (pivot {column})")]
+    NotPositiveDefinite { column: usize },
+    #[error("Hessian holds a non-finite value")]
+    NonFinite,
+}
+
+/// A constraint is taken as linearly dependent on the active ones when the part of its
+/// normal outside their span (in H's metric) is below this fraction of the whole.
+const DEPENDENT: f64 = 1e-10;
+
+/// The solver: problem data, factors and working storage, all of fixed size after `new`.
+#[derive(Clone, Debug)]
+pub struct ActiveSetQp {
+    n: usize,
+    /// H, column-major, for the objective.
+    h: Vec<f64>,
+    /// L⁻ᵀ of the Cholesky factor H = L Lᵀ, column-major (upper triangular).
+    j0: Vec<f64>,
+    factored: bool,
+    g: Vec<f64>,
+    /// Rows stored one after the other (row k at k·n).
+    rows: Vec<f64>,
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+    n_eq: usize,
+    m: usize,
+    // Working storage.
+    /// J = L⁻ᵀ Q (column-major): its first q columns span the active normals.
+    jm: Vec<f64>,
+    /// R, upper triangular (column-major, n × n), L⁻¹ N_active = Q₁ R.
+    r: Vec<f64>,
+    active: Vec<ActiveRow>,
+    /// Multipliers of the active rows, in `active`'s order.
+    mult: Vec<f64>,
+    /// Whether each row is in the active set.
+    is_active: Vec<bool>,
+    row_norm: Vec<f64>,
+    x: Vec<f64>,
+    x0: Vec<f64>,
+    d: Vec<f64>,
+    z: Vec<f64>,
+    dir: Vec<f64>,
+    work: Vec<f64>,
+    warm: Vec<ActiveRow>,
+    objective: f64,
+    iterations: u32,
+}
+
+impl ActiveSetQp {
+    /// A solver for `n` variables; `rows_hint` rows are preallocated.
+    pub fn new(n: usize, rows_hint: usize) -> Self {
+        ActiveSetQp {
+            n,
+            h: vec![0.0; n * n],
+            j0: vec![0.0; n * n],
+            factored: false,
+            g: vec![0.0; n],
+            rows: Vec::with_capacity(rows_hint * n),
+            lo: Vec::with_capacity(rows_hint),
+            hi: Vec::with_capacity(rows_hint),
+            n_eq: 0,
+            m: 0,
+            jm: vec![0.0; n * n],
+            r: vec![0.0; n * n],
+            active: Vec::with_capacity(n),
+            mult: Vec::with_capacity(n),
+            is_active: Vec::with_capacity(rows_hint),
+            row_norm: Vec::with_capacity(rows_hint),
+            x: vec![0.0; n],
+            x0: vec![0.0; n],
+            d: vec![0.0; n],
+            z: vec![0.0; n],
+            dir: vec![0.0; n],
+            work: vec![0.0; n],
+            warm: Vec::with_capacity(n),
+            objective: f64::NAN,
+            iterations: 0,
+        }
+    }
+
+    pub fn n_vars(&self) -> usize {
+        self.n
+    }
+
+    /// Number of equality and inequality rows.
+    pub fn n_rows(&self) -> (usize, usize) {
+        (self.n_eq, self.m - self.n_eq)
+    }
+
+    /// Factors H (n × n, column-major; only the lower triangle is read) and keeps the factor
+    /// until the next call. On error the solver has no Hessian and solves report
+    /// `NumericalError`.
+    pub fn set_hessian(&mut self, h: &[f64]) -> Result<(), QpError> {
+        let n = self.n;
+        self.factored = false;
+        if h.len() != n * n {
+            return Err(QpError::Dimension {
+                expected: n * n,
+                got: h.len(),
+            });
+        }
+        if h.iter().any(|v| !v.is_finite()) {
+            return Err(QpError::NonFinite);
+        }
+        // Symmetric copy from the lower triangle.
+        for c in 0..n {
+            for r in c..n {
+                self.h[c * n + r] = h[c * n + r];
+                self.h[r * n + c] = h[c * n + r];
+            }
+        }
+        // Cholesky H = L Lᵀ into `jm` (column-major, lower), then J0 = L⁻ᵀ.
+        let l = &mut self.jm;
+        l.fill(0.0);
+        for j in 0..n {
+            let mut s = self.h[j * n + j];
+            for k in 0..j {
+                s -= l[k * n + j] * l[k * n + j];
+            }
+            if !(s > 0.0) || !s.is_finite() {
+                return Err(QpError::NotPositiveDefinite { column: j });
+            }
+            let ljj = s.sqrt();
+            l[j * n + j] = ljj;
+            for i in j + 1..n {
+                let mut s = self.h[j * n + i];
+                for k in 0..j {
+                    s -= l[k * n + i] * l[k * n + j];
+                }
+                l[j * n + i] = s / ljj;
+            }
+        }
+        // Lᵀ J0 = I, column by column (back substitution; column c is zero below c).
+        let j0 = &mut self.j0;
+        j0.fill(0.0);
+        for c in 0..n {
+            for i in (0..=c).rev() {
+                let mut s = if i == c { 1.0 } else { 0.0 };
+                // (Lᵀ)[i, k] = L[k, i] for k > i.
+                for k in i + 1..=c {
+                    s -= l[i * n + k] * j0[c * n + k];
+                }
+                j0[c * n + i] = s / l[i * n + i];
+            }
+        }
+        self.factored = true;
+        Ok(())
+    }
+
+    /// Whether a Hessian is factored.
+    pub fn is_factored(&self) -> bool {
+        self.factored
+    }
+
+    /// The linear term g, to overwrite before a solve.
+    pub fn gradient_mut(&mut self) -> &mut [f64] {
+        &mut self.g
+    }
+
+    /// Sets the number of rows (equalities first); their values are then written with
+    /// [`row_mut`](Self::row_mut) and [`set_bounds`](Self::set_bounds). Grows storage only
+    /// when the count exceeds any before.
+    pub fn set_rows(&mut self, n_eq: usize, n_ineq: usize) {
+        let m = n_eq + n_ineq;
+        self.n_eq = n_eq;
+        self.m = m;
+        self.rows.resize(m * self.n, 0.0);
+        self.lo.resize(m, 0.0);
+        self.hi.resize(m, 0.0);
+        self.is_active.resize(m, false);
+        self.row_norm.resize(m, 0.0);
+    }
+
+    /// Coefficients a_k of row k (length n).
+    pub fn row_mut(&mut self, k: usize) -> &mut [f64] {
+        let n = self.n;
+        &mut self.rows[k * n..(k + 1) * n]
+    }
+
+    pub fn row(&self, k: usize) -> &[f64] {
+        &self.rows[k * self.n..(k + 1) * self.n]
+    }
+
+    /// Bounds of row k: lo ≤ a_kᵀu ≤ hi (±∞ for a one-sided row); for an equality row
+    /// lo = hi = b.
+    pub fn set_bounds(&mut self, k: usize, lo: f64, hi: f64) {
+        self.lo[k] = lo;
+        self.hi[k] = hi;
+    }
+
+    pub fn bounds(&self, k: usize) -> (f64, f64) {
+        (self.lo[k], self.hi[k])
+    }
+
+    /// The working set the next solve starts from. After a solve that ends `Solved` it is
+    /// that solve's active set (inequality rows), so consecutive solves warm-start by default.
+    /// Any set is accepted: rows out of range, on an infinite bound, repeated, linearly
+    /// dependent or with a negative multiplier are left out by the solve.
+    pub fn set_warm_start(&mut self, rows: &[ActiveRow]) {
+        self.warm.clear();
+        self.warm.extend_from_slice(rows);
+    }
+
+    pub fn warm_start(&self) -> &[ActiveRow] {
+        &self.warm
+    }
+
+    pub fn clear_warm_start(&mut self) {
+        self.warm.clear();
+    }
+
+    pub fn solution(&self) -> &[f64] {
+        &self.x
+    }
+
+    /// ½ uᵀHu + gᵀu at the solution.
+    pub fn objective(&self) -> f64 {
+        self.objective
+    }
+
+    /// Add/drop steps of the last solve's main loop.
+    pub fn iterations(&self) -> u32 {
+        self.iterations
+    }
+
+    /// Rows active at the end of the last solve (equalities included).
+    pub fn active_set(&self) -> &[ActiveRow] {
+        &self.active
+    }
+
+    /// Multipliers of [`active_set`](Self::active_set) (≥ 0 for inequalities, the force
+    /// pushing u into the feasible side; any sign for equalities).
+    pub fn multipliers(&self) -> &[f64] {
+        &self.mult
+    }
+
+    /// Solves with the current data, starting from the warm-start working set.
+    pub fn solve(&mut self, settings: &QpSettings) -> QpStatus {
+        let start = Instant::now();
+        self.iterations = 0;
+        self.objective = f64::NAN;
+        self.active.clear();
+        self.mult.clear();
+        let status = self.run(settings, start);
+        if status == QpStatus::Solved {
+            self.objective = self.objective_at_x();
+            if !self.objective.is_finite() || self.x.iter().any(|v| !v.is_finite()) {
+                return QpStatus::NumericalError;
+            }
+            self.warm.clear();
+            for a in &self.active {
+                if a.side != Side::Equal {
+                    self.warm.push(*a);
+                }
+            }
+        }
+        status
+    }
+
+    fn objective_at_x(&self) -> f64 {
+        let n = self.n;
+        let mut f = 0.0;
+        for c in 0..n {
+            let col = &self.h[c * n..(c + 1) * n];
+            let hx: f64 = col.iter().zip(&self.x).map(|(a, b)| a * b).sum();
+            f += self.x[c] * (0.5 * hx + self.g[c]);
+        }
+        f
+    }
+
+    /// The normal and right-hand side of a row held on a side, as n⁺ᵀu ≥ b⁺ (equalities:
+    /// n⁺ᵀu = b⁺).
+    fn sign_rhs(&self, a: ActiveRow) -> (f64, f64) {
+        match a.side {
+            Side::Lower | Side::Equal => (1.0, self.lo[a.row]),
+            Side::Upper => (-1.0, -self.hi[a.row]),
+        }
+    }
+
+    fn run(&mut self, s: &QpSettings, start: Instant) -> QpStatus {
+        let n = self.n;
+        if !self.factored {
+            return QpStatus::NumericalError;
+        }
+        let tol = if s.primal_tolerance > 0.0 {
+            s.primal_tolerance
+        } else {
+            1e-9
+        };
+        if self.g.iter().any(|v| !v.is_finite()) {
+            return QpStatus::NumericalError;
+        }
+        for k in 0..self.m {
+            let a = &self.rows[k * n..(k + 1) * n];
+            if a.iter().any(|v| !v.is_finite()) || self.lo[k].is_nan() || self.hi[k].is_nan() {
+                return QpStatus::NumericalError;
+            }
+            let norm = a.iter().map(|v| v * v).sum::<f64>().sqrt();
+            self.row_norm[k] = norm;
+            self.is_active[k] = false;
+            let (lo, hi) = (self.lo[k], self.hi[k]);
+            if k < self.n_eq && !lo.is_finite() {
+                return QpStatus::NumericalError;
+            }
+            if lo > hi + tol * (norm + lo.abs().min(hi.abs())) {
+                return QpStatus::Infeasible;
+            }
+            // An empty row is a statement about its bounds alone.
+            if norm == 0.0 && (lo > tol || hi < -tol) {
+                return QpStatus::Infeasible;
+            }
+        }
+        // Unconstrained minimum: x0 = −H⁻¹g = −J0 J0ᵀ g.
+        for i in 0..n {
+            let col = &self.j0[i * n..(i + 1) * n];
+            self.work[i] = col.iter().zip(&self.g).map(|(a, b)| a * b).sum();
+        }
+        self.x0.fill(0.0);
+        for i in 0..n {
+            let w = self.work[i];
+            if w != 0.0 {
+                let col = &self.j0[i * n..(i + 1) * n];
+                for (x, c) in self.x0.iter_mut().zip(col) {
+                    *x -= w * c;
+                }
+            }
+        }
+        self.jm.copy_from_slice(&self.j0);
+
+        // Equalities first: they stay in the set. One that depends on those before is only
+        // checked for consistency once x is known.
+        let mut skipped_eq = false;
+        for k in 0..self.n_eq {
+            if self.row_norm[k] == 0.0 {
+                continue;
+            }
+            let act = ActiveRow {
+                row: k,
+                side: Side::Equal,
+            };
+            if !self.try_add(act) {
+                skipped_eq = true;
+            }
+        }
+        // The warm start: each row added to the factors if it is new and independent, then
+        // the equality-constrained optimum on that set, dropping the most negative
+        // multiplier until all are ≥ 0. What remains is a dual-feasible start.
+        for w in 0..self.warm.len() {
+            let a = self.warm[w];
+            let ok = a.row >= self.n_eq
+                && a.row < self.m
+                && !self.is_active[a.row]
+                && self.row_norm[a.row] > 0.0
+                && match a.side {
+                    Side::Lower => self.lo[a.row].is_finite(),
+                    Side::Upper => self.hi[a.row].is_finite(),
+                    Side::Equal => false,
+                };
+            if ok {
+                self.try_add(a);
+            }
+        }
+        loop {
+            if !self.equality_optimum() {
+                return QpStatus::NumericalError;
+            }
+            let mut worst: Option<(usize, f64)> = None;
+            for (j, a) in self.active.iter().enumerate() {
+                if a.side != Side::Equal && self.mult[j] < 0.0 {
+                    if worst.is_none_or(|(_, m)| self.mult[j] < m) {
+                        worst = Some((j, self.mult[j]));
+                    }
+                }
+            }
+            match worst {
+                Some((j, _)) => self.drop_active(j),
+                None => break,
+            }
+            if let Some(limit) = s.time_limit {
+                if start.elapsed() > limit {
+                    return QpStatus::MaxTime;
+                }
+            }
+        }
+        if skipped_eq {
+            for k in 0..self.n_eq {
+                if !self.is_active[k] {
+                    let v = self.dot_row(k, &self.x);
+                    if (v - self.lo[k]).abs() > tol * (self.row_norm[k] + self.lo[k].abs()) {
+                        return QpStatus::Infeasible;
+                    }
+                }
+            }
+        }
+
+        // Main loop: add the most violated row; partial steps drop rows whose multiplier
+        // reaches zero on the way.
+        loop {
+            if let Some(limit) = s.time_limit {
+                if start.elapsed() > limit {
+                    return QpStatus::MaxTime;
+                }
+            }
+            let Some(p) = self.most_violated(tol) else {
+                return QpStatus::Solved;
+            };
+            let (sign, rhs) = self.sign_rhs(p);
+            let mut u_plus = 0.0;
+            loop {
+                if self.iterations >= s.max_iterations {
+                    return QpStatus::MaxIterations;
+                }
+                if let Some(limit) = s.time_limit {
+                    if start.elapsed() > limit {
+                        return QpStatus::MaxTime;
+                    }
+                }
+                self.iterations += 1;
+                let q = self.active.len();
+                self.compute_d(p.row, sign);
+                let d_norm2: f64 = self.d.iter().map(|v| v * v).sum();
+                let d2_norm2: f64 = self.d[q..].iter().map(|v| v * v).sum();
+                // Primal direction z = J₂ d₂, dual direction R⁻¹ d₁.
+                self.z.fill(0.0);
+                let dependent = d2_norm2 <= DEPENDENT * DEPENDENT * d_norm2;
+                if !dependent {
+                    for c in q..n {
+                        let w = self.d[c];
+                        let col = &self.jm[c * n..(c + 1) * n];
+                        for (z, j) in self.z.iter_mut().zip(col) {
+                            *z += w * j;
+                        }
+                    }
+                }
+                if !self.back_solve_r(q) {
+                    return QpStatus::NumericalError;
+                }
+                // Partial step: the first active inequality whose multiplier reaches zero.
+                let mut t1 = f64::INFINITY;
+                let mut drop = usize::MAX;
+                for j in 0..q {
+                    if self.active[j].side != Side::Equal && self.dir[j] > 0.0 {
+                        let t = self.mult[j] / self.dir[j];
+                        if t < t1 {
+                            t1 = t;
+                            drop = j;
+                        }
+                    }
+                }
+                // Full step: p satisfied with equality.
+                let t2 = if dependent {
+                    f64::INFINITY
+                } else {
+                    let slack = sign * self.dot_row(p.row, &self.x) - rhs;
+                    -slack / d2_norm2
+                };
+                if !t1.is_finite() && !t2.is_finite() {
+                    return QpStatus::Infeasible;
+                }
+                let t = t1.min(t2).max(0.0);
+                if !t.is_finite() {
+                    return QpStatus::NumericalError;
+                }
+                if !dependent {
+                    for (x, z) in self.x.iter_mut().zip(&self.z) {
+                        *x += t * z;
+                    }
+                }
+                for j in 0..q {
+                    self.mult[j] -= t * self.dir[j];
+                }
+                u_plus += t;
+                if t2 <= t1 {
+                    // Full step: p joins the set with its accumulated multiplier.
+                    self.add_with_d(p);
+                    self.mult.push(u_plus);
+                    break;
+                }
+                // The dropped row's multiplier is zero by construction.
+                self.drop_active(drop);
+            }
+        }
+    }
+
+    /// a_kᵀ v.
+    fn dot_row(&self, k: usize, v: &[f64]) -> f64 {
+        let n = self.n;
+        self.rows[k * n..(k + 1) * n]
+            .iter()
+            .zip(v)
+            .map(|(a, b)| a * b)
+            .sum()
+    }
+
+    /// The inactive side with the largest violation per unit norm beyond `tol`.
+    fn most_violated(&self, tol: f64) -> Option<ActiveRow> {
+        let mut best: Option<(ActiveRow, f64)> = None;
+        for k in self.n_eq..self.m {
+            if self.is_active[k] || self.row_norm[k] == 0.0 {
+                continue;
+            }
+            let v = self.dot_row(k, &self.x);
+            let norm = self.row_norm[k];
+            let (below, above) = (self.lo[k] - v, v - self.hi[k]);
+            let (excess, bound, side) = if below > above {
+                (below, self.lo[k], Side::Lower)
+            } else {
+                (above, self.hi[k], Side::Upper)
+            };
+            if excess > tol * (norm + bound.abs()) {
+                let viol = excess / norm;
+                if best.is_none_or(|(_, b)| viol > b) {
+                    best = Some((ActiveRow { row: k, side }, viol));
+                }
+            }
+        }
+        best.map(|(a, _)| a)
+    }
+
+    /// d = Jᵀ n⁺ for row k with sign σ.
+    fn compute_d(&mut self, k: usize, sign: f64) {
+        let n = self.n;
+        let a = &self.rows[k * n..(k + 1) * n];
+        for i in 0..n {
+            let col = &self.jm[i * n..(i + 1) * n];
+            self.d[i] = sign * col.iter().zip(a).map(|(x, y)| x * y).sum::<f64>();
+        }
+    }
+
+    /// `dir` = R⁻¹ d₁ over the first q entries; false on a zero pivot.
+    fn back_solve_r(&mut self, q: usize) -> bool {
+        let n = self.n;
+        for i in (0..q).rev() {
+            let mut s = self.d[i];
+            for j in i + 1..q {
+                s -= self.r[j * n + i] * self.dir[j];
+            }
+            let piv = self.r[i * n + i];
+            if piv == 0.0 || !piv.is_finite() {
+                return false;
+            }
+            self.dir[i] = s / piv;
+        }
+        true
+    }
+
+    /// Adds row `a` to the factors if it is independent of the active rows; its multiplier
+    /// is left for the caller (`equality_optimum` computes all of them).
+    fn try_add(&mut self, a: ActiveRow) -> bool {
+        let (sign, _) = self.sign_rhs(a);
+        self.compute_d(a.row, sign);
+        let q = self.active.len();
+        let d_norm2: f64 = self.d.iter().map(|v| v * v).sum();
+        let d2_norm2: f64 = self.d[q..].iter().map(|v| v * v).sum();
+        if q >= self.n || d2_norm2 <= DEPENDENT * DEPENDENT * d_norm2 || d_norm2 == 0.0 {
+            return false;
+        }
+        self.add_with_d(a);
+        self.mult.push(0.0);
+        true
+    }
+
+    /// Appends `a` to the active set using d = Jᵀn⁺ already computed: Givens rotations fold
+    /// d's tail into one entry (rotating J's columns alike) and R gains a column.
+    fn add_with_d(&mut self, a: ActiveRow) {
+        let n = self.n;
+        let q = self.active.len();
+        for j in (q + 1..n).rev() {
+            let (x, y) = (self.d[j - 1], self.d[j]);
+            if y == 0.0 {
+                continue;
+            }
+            let h = x.hypot(y);
+            let (c, s) = (x / h, y / h);
+            self.d[j - 1] = h;
+            self.d[j] = 0.0;
+            let (left, right) = self.jm.split_at_mut(j * n);
+            let cj1 = &mut left[(j - 1) * n..];
+            let cj = &mut right[..n];
+            for (p, r) in cj1.iter_mut().zip(cj.iter_mut()) {
+                let (u, v) = (*p, *r);
+                *p = c * u + s * v;
+                *r = -s * u + c * v;
+            }
+        }
+        for i in 0..=q {
+            self.r[q * n + i] = self.d[i];
+        }
+        self.active.push(a);
+        self.is_active[a.row] = true;
+    }
+
+    /// Removes the active row at position `j`: R loses a column and is made triangular again
+    /// by Givens rotations of its rows, which rotate J's columns alike.
+    fn drop_active(&mut self, j: usize) {
+        let n = self.n;
+        let q = self.active.len();
+        self.is_active[self.active[j].row] = false;
+        self.active.remove(j);
+        self.mult.remove(j);
+        for c in j..q - 1 {
+            for i in 0..=c + 1 {
+                self.r[c * n + i] = self.r[(c + 1) * n + i];
+            }
+        }
+        let qn = q - 1;
+        for i in j..qn {
+            let (x, y) = (self.r[i * n + i], self.r[i * n + i + 1]);
+            if y == 0.0 {
+                continue;
+            }
+            let h = x.hypot(y);
+            let (c, s) = (x / h, y / h);
+            for col in i..qn {
+                let (u, v) = (self.r[col * n + i], self.r[col * n + i + 1]);
+                self.r[col * n + i] = c * u + s * v;
+                self.r[col * n + i + 1] = -s * u + c * v;
+            }
+            self.r[i * n + i + 1] = 0.0;
+            let (left, right) = self.jm.split_at_mut((i + 1) * n);
+            let ci = &mut left[i * n..];
+            let ci1 = &mut right[..n];
+            for (p, r) in ci.iter_mut().zip(ci1.iter_mut()) {
+                let (u, v) = (*p, *r);
+                *p = c * u + s * v;
+                *r = -s * u + c * v;
+            }
+        }
+    }
+
+    /// x and the multipliers of the equality-constrained QP on the active set:
+    /// w = b_A − N_Aᵀx0, Rᵀy = w, x = x0 + J₁y, λ = R⁻¹y. False on a zero pivot.
+    fn equality_optimum(&mut self) -> bool {
+        let n = self.n;
+        let q = self.active.len();
+        for i in 0..q {
+            let a = self.active[i];
+            let (sign, rhs) = self.sign_rhs(a);
+            let w = rhs - sign * self.dot_row(a.row, &self.x0);
+            let mut s = w;
+            for k in 0..i {
+                s -= self.r[i * n + k] * self.work[k];
+            }
+            let piv = self.r[i * n + i];
+            if piv == 0.0 || !piv.is_finite() {
+                return false;
+            }
+            self.work[i] = s / piv;
+        }
+        self.x.copy_from_slice(&self.x0);
+        for i in 0..q {
+            let y = self.work[i];
+            let col = &self.jm[i * n..(i + 1) * n];
+            for (x, c) in self.x.iter_mut().zip(col) {
+                *x += y * c;
+            }
+        }
+        self.d[..q].copy_from_slice(&self.work[..q]);
+        if !self.back_solve_r(q) {
+            return false;
+        }
+        self.mult.clear();
+        self.mult.extend_from_slice(&self.dir[..q]);
+        true
+    }
+}
