@@ -212,7 +212,7 @@ impl ActiveSetQp {
             for k in 0..j {
                 s -= l[k * n + j] * l[k * n + j];
             }
-            if !(s > 0.0) || !s.is_finite() {
+            if !s.is_finite() || s <= 0.0 {
                 return Err(QpError::NotPositiveDefinite { column: j });
             }
             let ljj = s.sqrt();
@@ -461,10 +461,11 @@ impl ActiveSetQp {
             }
             let mut worst: Option<(usize, f64)> = None;
             for (j, a) in self.active.iter().enumerate() {
-                if a.side != Side::Equal && self.mult[j] < 0.0 {
-                    if worst.is_none_or(|(_, m)| self.mult[j] < m) {
-                        worst = Some((j, self.mult[j]));
-                    }
+                if a.side != Side::Equal
+                    && self.mult[j] < 0.0
+                    && worst.is_none_or(|(_, m)| self.mult[j] < m)
+                {
+                    worst = Some((j, self.mult[j]));
                 }
             }
             match worst {

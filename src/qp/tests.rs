@@ -62,12 +62,13 @@ impl Problem {
     /// Clarabel's answer, to tight tolerances.
     fn clarabel(&self) -> (SolverStatus, Vec<f64>, f64) {
         let n = self.n;
-        let mut upper = vec![vec![0.0; n]; n];
-        for c in 0..n {
-            for r in 0..=c {
-                upper[r][c] = self.h[c * n + r];
-            }
-        }
+        let upper: Vec<Vec<f64>> = (0..n)
+            .map(|r| {
+                (0..n)
+                    .map(|c| if r <= c { self.h[c * n + r] } else { 0.0 })
+                    .collect()
+            })
+            .collect();
         let p = dense_csc(&upper, n);
         let mut a_rows = Vec::new();
         let mut b = Vec::new();

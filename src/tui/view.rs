@@ -342,7 +342,7 @@ fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'stat
             )));
             continue;
         }
-        let ok = sv.status == "solved";
+        let ok = matches!(sv.status.as_str(), "solved" | "solved_clarabel");
         let (mark, style) = if ok {
             ("✓", th.ok())
         } else {
@@ -364,10 +364,12 @@ fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'stat
     lines
 }
 
-/// Clarabel's statuses, short enough for an 80-column screen.
+/// The solvers' statuses, short enough for an 80-column screen.
 fn status_word(status: &str) -> &str {
     match status {
         "solved" => "ok",
+        // Solved by the fallback after the active set gave up.
+        "solved_clarabel" => "ok(c)",
         "almost_solved" => "~ok",
         "primal_infeasible" => "infeas",
         "dual_infeasible" => "d-infeas",

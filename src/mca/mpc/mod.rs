@@ -6,6 +6,7 @@
 //! overwrite the QP's values in the solver (the structure was built once) and solve. On any
 //! outcome other than a solution the previous plan is followed, then a smooth washout.
 
+pub mod condensed;
 pub mod model;
 pub mod params;
 pub mod qp;
@@ -17,6 +18,7 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 use nalgebra::{DMatrix, DVector, Matrix6, Vector3, Vector6};
 
+use self::condensed::{CondensedQp, Layout, Var};
 use self::model::{input, pose_of, state, PredictionModel, NU, NX, POSE_STATE};
 use self::params::ReferenceMode;
 pub use self::params::{CotcOverrides, MpcParams};
@@ -28,6 +30,7 @@ use super::{
 use crate::model::lti::{DiscreteStateSpace, StateSpace};
 use crate::model::stewart::Stewart;
 use crate::profile::{DofLimits, Profile};
+use crate::qp::{QpSettings, QpStatus};
 
 /// Terminal conditions of the MPC.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -136,6 +139,18 @@ pub fn status_word(s: &SolverStatus) -> &'static str {
     }
 }
 
+/// Primal tolerance of the active-set solver: a row holds to 1e-9 of its bound (relative)
+/// or in absolute terms near zero, well inside Clarabel's 1e-5.
+const ACTIVE_SET_TOLERANCE: f64 = 1e-9;
+
+/// Add/drop steps before the active set gives the QP to Clarabel: a warm-started step takes a
+/// handful, a cold start about one per active row; many more means cycling on a degenerate
+/// vertex.
+fn active_set_max_iterations(c: &CondensedQp) -> u32 {
+    let (eq, ineq) = c.n_rows();
+    (2 * (c.n_inputs() + eq + ineq)).max(100) as u32
+}
+
 /// Values of the QP that change every step, built from the current state.
 struct StepData<'a> {
     x0: &'a DVector<f64>,
@@ -206,6 +221,9 @@ pub struct Mpc {
     nz: Vec<f64>,
     n_eq: usize,
     y_ref: Vec<DVector<f64>>,
+    /// The same QP condensed to the inputs for the active-set solver; Clarabel above is the
+    /// fallback. `None` if the QP could not be condensed (then Clarabel alone).
+    condensed: Option<CondensedQp>,
 }
 
 fn nonzeros(m: &DMatrix<f64>) -> Vec<(usize, usize, f64)> {
@@ -332,6 +350,7 @@ impl Mpc {
             nz: Vec::new(),
             n_eq: 0,
             y_ref: Vec::new(),
+            condensed: None,
             grid,
         };
         mpc.mode = mpc.solved_mode();
@@ -396,6 +415,11 @@ impl Mpc {
         }
         self.washout_gain = gain;
         self.assemble_p();
+        if let Some(c) = self.condensed.as_mut() {
+            if c.set_gain(gain, &self.p_trip).is_err() {
+                self.condensed = None;
+            }
+        }
         if let Some(solver) = self.solver.as_mut() {
             if self.p_pattern.fill(&self.p_trip, &mut self.nz) && solver.update_P(&self.nz).is_ok()
             {
@@ -826,7 +850,34 @@ impl Mpc {
         let solver = DefaultSolver::new(&p, &self.q, &a, &self.b, &cones, self.settings())
             .map_err(|e| MpcError::Solver(e.to_string()))?;
         self.solver = Some(solver);
+        self.condensed = self.condense().ok();
         Ok(())
+    }
+
+    /// The condensed form of the assembled QP: the inputs are the variables, the dynamics
+    /// (the first n·NX rows) give the states.
+    fn condense(&mut self) -> Result<CondensedQp, condensed::CondenseError> {
+        let n = self.n_intervals();
+        let mut vars = Vec::with_capacity(self.n_vars());
+        for i in 0..n {
+            vars.extend((0..NU).map(|k| Var::Input(i * NU + k)));
+            vars.extend((0..NX).map(|k| Var::State(i * NX + k)));
+        }
+        let gain = self.washout_gain;
+        let p_at = |mpc: &mut Self, g: f64| {
+            mpc.washout_gain = g;
+            mpc.assemble_p();
+            mpc.p_trip.clone()
+        };
+        let p = [p_at(self, 0.0), p_at(self, 1.0), p_at(self, 2.0)];
+        let now = p_at(self, gain);
+        let layout = Layout {
+            vars,
+            n_dyn: n * NX,
+            m: self.b.len(),
+            n_eq: self.n_eq,
+        };
+        CondensedQp::new(layout, &self.a_trip, [&p[0], &p[1], &p[2]], gain, &now)
     }
 
     /// Nonzeros of the QP's P (upper triangle) and A.
@@ -1005,6 +1056,33 @@ impl Mpc {
         let data = self.step_data(&x0, &u_prev, terminal_tilt_rad);
         self.assemble_a(&data);
         self.assemble_q(&u_prev);
+        // The active-set solver first; Clarabel when it runs out of iterations or time, or
+        // reports a numerical error. Its infeasibility is an answer (COTC's every bump).
+        let started = Instant::now();
+        let mut active_set_us = 0.0;
+        if let Some(c) = self.condensed.as_mut() {
+            let settings = QpSettings {
+                max_iterations: active_set_max_iterations(c),
+                time_limit: Some(std::time::Duration::from_secs_f64(
+                    (self.params.time_limit_ms * 1e-3).max(0.0),
+                )),
+                primal_tolerance: ACTIVE_SET_TOLERANCE,
+            };
+            let status = c.solve(&self.p_trip, &self.q, &self.a_trip, &self.b, &settings);
+            active_set_us = started.elapsed().as_secs_f64() * 1e6;
+            self.report.solve_time_us = active_set_us;
+            self.report.iterations = c.iterations();
+            self.report.status = status.word().into();
+            match status {
+                QpStatus::Solved => {
+                    let z = c.z();
+                    Self::fill_plan(&mut self.plan, &self.grid, &self.x, z);
+                    return Some(DVector::from_row_slice(&z[0..NU]));
+                }
+                QpStatus::Infeasible => return None,
+                _ => {}
+            }
+        }
         let Some(solver) = self.solver.as_mut() else {
             self.report.status = "setup_error".into();
             self.report.iterations = 0;
@@ -1028,9 +1106,13 @@ impl Mpc {
         solver.timers = Some(clarabel::timers::Timers::default());
         let started = Instant::now();
         solver.solve();
-        self.report.solve_time_us = started.elapsed().as_secs_f64() * 1e6;
+        self.report.solve_time_us = active_set_us + started.elapsed().as_secs_f64() * 1e6;
         let sol = &solver.solution;
-        self.report.status = status_word(&sol.status).into();
+        self.report.status = match (&sol.status, self.condensed.is_some()) {
+            // Clarabel solved what the active set could not: docs/recordings.md.
+            (SolverStatus::Solved, true) => "solved_clarabel".into(),
+            (s, _) => status_word(s).into(),
+        };
         self.report.iterations = sol.iterations;
         let ok = matches!(
             sol.status,
@@ -1039,24 +1121,27 @@ impl Mpc {
         if !ok {
             return None;
         }
-        let z = &sol.x;
-        let n = self.grid.len();
-        self.plan.interval_s.clone_from(&self.grid);
-        self.plan.inputs.clear();
-        self.plan.poses.clear();
-        self.plan.elapsed_s = 0.0;
-        self.plan.start_pose = pose_of(&self.x);
-        for i in 0..n {
+        Self::fill_plan(&mut self.plan, &self.grid, &self.x, &sol.x);
+        Some(DVector::from_row_slice(&sol.x[0..NU]))
+    }
+
+    /// The plan of a solution z = [u_0, x_1, u_1, x_2, …] made from state `x0`.
+    fn fill_plan(plan: &mut Plan, grid: &[f64], x0: &DVector<f64>, z: &[f64]) {
+        plan.interval_s.clear();
+        plan.interval_s.extend_from_slice(grid);
+        plan.inputs.clear();
+        plan.poses.clear();
+        plan.elapsed_s = 0.0;
+        plan.start_pose = pose_of(x0);
+        for i in 0..grid.len() {
             let uc = Self::u_col(i);
             let mut u = [0.0; NU];
             u.copy_from_slice(&z[uc..uc + NU]);
-            self.plan.inputs.push(u);
+            plan.inputs.push(u);
             let xc = Self::x_col(i);
-            self.plan
-                .poses
+            plan.poses
                 .push(Vector6::from_fn(|k, _| z[xc + POSE_STATE[k]]));
         }
-        Some(DVector::from_row_slice(&z[0..NU]))
     }
 
     /// After a failed solve: the previous plan, one step further on, then a return to neutral
@@ -1153,6 +1238,9 @@ impl Mpc {
     }
 
     pub fn reset_state(&mut self) {
+        if let Some(c) = self.condensed.as_mut() {
+            c.clear_warm_start();
+        }
         self.sustained_df_mps2 = Vector3::zeros();
         self.terminal_tilt_rad = [0.0; 2];
         self.x.fill(0.0);
