@@ -137,9 +137,18 @@ pub struct ActiveSetQp {
     dir: Vec<f64>,
     work: Vec<f64>,
     warm: Vec<ActiveRow>,
+    /// Whether J, R and `active` are the last solve's (solved), with `snapshot` holding its
+    /// active rows' coefficients, so the next solve can start from them.
+    factor_reusable: bool,
+    snapshot: Vec<f64>,
+    solves_since_rebuild: u32,
     objective: f64,
     iterations: u32,
 }
+
+/// Solves that keep the factors before they are rebuilt from H's factor, so that rounding
+/// in the Givens updates cannot accumulate.
+const REBUILD_EVERY: u32 = 50;
 
 impl ActiveSetQp {
     /// A solver for `n` variables; `rows_hint` rows are preallocated.
@@ -168,6 +177,9 @@ impl ActiveSetQp {
             dir: vec![0.0; n],
             work: vec![0.0; n],
             warm: Vec::with_capacity(n),
+            factor_reusable: false,
+            snapshot: vec![0.0; n * n],
+            solves_since_rebuild: 0,
             objective: f64::NAN,
             iterations: 0,
         }
@@ -188,6 +200,7 @@ impl ActiveSetQp {
     pub fn set_hessian(&mut self, h: &[f64]) -> Result<(), QpError> {
         let n = self.n;
         self.factored = false;
+        self.factor_reusable = false;
         if h.len() != n * n {
             return Err(QpError::Dimension {
                 expected: n * n,
@@ -257,6 +270,9 @@ impl ActiveSetQp {
     /// when the count exceeds any before.
     pub fn set_rows(&mut self, n_eq: usize, n_ineq: usize) {
         let m = n_eq + n_ineq;
+        if (n_eq, m) != (self.n_eq, self.m) {
+            self.factor_reusable = false;
+        }
         self.n_eq = n_eq;
         self.m = m;
         self.rows.resize(m * self.n, 0.0);
@@ -292,6 +308,7 @@ impl ActiveSetQp {
     /// Any set is accepted: rows out of range, on an infinite bound, repeated, linearly
     /// dependent or with a negative multiplier are left out by the solve.
     pub fn set_warm_start(&mut self, rows: &[ActiveRow]) {
+        self.factor_reusable = false;
         self.warm.clear();
         self.warm.extend_from_slice(rows);
     }
@@ -301,6 +318,7 @@ impl ActiveSetQp {
     }
 
     pub fn clear_warm_start(&mut self) {
+        self.factor_reusable = false;
         self.warm.clear();
     }
 
@@ -334,19 +352,25 @@ impl ActiveSetQp {
         let start = Instant::now();
         self.iterations = 0;
         self.objective = f64::NAN;
-        self.active.clear();
-        self.mult.clear();
         let status = self.run(settings, start);
-        if status == QpStatus::Solved {
-            self.objective = self.objective_at_x();
-            if !self.objective.is_finite() || self.x.iter().any(|v| !v.is_finite()) {
-                return QpStatus::NumericalError;
-            }
-            self.warm.clear();
-            for a in &self.active {
-                if a.side != Side::Equal {
-                    self.warm.push(*a);
-                }
+        if status != QpStatus::Solved {
+            return status;
+        }
+        self.objective = self.objective_at_x();
+        if !self.objective.is_finite() || self.x.iter().any(|v| !v.is_finite()) {
+            return QpStatus::NumericalError;
+        }
+        // The factors stay for the next solve (`keep_unchanged_rows`).
+        let n = self.n;
+        for (j, a) in self.active.iter().enumerate() {
+            self.snapshot[j * n..(j + 1) * n]
+                .copy_from_slice(&self.rows[a.row * n..(a.row + 1) * n]);
+        }
+        self.factor_reusable = true;
+        self.warm.clear();
+        for a in &self.active {
+            if a.side != Side::Equal {
+                self.warm.push(*a);
             }
         }
         status
@@ -420,13 +444,27 @@ impl ActiveSetQp {
                 }
             }
         }
-        self.jm.copy_from_slice(&self.j0);
+        let reuse = self.factor_reusable && self.solves_since_rebuild < REBUILD_EVERY;
+        if reuse && self.keep_unchanged_rows() {
+            self.solves_since_rebuild += 1;
+        } else {
+            for a in &self.active {
+                if a.row < self.m {
+                    self.is_active[a.row] = false;
+                }
+            }
+            self.solves_since_rebuild = 0;
+            self.active.clear();
+            self.mult.clear();
+            self.jm.copy_from_slice(&self.j0);
+        }
+        self.factor_reusable = false;
 
         // Equalities first: they stay in the set. One that depends on those before is only
         // checked for consistency once x is known.
         let mut skipped_eq = false;
         for k in 0..self.n_eq {
-            if self.row_norm[k] == 0.0 {
+            if self.row_norm[k] == 0.0 || self.is_active[k] {
                 continue;
             }
             let act = ActiveRow {
@@ -439,7 +477,8 @@ impl ActiveSetQp {
         }
         // The warm start: each row added to the factors if it is new and independent, then
         // the equality-constrained optimum on that set, dropping the most negative
-        // multiplier until all are ≥ 0. What remains is a dual-feasible start.
+        // multiplier until all are ≥ 0. What remains is a dual-feasible start. (When the
+        // factors were kept, the warm rows still in them are skipped here as active.)
         for w in 0..self.warm.len() {
             let a = self.warm[w];
             let ok = a.row >= self.n_eq
@@ -578,6 +617,35 @@ impl ActiveSetQp {
         }
     }
 
+    /// The factors of the last solve, kept: its active rows whose coefficients have not
+    /// changed stay (their bounds may have), the others are dropped and come back through
+    /// the warm start like any other row. The active set is then the warm set in the factors
+    /// without the O(q·n²) of adding every row again. False (nothing kept) if a row is out
+    /// of range.
+    fn keep_unchanged_rows(&mut self) -> bool {
+        let n = self.n;
+        if self.active.iter().any(|a| a.row >= self.m) {
+            return false;
+        }
+        for a in &self.active {
+            self.is_active[a.row] = true;
+        }
+        for j in (0..self.active.len()).rev() {
+            let a = self.active[j];
+            let valid = (a.row < self.n_eq) == (a.side == Side::Equal)
+                && self.row_norm[a.row] > 0.0
+                && match a.side {
+                    Side::Lower | Side::Equal => self.lo[a.row].is_finite(),
+                    Side::Upper => self.hi[a.row].is_finite(),
+                }
+                && self.rows[a.row * n..(a.row + 1) * n] == self.snapshot[j * n..(j + 1) * n];
+            if !valid {
+                self.drop_active(j);
+            }
+        }
+        true
+    }
+
     /// a_kᵀ v.
     fn dot_row(&self, k: usize, v: &[f64]) -> f64 {
         let n = self.n;
@@ -666,7 +734,7 @@ impl ActiveSetQp {
             if y == 0.0 {
                 continue;
             }
-            let h = x.hypot(y);
+            let h = (x * x + y * y).sqrt();
             let (c, s) = (x / h, y / h);
             self.d[j - 1] = h;
             self.d[j] = 0.0;
@@ -705,7 +773,7 @@ impl ActiveSetQp {
             if y == 0.0 {
                 continue;
             }
-            let h = x.hypot(y);
+            let h = (x * x + y * y).sqrt();
             let (c, s) = (x / h, y / h);
             for col in i..qn {
                 let (u, v) = (self.r[col * n + i], self.r[col * n + i + 1]);

@@ -623,3 +623,70 @@ fn a_new_hessian_replaces_the_factor() {
         );
     }
 }
+
+#[test]
+fn a_sequence_of_changing_qps_on_one_solver_matches_cold_solves() {
+    // As in the MPC: one solver, many solves in a row, the gradient, the bounds and some
+    // rows' coefficients changing each time; the kept factors must never change the answer.
+    // Longer than the factors are kept, so their rebuild is crossed as well.
+    let mut rng = Rng(2024);
+    for _ in 0..12 {
+        let mut p = random_feasible(&mut rng);
+        let mut qp = ActiveSetQp::new(p.n, p.rows.len());
+        p.load(&mut qp);
+        let m = p.rows.len();
+        for step in 0..2 * REBUILD_EVERY + 7 {
+            for v in p.g.iter_mut() {
+                *v += 0.05 * rng.range(-1.0, 1.0);
+            }
+            if m > p.n_eq {
+                for _ in 0..2 {
+                    let k = p.n_eq + rng.below(m - p.n_eq);
+                    if rng.unit() < 0.5 {
+                        // New coefficients, bounds kept feasible around zero's neighbourhood.
+                        for v in p.rows[k].iter_mut() {
+                            *v += 0.1 * rng.range(-1.0, 1.0);
+                        }
+                    }
+                    let w = rng.range(0.05, 1.0);
+                    if p.lo[k].is_finite() {
+                        p.lo[k] = -w;
+                    }
+                    if p.hi[k].is_finite() {
+                        p.hi[k] = w;
+                    }
+                }
+            }
+            // Equalities hold at 0 (rhs 0) so that zero stays feasible whatever changes.
+            for k in 0..p.n_eq {
+                p.lo[k] = 0.0;
+                p.hi[k] = 0.0;
+            }
+            for k in p.n_eq..m {
+                p.lo[k] = p.lo[k].min(0.0);
+                p.hi[k] = p.hi[k].max(0.0);
+            }
+            qp.gradient_mut().copy_from_slice(&p.g);
+            for k in 0..m {
+                qp.row_mut(k).copy_from_slice(&p.rows[k]);
+                qp.set_bounds(k, p.lo[k], p.hi[k]);
+            }
+            let st = qp.solve(&QpSettings::default());
+            let (cold_st, x_cold, f_cold, _) = p.solve(&[]);
+            assert_eq!(st, cold_st, "step {step}");
+            assert_eq!(st, QpStatus::Solved, "step {step}");
+            assert!(
+                (qp.objective() - f_cold).abs() <= 1e-9 * f_cold.abs().max(1.0),
+                "step {step}: {} vs {f_cold}",
+                qp.objective()
+            );
+            let dx = qp
+                .solution()
+                .iter()
+                .zip(&x_cold)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(dx < 1e-7, "step {step}: {dx}");
+        }
+    }
+}
