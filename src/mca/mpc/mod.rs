@@ -1063,9 +1063,11 @@ impl Mpc {
         if let Some(c) = self.condensed.as_mut() {
             let settings = QpSettings {
                 max_iterations: active_set_max_iterations(c),
-                time_limit: Some(std::time::Duration::from_secs_f64(
+                // An infinite (or NaN) limit is no limit; never a panic.
+                time_limit: std::time::Duration::try_from_secs_f64(
                     (self.params.time_limit_ms * 1e-3).max(0.0),
-                )),
+                )
+                .ok(),
                 primal_tolerance: ACTIVE_SET_TOLERANCE,
             };
             let status = c.solve(&self.p_trip, &self.q, &self.a_trip, &self.b, &settings);

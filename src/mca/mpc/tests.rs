@@ -693,3 +693,15 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
     assert!(fallback * 1000 <= samples.len(), "{summary}");
     summary
 }
+
+#[test]
+fn an_unlimited_time_budget_is_no_limit_not_a_panic() {
+    // `compare` runs without a time limit (∞): found as a panic in Duration::from_secs_f64.
+    let mut p = profile();
+    p.mpc.time_limit_ms = f64::INFINITY;
+    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let outs = run(&mut mpc, 5, |_| sample([1.0, 0.0, 0.0], [0.0; 3]));
+    assert!(outs
+        .iter()
+        .all(|o| o.feasible && o.report.status == "solved"));
+}
