@@ -21,6 +21,10 @@ pub struct ChannelMetrics {
     pub pc: f64,
     /// Delay of y behind x that maximises their cross-correlation (s; positive = y lags).
     pub ed_s: f64,
+    /// The best lag is at the edge of the searched window (±`max_lag`): the true delay, if
+    /// the cross-correlation has a peak at all, lies beyond it, and `ed_s` is only a bound.
+    #[serde(default)]
+    pub ed_at_bound: bool,
     pub rmse: f64,
     /// Time during which y and x have opposite signs while both exceed the threshold (s).
     pub false_cue_s: f64,
@@ -196,6 +200,7 @@ impl ChannelAccumulator {
             rae: ratio(self.sum_abs_err, self.sum_abs_x),
             pc,
             ed_s: best.1 as f64 * self.dt_s,
+            ed_at_bound: max_lag > 0 && best.1.unsigned_abs() as usize == self.lag_xy.len() - 1,
             rmse: (self.sum_sq_err / n).sqrt(),
             false_cue_s: self.false_cues as f64 * self.dt_s,
         }
