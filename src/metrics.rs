@@ -316,6 +316,27 @@ mod tests {
     }
 
     #[test]
+    fn a_delay_beyond_the_window_is_marked_as_a_bound() {
+        let x: Vec<f64> = (0..3000)
+            .map(|k| {
+                let t = k as f64 * 0.01;
+                (1.3 * t).sin() + 0.5 * (3.7 * t).sin() + 0.3 * (0.4 * t).cos()
+            })
+            .collect();
+        let delayed = |n: usize| -> Vec<f64> {
+            (0..3000)
+                .map(|k| if k >= n { x[k - n] } else { 0.0 })
+                .collect()
+        };
+        let inside = run(&x, &delayed(25));
+        assert!(!inside.ed_at_bound && (inside.ed_s - 0.25).abs() < 1e-12);
+        // 1.5 s of delay, 1 s searched: the answer is the edge, and says so.
+        let beyond = run(&x, &delayed(150));
+        assert!(beyond.ed_at_bound, "{beyond:?}");
+        assert_eq!(beyond.ed_s.abs(), 1.0);
+    }
+
+    #[test]
     fn delay_is_found_and_signed() {
         // A band-limited random-ish signal delayed by 25 samples (0.25 s).
         let x: Vec<f64> = (0..3000)

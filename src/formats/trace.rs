@@ -852,19 +852,19 @@ fn check_units(rows: &[AircraftSample], layout: &Layout, ctx: &Ctx) -> Result<()
     const FT_PER_M: f64 = 1.0 / FT_TO_M;
     if near(norm_start, G_MPS2 * FT_PER_M) && near(norm_all, G_MPS2 * FT_PER_M) {
         return refuse(format!(
-            "columns {f_columns}: |f| is {norm_start:.2} at the start (median of the first              second) and {norm_all:.2} over the trace, which is 1 g in ft/s² (32.17); expected              m/s² (9.81): multiply by 0.3048 (JSBSim's `accelerations/a-pilot-*-ft_sec2`              headers are converted when kept as JSBSim writes them)"
+            "columns {f_columns}: |f| is {norm_start:.2} at the start (median of the first second) and {norm_all:.2} over the trace, which is 1 g in ft/s² (32.17); expected m/s² (9.81): multiply by 0.3048 (JSBSim's `accelerations/a-pilot-*-ft_sec2` headers are converted when kept as JSBSim writes them)"
         ));
     }
     if near(norm_start, 1.0) && near(norm_all, 1.0) {
         return refuse(format!(
-            "columns {f_columns}: |f| is {norm_start:.2} at the start and {norm_all:.2} over              the trace, which is 1 g as a load factor; expected m/s² (9.81): multiply by 9.80665"
+            "columns {f_columns}: |f| is {norm_start:.2} at the start and {norm_all:.2} over the trace, which is 1 g as a load factor; expected m/s² (9.81): multiply by 9.80665"
         ));
     }
     let fz_start = median(start.iter().map(|s| s.specific_force_mps2.z).collect());
     let fz_all = median(rows.iter().map(|s| s.specific_force_mps2.z).collect());
     if fz_start > units::Z_UP_MPS2 && fz_all > 0.0 {
         return refuse(format!(
-            "column `{}`: fz is {fz_start:+.2} m/s² at the start (median of the first second)              and {fz_all:+.2} over the trace: a z-up convention? hexcue's head frame has z down,              so rest and level flight give fz = −9.81; negate fz (a z-up frame usually flips y,              q and r as well)",
+            "column `{}`: fz is {fz_start:+.2} m/s² at the start (median of the first second) and {fz_all:+.2} over the trace: a z-up convention? hexcue's head frame has z down, so rest and level flight give fz = −9.81; negate fz (a z-up frame usually flips y, q and r as well)",
             header(Quantity::Fz)
         ));
     }
@@ -889,13 +889,13 @@ fn check_units(rows: &[AircraftSample], layout: &Layout, ctx: &Ctx) -> Result<()
             let (lo, hi) = units::DEG_BAND;
             if (lo..=hi).contains(&ratio) {
                 return refuse(format!(
-                    "columns {rate_columns}: the attitude ({att_columns}) changes {:.1}× slower                      than these rates say; rates in °/s? expected rad/s: multiply by π/180                      (0.017453)",
+                    "columns {rate_columns}: the attitude ({att_columns}) changes {:.1}× slower than these rates say; rates in °/s? expected rad/s: multiply by π/180 (0.017453)",
                     1.0 / ratio
                 ));
             }
             if (1.0 / hi..=1.0 / lo).contains(&ratio) {
                 return refuse(format!(
-                    "columns {att_columns}: the attitude changes {ratio:.1}× faster than the rates                      {rate_columns} say; attitude in degrees? expected radians: multiply by π/180"
+                    "columns {att_columns}: the attitude changes {ratio:.1}× faster than the rates {rate_columns} say; attitude in degrees? expected radians: multiply by π/180"
                 ));
             }
             // The rates explain the attitude: whatever their size, they are in rad/s.
@@ -911,7 +911,7 @@ fn check_units(rows: &[AircraftSample], layout: &Layout, ctx: &Ctx) -> Result<()
     let share = fast as f64 / rows.len() as f64;
     if fast_s >= units::FAST_FOR_S && share >= units::FAST_SHARE {
         return refuse(format!(
-            "columns {rate_columns}: a rate beyond {} rad/s ({:.0}°/s) for {fast_s:.1} s ({:.0} %              of the trace); rates in °/s? expected rad/s: multiply by π/180 (0.017453)",
+            "columns {rate_columns}: a rate beyond {} rad/s ({:.0}°/s) for {fast_s:.1} s ({:.0} % of the trace); rates in °/s? expected rad/s: multiply by π/180 (0.017453)",
             units::FAST_RATE_RADPS,
             units::FAST_RATE_RADPS.to_degrees(),
             100.0 * share

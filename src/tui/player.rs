@@ -48,9 +48,9 @@ const METER_WINDOW: Duration = Duration::from_secs(1);
 const MAX_DEBT: Duration = Duration::from_millis(500);
 /// A checkpoint of the engine is kept after this much stepping work (wall time), so that a
 /// seek back replays at most about this long: well within the 0.3 s a seek may take...
-const CHECKPOINT_WORK: Duration = Duration::from_millis(100);
+const CHECKPOINT_WORK: Duration = Duration::from_millis(50);
 /// ...or after this much trace time, whichever comes first (fast algorithms).
-const CHECKPOINT_EVERY_S: f64 = 1.0;
+const CHECKPOINT_EVERY_S: f64 = 0.5;
 /// At most this many checkpoints; beyond, every other one is dropped and the spacing doubled,
 /// so that memory stays bounded on long traces (a checkpoint of three algorithms is ~0.2 MB,
 /// mostly the running metrics).

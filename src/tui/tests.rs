@@ -1072,7 +1072,7 @@ fn labels_fit_at_80_columns_and_say_what_they_mean() {
     let text = screen(&draw(&app, 40, 24));
     assert!(text.contains("▸+1"), "{text}");
     let text = screen(&draw(&app, 30, 8));
-    assert!(text.contains("lim") && text.contains("leg max"), "{text}");
+    assert!(text.contains("lim ") && text.contains("leg max"), "{text}");
     assert!(!text.contains(" L"), "{text}");
 }
 

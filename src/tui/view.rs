@@ -360,12 +360,16 @@ fn render_column(
     let metric_lines = if metric_rows >= 2 {
         metrics
     } else {
-        vec![compact_metrics(app, lane, frame_lane)]
+        vec![compact_metrics(app, lane, frame_lane, w)]
     };
-    f.render_widget(Paragraph::new(state), state_a);
-    f.render_widget(Paragraph::new(metric_lines), metric_a);
+    // Whatever does not fit ends in `…`, never mid-word without a sign.
+    let fitted = |lines: Vec<Line<'static>>| -> Vec<Line<'static>> {
+        lines.into_iter().map(|l| fit(l, w)).collect()
+    };
+    f.render_widget(Paragraph::new(fitted(state)), state_a);
+    f.render_widget(Paragraph::new(fitted(metric_lines)), metric_a);
     let legs = leg_lines(app, frame_lane, legs_rows, w);
-    f.render_widget(Paragraph::new(legs), legs_a);
+    f.render_widget(Paragraph::new(fitted(legs)), legs_a);
 }
 
 /// Symbol and word of a controller mode, so that it reads without colour.
@@ -550,10 +554,19 @@ fn metric_lines(app: &App, lane: usize, frame: Option<&LaneFrame>, w: usize) -> 
     ]
 }
 
-fn compact_metrics(app: &App, lane: usize, frame: Option<&LaneFrame>) -> Line<'static> {
+fn compact_metrics(app: &App, lane: usize, frame: Option<&LaneFrame>, w: usize) -> Line<'static> {
     let th = &app.theme;
     let text = match lane_metrics(app, lane) {
-        Some((r, p, l)) => format!("RAE {r:.2} PC {p:+.2} lim{:.0}%", l * 100.0),
+        Some((r, p, l)) => {
+            let full = format!("RAE {r:.2} PC {p:+.2} lim {:.0}%", l * 100.0);
+            // The limiter's share goes first when the column is narrow: RAE and PC are
+            // what the column is compared by.
+            if full.chars().count() + 2 <= w {
+                full
+            } else {
+                format!("RAE {r:.2} PC {p:+.2}")
+            }
+        }
         None => "RAE - PC -".into(),
     };
     let mut spans = vec![Span::styled(text, th.text())];
@@ -604,7 +617,13 @@ fn leg_lines(app: &App, lane: Option<&LaneFrame>, rows: usize, w: usize) -> Vec<
     };
     let margins: [f64; 6] = std::array::from_fn(|i| lane.legs.margin_m[i]);
     let usage = app.legs.stewart.usage(&lane.legs.length_m);
-    let title = || Line::styled(truncate(LEGS_TITLE, w), th.dim());
+    let title = || {
+        let text = [LEGS_TITLE, "legs % stroke used", "legs % stroke"]
+            .into_iter()
+            .find(|t| t.chars().count() <= w)
+            .unwrap_or("legs");
+        Line::styled(text, th.dim())
+    };
     match rows {
         r if r >= 7 => std::iter::once(title())
             .chain((0..6).map(|i| {
