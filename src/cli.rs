@@ -43,6 +43,9 @@ pub enum Command {
         input: PathBuf,
         /// Where to write the finished copy.
         output: PathBuf,
+        /// Overwrite OUTPUT if it exists.
+        #[arg(long)]
+        force: bool,
     },
     /// Draw a recording: perceived signals of the reference and every algorithm against
     /// time, the S-MPC's active controller shaded, and the leg usage.
@@ -72,6 +75,9 @@ pub struct PlotArgs {
     /// Figure width in pixels; long recordings are reduced to this many columns.
     #[arg(long, value_name = "PX", default_value_t = 1200, value_parser = clap::value_parser!(u32).range(300..=8000))]
     pub width: u32,
+    /// Overwrite the figure if it exists.
+    #[arg(long)]
+    pub force: bool,
 }
 
 #[derive(Args, Debug)]
@@ -79,8 +85,8 @@ pub struct OmctArgs {
     /// Simulator profile (TOML). Default: the embedded profiles/full-flight.toml.
     #[arg(long, value_name = "FILE")]
     pub profile: Option<PathBuf>,
-    /// Algorithms to test, comma-separated.
-    #[arg(long, value_name = "LIST", value_delimiter = ',', default_values_t = default_algorithms())]
+    /// Algorithms to test, comma-separated: smpc (or s-mpc), mpc, cwf.
+    #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = DEFAULT_ALGORITHMS)]
     pub algorithms: Vec<String>,
     /// Tests to run, comma-separated (default: all ten): roll-rate, pitch-rate, yaw-rate,
     /// surge, sway, heave, pitch-to-surge, roll-to-sway, surge-to-pitch, sway-to-roll.
@@ -96,6 +102,9 @@ pub struct OmctArgs {
     /// Format of the Bode plots.
     #[arg(long, value_name = "FORMAT", default_value = "svg", value_parser = ["svg", "png"])]
     pub format: String,
+    /// Overwrite omct.md, omct.json and the figures if the directory has them.
+    #[arg(long)]
+    pub force: bool,
 }
 
 #[derive(Args, Debug, Default, Clone)]
@@ -107,9 +116,12 @@ pub struct PlayArgs {
     /// Simulator profile (TOML). Default: the embedded profiles/full-flight.toml.
     #[arg(long, value_name = "FILE")]
     pub profile: Option<PathBuf>,
-    /// Record the session to this MCAP file.
+    /// Record the session to this MCAP file (refused if it exists, unless --force).
     #[arg(long, value_name = "FILE.mcap")]
     pub record: Option<PathBuf>,
+    /// Overwrite the --record and --summary files if they exist.
+    #[arg(long)]
+    pub force: bool,
     /// Run without the console: step the whole trace as fast as possible and print the
     /// metrics table on stdout.
     #[arg(long)]
@@ -117,9 +129,18 @@ pub struct PlayArgs {
     /// With --headless: write the run's summary as JSON to this file.
     #[arg(long, value_name = "FILE.json")]
     pub summary: Option<PathBuf>,
-    /// Algorithms to run, comma-separated.
-    #[arg(long, value_name = "LIST", value_delimiter = ',', default_values_t = AlgorithmId::ALL.iter().map(|a| a.key().to_string()).collect::<Vec<_>>())]
+    /// Algorithms to run, comma-separated: smpc (or s-mpc), mpc, cwf.
+    #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = DEFAULT_ALGORITHMS)]
     pub algorithms: Vec<String>,
+    /// Console: playback speed to start at (0.25, 0.5, 1, 2, 4, 8, 16 or max).
+    #[arg(long, value_name = "X", default_value = "1", value_parser = parse_speed)]
+    pub speed: usize,
+    /// Console: start paused.
+    #[arg(long)]
+    pub paused: bool,
+    /// Console: start with loop on (at the end, start over).
+    #[arg(long = "loop")]
+    pub looping: bool,
     /// Let the MPCs see the trace's true future over their horizon (offline studies), instead
     /// of holding the current sample as a live simulator must. Overrides `[mpc] reference`.
     #[arg(long)]
@@ -128,18 +149,23 @@ pub struct PlayArgs {
 
 #[derive(Args, Debug)]
 pub struct CompareArgs {
-    /// Folder of traces (*.csv, with their sidecars). Default: the shipped traces.
-    #[arg(long, value_name = "DIR", default_value = "recordings/traces")]
-    pub traces: PathBuf,
+    /// Folder of traces (*.csv, with their sidecars). Default: the five shipped traces, which
+    /// are embedded in hexcue, so that this works from any directory.
+    #[arg(long, value_name = "DIR")]
+    pub traces: Option<PathBuf>,
     /// Simulator profile (TOML). Default: the embedded profiles/full-flight.toml.
     #[arg(long, value_name = "FILE")]
     pub profile: Option<PathBuf>,
-    /// Write the Markdown report here instead of stdout.
+    /// Write the Markdown report here instead of stdout (refused if it exists, unless
+    /// --force).
     #[arg(long, value_name = "FILE.md")]
     pub out: Option<PathBuf>,
-    /// Algorithms to run, comma-separated.
-    #[arg(long, value_name = "LIST", value_delimiter = ',', default_values_t = default_algorithms())]
+    /// Algorithms to run, comma-separated: smpc (or s-mpc), mpc, cwf.
+    #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = DEFAULT_ALGORITHMS)]
     pub algorithms: Vec<String>,
+    /// Overwrite the --out file if it exists.
+    #[arg(long)]
+    pub force: bool,
 }
 
 #[derive(Args, Debug)]
@@ -152,6 +178,112 @@ pub struct ReviewArgs {
     /// With --headless: write the summary as JSON to this file.
     #[arg(long, value_name = "FILE.json")]
     pub summary: Option<PathBuf>,
+    /// Overwrite the --summary file if it exists.
+    #[arg(long)]
+    pub force: bool,
+    /// Console: playback speed to start at (0.25, 0.5, 1, 2, 4, 8, 16 or max).
+    #[arg(long, value_name = "X", default_value = "1", value_parser = parse_speed)]
+    pub speed: usize,
+    /// Console: start paused.
+    #[arg(long)]
+    pub paused: bool,
+    /// Console: start with loop on.
+    #[arg(long = "loop")]
+    pub looping: bool,
+}
+
+impl Cli {
+    /// The long help of `hexcue play`, as `--help` prints it.
+    #[cfg(test)]
+    fn command_for_help() -> String {
+        use clap::CommandFactory;
+        let mut cmd = Cli::command();
+        cmd.build();
+        cmd.find_subcommand_mut("play")
+            .map(|c| c.render_long_help().to_string())
+            .unwrap_or_default()
+    }
+}
+
+/// Every algorithm, as `--algorithms` takes them.
+pub const DEFAULT_ALGORITHMS: &str = "smpc,mpc,cwf";
+
+/// `--speed`: one of the console's speeds, as an index into `tui::player::SPEEDS`.
+fn parse_speed(text: &str) -> Result<usize, String> {
+    use crate::tui::player::SPEEDS;
+    let t = text.trim().trim_start_matches(['x', '×']);
+    let found = if t.eq_ignore_ascii_case("max") {
+        SPEEDS.iter().position(Option::is_none)
+    } else {
+        t.parse::<f64>()
+            .ok()
+            .and_then(|v| SPEEDS.iter().position(|s| *s == Some(v)))
+    };
+    found.ok_or_else(|| "expected one of 0.25, 0.5, 1, 2, 4, 8, 16, max".to_string())
+}
+
+/// Names as compared: case, `-` and `_` do not matter (`S-MPC` is `smpc`).
+fn key_form(name: &str) -> String {
+    name.chars()
+        .filter(|c| !matches!(c, '-' | '_' | ' '))
+        .collect::<String>()
+        .to_ascii_lowercase()
+}
+
+/// Refuses an output path before any work: one that exists (unless `force`), one that is a
+/// folder, or one whose folder is missing or not writable, naming the file and the option.
+pub fn check_output(path: &Path, force: bool, option: &str) -> Result<()> {
+    let shown = path.display();
+    if path.is_dir() {
+        bail!("{shown}: {option}: is a folder; expected a file name");
+    }
+    if path.exists() {
+        if !force {
+            bail!(
+                "{shown}: {option}: the file exists; pass --force to overwrite it, or choose \
+                 another name"
+            );
+        }
+        std::fs::OpenOptions::new()
+            .append(true)
+            .open(path)
+            .with_context(|| format!("{shown}: {option}: cannot be overwritten"))?;
+        return Ok(());
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    check_writable_dir(dir).with_context(|| format!("{shown}: {option}: cannot be written"))
+}
+
+/// A folder exists and a file can be created in it (tried, then removed).
+fn check_writable_dir(dir: &Path) -> Result<()> {
+    if !dir.is_dir() {
+        bail!("the folder {} does not exist", dir.display());
+    }
+    let probe = dir.join(format!(".hexcue-write-check-{}", std::process::id()));
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+    {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => bail!("cannot create a file in the folder {}: {e}", dir.display()),
+    }
+}
+
+/// The same file named by two options would be written twice.
+fn check_distinct(a: Option<&Path>, b: Option<&Path>, what: &str) -> Result<()> {
+    if let (Some(a), Some(b)) = (a, b) {
+        if a == b {
+            bail!("{}: {what} name the same file", a.display());
+        }
+    }
+    Ok(())
 }
 
 /// Parses a comma-separated option into known values, in the order given and without
@@ -168,7 +300,7 @@ fn parse_keys<T: Copy + PartialEq>(
         let Some(v) = all
             .iter()
             .copied()
-            .find(|v| key(*v).eq_ignore_ascii_case(name))
+            .find(|v| key_form(key(*v)) == key_form(name))
         else {
             let known: Vec<&str> = all.iter().map(|v| key(*v)).collect();
             bail!(
@@ -278,9 +410,16 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
         let bar = indicatif::ProgressBar::new(trace.len() as u64);
         bar.set_style(
             indicatif::ProgressStyle::with_template(
-                "{spinner} {msg} [{bar:40}] {pos}/{len} steps ({per_sec}, {eta} left)",
+                "{spinner} {msg} [{bar:40}] {pos}/{len} steps ({rate}, {eta} left)",
             )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .with_key(
+                "rate",
+                |state: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+                    // indicatif's own {per_sec} prints four decimals of steps per second.
+                    let _ = write!(w, "{:.0} steps/s", state.per_sec());
+                },
+            ),
         );
         bar.set_message(trace.name.clone());
         Some(bar)
@@ -315,6 +454,15 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
         eprintln!("recorded {} ({} messages)", path.display(), stats.messages);
     }
     let summary = summary.finish();
+    if let Some(line) = summary.clipping_line() {
+        eprintln!(
+            "note: {}: input clipped by the profile's [input] limits (±{} m/s², ±{}°/s), \
+             samples per axis: {line}",
+            trace.name,
+            session.profile.input.specific_force_limit_mps2,
+            session.profile.input.angular_velocity_limit_dps
+        );
+    }
     if interrupted {
         eprintln!(
             "stopped by a signal after {} of {} steps; the summary covers those",
@@ -334,27 +482,53 @@ pub fn format_table(s: &Summary) -> String {
         s.trace, s.profile, s.steps, s.rate_hz
     ));
     out.push_str(&format!(
-        "{:<6} {:<4} {:>9} {:>7} {:>7} {:>7} {:>7} {:>7} {:>9} {:>8}\n",
-        "alg", "ch", "AAD", "NAAD", "AAS", "RAE", "PC", "ED s", "RMSE", "false s"
+        "{:<6} {:<4} {:<5} {:>9} {:>7} {:>7} {:>7} {:>7} {:>7} {:>9} {:>8}\n",
+        "alg", "ch", "unit", "AAD", "NAAD", "AAS", "RAE", "PC", "ED s", "RMSE", "false s"
     ));
+    let mut at_bound = false;
     for (name, alg) in &s.algorithms {
         for ch in CHANNELS {
             if let Some(m) = alg.metrics.get(ch) {
+                // AAD and RMSE are in the channel's unit; the metrics keep SI (rad/s) where
+                // the console and the plots show °/s.
+                let unit = if ch.starts_with('f') {
+                    "m/s²"
+                } else {
+                    "rad/s"
+                };
+                let ed = if m.ed_at_bound {
+                    at_bound = true;
+                    format!("{}{:.2}", if m.ed_s > 0.0 { ">" } else { "<" }, m.ed_s)
+                } else {
+                    format!("{:.2}", m.ed_s)
+                };
                 out.push_str(&format!(
-                    "{:<6} {:<4} {:>9} {:>7} {:>7.3} {:>7.3} {:>7.3} {:>7.2} {:>9} {:>8.2}\n",
+                    "{:<6} {:<4} {:<5} {:>9} {:>7} {:>7.3} {:>7.3} {:>7.3} {:>7} {:>9} {:>8.2}\n",
                     name,
                     ch,
+                    unit,
                     sig(m.aad),
                     sig(m.naad),
                     m.aas,
                     m.rae,
                     m.pc,
-                    m.ed_s,
+                    ed,
                     sig(m.rmse),
                     m.false_cue_s
                 ));
             }
         }
+    }
+    out.push_str(
+        "\nAAD and RMSE in the unit shown (fz as the change from 1 g); NAAD, AAS, RAE and PC \
+         have none; ED and false in s.\n",
+    );
+    if at_bound {
+        out.push_str(&format!(
+            "ED >{0:.2} or <-{0:.2}: the best lag is at the edge of the ±{0:.2} s searched, so the \
+             delay is at least that, if the signals are related at all.\n",
+            crate::summary::MAX_LAG_S
+        ));
     }
     out.push('\n');
     for (name, alg) in &s.algorithms {
@@ -462,22 +636,56 @@ fn headless_or_console(
 
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command.unwrap_or(Command::Play(cli.play)) {
-        Command::Play(args) => headless_or_console(
-            args.headless,
-            args.summary.as_deref(),
-            || run_headless(&args),
-            || crate::console::run_live(&args),
-        ),
-        Command::Review(args) => headless_or_console(
-            args.headless,
-            args.summary.as_deref(),
-            || review_summary(&args.file),
-            || crate::console::run_review(&args.file),
-        ),
+        Command::Play(args) => {
+            // Outputs are checked before anything runs: a long run must not end in a refusal.
+            check_distinct(
+                args.record.as_deref(),
+                args.summary.as_deref(),
+                "--record and --summary",
+            )?;
+            if let Some(path) = &args.record {
+                check_output(path, args.force, "--record")?;
+            }
+            if let (Some(path), true) = (&args.summary, args.headless) {
+                check_output(path, args.force, "--summary")?;
+            }
+            headless_or_console(
+                args.headless,
+                args.summary.as_deref(),
+                || run_headless(&args),
+                || crate::console::run_live(&args),
+            )
+        }
+        Command::Review(args) => {
+            if let (Some(path), true) = (&args.summary, args.headless) {
+                check_output(path, args.force, "--summary")?;
+            }
+            check_distinct(
+                Some(args.file.as_path()),
+                args.summary.as_deref(),
+                "the recording and --summary",
+            )?;
+            headless_or_console(
+                args.headless,
+                args.summary.as_deref(),
+                || review_summary(&args.file),
+                || crate::console::run_review(&args),
+            )
+        }
         Command::Compare(args) => run_compare(&args),
         Command::Plot(args) => run_plot(&args),
         Command::Omct(args) => run_omct(&args),
-        Command::Recover { input, output } => {
+        Command::Recover {
+            input,
+            output,
+            force,
+        } => {
+            check_distinct(
+                Some(input.as_path()),
+                Some(output.as_path()),
+                "INPUT and OUTPUT",
+            )?;
+            check_output(&output, force, "OUTPUT")?;
             let stats = crate::formats::recording::recover(&input, &output)?;
             eprintln!(
                 "{}: wrote a finished copy with {} steps ({} messages)",
@@ -500,20 +708,33 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     // wall-clock safety net is lifted, and "solved in time" means within the iteration cap.
     profile.mpc.time_limit_ms = f64::INFINITY;
     let algorithms = parse_algorithms(&args.algorithms)?;
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(&args.traces)
-        .with_context(|| format!("{}: cannot list the traces folder", args.traces.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")))
-        .collect();
-    paths.sort();
-    if paths.is_empty() {
-        bail!("{}: no trace (*.csv) in this folder", args.traces.display());
+    if let Some(path) = &args.out {
+        check_output(path, args.force, "--out")?;
     }
+    // Every trace is read and checked before the first is run: a bad one at the end of the
+    // folder must not cost the runs before it.
+    let traces: Vec<crate::trace::Trace> = match &args.traces {
+        Some(dir) => {
+            let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+                .with_context(|| format!("{}: cannot list the traces folder", dir.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")))
+                .collect();
+            paths.sort();
+            if paths.is_empty() {
+                bail!("{}: no trace (*.csv) in this folder", dir.display());
+            }
+            paths
+                .iter()
+                .map(|p| load_trace(p, profile.rate_hz).map(|l| l.trace))
+                .collect::<Result<_, _>>()?
+        }
+        None => crate::formats::trace::shipped_traces(profile.rate_hz)?,
+    };
     let stop = install_stop_flag()?;
     let mut results = Vec::new();
-    for path in &paths {
-        let loaded = load_trace(path, profile.rate_hz)?;
-        let trace = Arc::new(loaded.trace);
+    for trace in traces {
+        let trace = Arc::new(trace);
         let started = std::time::Instant::now();
         let mut engine = Engine::new(&profile, trace.clone(), &algorithms)?;
         let mut summary = SummaryBuilder::new(&profile, &trace.name);
@@ -547,8 +768,11 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
         });
     }
     let command = format!(
-        "hexcue compare --traces {}{}",
-        args.traces.display(),
+        "hexcue compare{}{}",
+        args.traces
+            .as_ref()
+            .map(|t| format!(" --traces {}", t.display()))
+            .unwrap_or_default(),
         args.profile
             .as_ref()
             .map(|p| format!(" --profile {}", p.display()))
@@ -575,6 +799,8 @@ pub fn run_plot(args: &PlotArgs) -> Result<()> {
             bail!("--from {from} --to {to}: expected --from before --to");
         }
     }
+    check_distinct(Some(&args.file), Some(&args.output), "the recording and -o")?;
+    check_output(&args.output, args.force, "-o")?;
     crate::plot::timeline::plot(&args.file, &request, &args.output)?;
     eprintln!("wrote {}", args.output.display());
     Ok(())
@@ -604,6 +830,25 @@ pub fn run_omct(args: &OmctArgs) -> Result<()> {
     let frequencies = frequency_subset(args.frequencies as usize);
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create the output directory", args.out.display()))?;
+    check_writable_dir(&args.out)
+        .with_context(|| format!("{}: --out: cannot be written", args.out.display()))?;
+    let outputs: Vec<PathBuf> = ["omct.md".to_string(), "omct.json".to_string()]
+        .into_iter()
+        .chain(tests.iter().map(|t| format!("{}.{}", t.key(), args.format)))
+        .map(|name| args.out.join(name))
+        .collect();
+    let existing: Vec<String> = outputs
+        .iter()
+        .filter(|p| p.exists())
+        .map(|p| p.display().to_string())
+        .collect();
+    if !existing.is_empty() && !args.force {
+        bail!(
+            "{}: --out: would overwrite {}; pass --force to overwrite, or choose another folder",
+            args.out.display(),
+            existing.join(", ")
+        );
+    }
 
     let total = algorithms.len() * tests.len() * frequencies.len();
     let bar = std::io::stderr().is_terminal().then(|| {
@@ -614,6 +859,8 @@ pub fn run_omct(args: &OmctArgs) -> Result<()> {
             )
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );
+        // Drawn now and kept moving: the first point of a slow MPC takes seconds.
+        bar.enable_steady_tick(std::time::Duration::from_millis(200));
         bar
     });
     let workers = std::thread::available_parallelism()
@@ -660,23 +907,97 @@ pub fn run_omct(args: &OmctArgs) -> Result<()> {
         crate::plot::bode::write(&path, test, &profile.name, &report.curves)?;
     }
     let names: Vec<&str> = algorithms.iter().map(|a| a.key()).collect();
+    let plural =
+        |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
     eprintln!(
-        "OMCT of {} on {}: {} tests × {} frequencies in {:.1} s on {} threads; wrote {}/omct.md, omct.json and {} figures",
+        "OMCT of {} on {}: {} × {} in {:.1} s on {}; wrote {}/omct.md, omct.json and {}",
         names.join(", "),
         profile.name,
-        tests.len(),
-        report.frequencies_radps.len(),
+        plural(tests.len(), "test", "tests"),
+        plural(report.frequencies_radps.len(), "frequency", "frequencies"),
         wall_s,
-        workers,
+        plural(workers, "thread", "threads"),
         args.out.display(),
-        tests.len()
+        plural(tests.len(), "figure", "figures")
     );
     Ok(())
 }
 
-fn default_algorithms() -> Vec<String> {
-    AlgorithmId::ALL
-        .iter()
-        .map(|a| a.key().to_string())
-        .collect()
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(args: &[&str]) -> Cli {
+        Cli::try_parse_from(std::iter::once("hexcue").chain(args.iter().copied())).unwrap()
+    }
+
+    #[test]
+    fn console_start_up_options_parse() {
+        let cli = parse(&["--speed", "4", "--paused", "--loop"]);
+        assert_eq!(
+            crate::tui::player::speed_label(cli.play.speed),
+            "×4".to_string()
+        );
+        assert!(cli.play.paused && cli.play.looping);
+        let cli = parse(&["play", "--speed", "max"]);
+        let Some(Command::Play(args)) = cli.command else {
+            panic!("play")
+        };
+        assert_eq!(crate::tui::player::speed_label(args.speed), "max");
+        assert_eq!(
+            parse(&[]).play.speed,
+            crate::tui::player::REAL_TIME,
+            "×1 by default"
+        );
+        let e = Cli::try_parse_from(["hexcue", "--speed", "3"]).unwrap_err();
+        assert!(
+            e.to_string().contains("0.25, 0.5, 1, 2, 4, 8, 16, max"),
+            "{e}"
+        );
+        let cli = parse(&["review", "x.mcap", "--speed", "0.5", "--loop"]);
+        let Some(Command::Review(args)) = cli.command else {
+            panic!("review")
+        };
+        assert_eq!(crate::tui::player::speed_label(args.speed), "×0.5");
+        assert!(args.looping && !args.paused);
+    }
+
+    #[test]
+    fn algorithms_default_to_all_comma_separated_and_take_the_console_names() {
+        let cli = parse(&[]);
+        assert_eq!(cli.play.algorithms, ["smpc", "mpc", "cwf"]);
+        let help = Cli::command_for_help();
+        assert!(help.contains("[default: smpc,mpc,cwf]"), "{help}");
+        let names = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(
+            parse_algorithms(&names(&["S-MPC", "cwf", "s_mpc"])).unwrap(),
+            [AlgorithmId::Smpc, AlgorithmId::Cwf]
+        );
+        let e = parse_algorithms(&names(&["lqr"])).unwrap_err();
+        assert!(e.to_string().contains("smpc, mpc, cwf"), "{e}");
+    }
+
+    #[test]
+    fn outputs_are_checked_before_the_work() {
+        let dir = tempfile::tempdir().unwrap();
+        let existing = dir.path().join("run.mcap");
+        std::fs::write(&existing, "precious").unwrap();
+        let e = check_output(&existing, false, "--record").unwrap_err();
+        let m = format!("{e:#}");
+        assert!(m.contains("run.mcap") && m.contains("--force"), "{m}");
+        check_output(&existing, true, "--record").unwrap();
+        assert_eq!(std::fs::read_to_string(&existing).unwrap(), "precious");
+
+        let missing_dir = dir.path().join("nope").join("x.json");
+        let m = format!(
+            "{:#}",
+            check_output(&missing_dir, false, "--summary").unwrap_err()
+        );
+        assert!(m.contains("x.json") && m.contains("does not exist"), "{m}");
+        let m = format!("{:#}", check_output(dir.path(), false, "-o").unwrap_err());
+        assert!(m.contains("is a folder"), "{m}");
+        check_output(&dir.path().join("new.json"), false, "--summary").unwrap();
+        // The probe leaves nothing behind.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
 }

@@ -387,6 +387,7 @@ mod tests {
                 steps: 10,
                 rate_hz: 100.0,
                 algorithms,
+                input_clipped: BTreeMap::new(),
             },
             description: Some("a test".into()),
         }

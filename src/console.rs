@@ -2,12 +2,11 @@
 //! recordings as the console's frame sink, and recordings as its frame source for review.
 
 use std::io::IsTerminal;
-use std::path::Path;
 use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 
-use crate::cli::{load_session, recording_meta, PlayArgs};
+use crate::cli::{load_session, recording_meta, PlayArgs, ReviewArgs};
 use crate::engine::Frame;
 use crate::formats::recording::{Recorder, Recording};
 use crate::tui::{self, FrameSink, LiveConfig, RecordedFrames, ReviewConfig, SessionInfo};
@@ -63,6 +62,9 @@ pub fn run_live(args: &PlayArgs) -> Result<()> {
     let trace = Arc::new(session.trace.trace.clone());
     let mut cfg = LiveConfig::new(session.profile.clone(), trace, session.algorithms.clone());
     cfg.record = args.record.clone();
+    cfg.start_paused = args.paused;
+    cfg.speed = args.speed;
+    cfg.looping = args.looping;
     let factory: tui::SinkFactory = Box::new(move |request: &tui::RecordingRequest| {
         let recorder = Recorder::create(&request.path, &meta)?;
         Ok(Box::new(McapSink { recorder }) as Box<dyn FrameSink>)
@@ -71,7 +73,8 @@ pub fn run_live(args: &PlayArgs) -> Result<()> {
     exit_for_signal(outcome.signal)
 }
 
-pub fn run_review(path: &Path) -> Result<()> {
+pub fn run_review(args: &ReviewArgs) -> Result<()> {
+    let path = args.file.as_path();
     require_terminal()?;
     let recording = Recording::open(path)?;
     let profile = recording
@@ -83,13 +86,12 @@ pub fn run_review(path: &Path) -> Result<()> {
     if frames.is_empty() {
         bail!("{}: the recording holds no complete step", path.display());
     }
-    let mut info = SessionInfo {
-        trace_name: recording.trace_name.clone(),
-        description: None,
-        events: Vec::new(),
-        profile_name: profile.name.clone(),
-        review_of: Some(path.display().to_string()),
-    };
+    // The attached sidecar gives the header its aircraft, scenario and event markers, as live.
+    let sidecar = recording.trace_sidecar.as_deref().and_then(|json| {
+        crate::formats::trace::parse_sidecar(json, &path.display().to_string()).ok()
+    });
+    let mut info = SessionInfo::described(&recording.trace_name, sidecar.as_ref(), &profile.name);
+    info.review_of = Some(path.display().to_string());
     if !recording.finished {
         info.description = Some("unfinished recording (cut short): showing what it holds".into());
     }
@@ -98,7 +100,9 @@ pub fn run_review(path: &Path) -> Result<()> {
         profile,
         source,
         info,
-        start_paused: false,
+        start_paused: args.paused,
+        speed: args.speed,
+        looping: args.looping,
     })?;
     exit_for_signal(outcome.signal)
 }

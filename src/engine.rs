@@ -114,6 +114,21 @@ impl StepContext<'_> {
     }
 }
 
+/// [`Engine::snapshot`]: the position, the reference's perception model and each lane's
+/// algorithm, limiter and perception model.
+pub struct EngineSnapshot {
+    k: usize,
+    reference: Vestibular,
+    lanes: Vec<(mca::AlgorithmSnapshot, WorkspaceLimiter, Vestibular)>,
+}
+
+impl EngineSnapshot {
+    /// Index of the step the engine takes next after restoring.
+    pub fn position(&self) -> usize {
+        self.k
+    }
+}
+
 /// Steps a trace, sample by sample, through every chosen algorithm.
 pub struct Engine {
     profile: Profile,
@@ -213,6 +228,46 @@ impl Engine {
             lane.limiter.reset();
             lane.vestibular.reset();
         }
+    }
+
+    /// Everything that changes from step to step, so that [`Engine::restore`] can come back
+    /// to this step without replaying the trace; `None` if an algorithm cannot say.
+    pub fn snapshot(&self) -> Option<EngineSnapshot> {
+        let lanes = self
+            .lanes
+            .iter()
+            .map(|l| {
+                Some((
+                    l.algorithm.snapshot()?,
+                    l.limiter.clone(),
+                    l.vestibular.clone(),
+                ))
+            })
+            .collect::<Option<Vec<_>>>()?;
+        Some(EngineSnapshot {
+            k: self.k,
+            reference: self.reference.clone(),
+            lanes,
+        })
+    }
+
+    /// Returns to a snapshot this engine took; false, and the engine left as it was or reset,
+    /// if the snapshot does not fit (another engine's).
+    pub fn restore(&mut self, s: &EngineSnapshot) -> bool {
+        if s.lanes.len() != self.lanes.len() || s.k > self.trace.len() {
+            return false;
+        }
+        for (lane, (algorithm, limiter, vestibular)) in self.lanes.iter_mut().zip(&s.lanes) {
+            if !lane.algorithm.restore(algorithm) {
+                self.reset();
+                return false;
+            }
+            lane.limiter.clone_from(limiter);
+            lane.vestibular.clone_from(vestibular);
+        }
+        self.reference.clone_from(&s.reference);
+        self.k = s.k;
+        true
     }
 
     /// Steps one sample; `None` once the trace is over.
@@ -354,6 +409,66 @@ pub(crate) mod tests {
                 .all(|(x, y)| x.signum() == y.signum() && *x < -0.1),
             "{heave_onset:?}"
         );
+    }
+
+    /// Frames without their wall-clock step times, which differ from run to run.
+    fn timeless(mut f: Frame) -> Frame {
+        for lane in &mut f.lanes {
+            lane.step_time_us = 0.0;
+            lane.state
+                .solvers
+                .iter_mut()
+                .for_each(|s| s.solve_time_us = 0.0);
+        }
+        f
+    }
+
+    #[test]
+    fn a_restored_snapshot_replays_identically_for_every_algorithm() {
+        let mut profile = full_flight();
+        // The solvers' wall-clock limit would make a loaded test machine's runs differ.
+        profile.mpc.time_limit_ms = f64::INFINITY;
+        let trace = Arc::new(manoeuvre());
+        // Through the surge pulse (2–6 s), where every algorithm is busy.
+        let mut engine = Engine::new(&profile, trace, AlgorithmId::ALL).unwrap();
+        for _ in 0..250 {
+            engine.step().unwrap();
+        }
+        let snap = engine.snapshot().expect("every algorithm can snapshot");
+        assert_eq!(snap.position(), 250);
+        let first: Vec<Frame> = (0..60).map(|_| timeless(engine.step().unwrap())).collect();
+        // Elsewhere, then back.
+        for _ in 0..40 {
+            engine.step().unwrap();
+        }
+        assert!(engine.restore(&snap));
+        assert_eq!(engine.position(), 250);
+        let again: Vec<Frame> = (0..60).map(|_| timeless(engine.step().unwrap())).collect();
+        assert_eq!(first, again);
+        // And after a reset too: the snapshot holds everything that runs.
+        engine.reset();
+        assert!(engine.restore(&snap));
+        let after_reset: Vec<Frame> = (0..60).map(|_| timeless(engine.step().unwrap())).collect();
+        assert_eq!(first, after_reset);
+        // Another engine's snapshot does not fit.
+        let mut cwf = Engine::new(&profile, Arc::new(manoeuvre()), &[AlgorithmId::Cwf]).unwrap();
+        assert!(!cwf.restore(&snap));
+        assert_eq!(cwf.position(), 0);
+    }
+
+    #[test]
+    fn the_washout_counts_its_time_in_mode() {
+        let profile = full_flight();
+        let mut engine = Engine::new(&profile, Arc::new(manoeuvre()), &[AlgorithmId::Cwf]).unwrap();
+        let mut last = None;
+        for _ in 0..150 {
+            last = engine.step();
+        }
+        let t = last.unwrap().lanes[0].state.time_in_mode_s;
+        assert!((t - 1.5).abs() < 1e-9, "{t}");
+        engine.reset();
+        let t = engine.step().unwrap().lanes[0].state.time_in_mode_s;
+        assert!((t - 0.01).abs() < 1e-12, "{t}");
     }
 
     #[test]

@@ -21,6 +21,10 @@ pub struct ChannelMetrics {
     pub pc: f64,
     /// Delay of y behind x that maximises their cross-correlation (s; positive = y lags).
     pub ed_s: f64,
+    /// The best lag is at the edge of the searched window (±`max_lag`): the true delay, if
+    /// the cross-correlation has a peak at all, lies beyond it, and `ed_s` is only a bound.
+    #[serde(default)]
+    pub ed_at_bound: bool,
     pub rmse: f64,
     /// Time during which y and x have opposite signs while both exceed the threshold (s).
     pub false_cue_s: f64,
@@ -196,6 +200,7 @@ impl ChannelAccumulator {
             rae: ratio(self.sum_abs_err, self.sum_abs_x),
             pc,
             ed_s: best.1 as f64 * self.dt_s,
+            ed_at_bound: max_lag > 0 && best.1.unsigned_abs() as usize == self.lag_xy.len() - 1,
             rmse: (self.sum_sq_err / n).sqrt(),
             false_cue_s: self.false_cues as f64 * self.dt_s,
         }
@@ -308,6 +313,27 @@ mod tests {
         assert!((m.naad - m.aad / range).abs() < 1e-12);
         let rmse = (x.iter().map(|v| (v / 2.0).powi(2)).sum::<f64>() / x.len() as f64).sqrt();
         assert!((m.rmse - rmse).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_delay_beyond_the_window_is_marked_as_a_bound() {
+        let x: Vec<f64> = (0..3000)
+            .map(|k| {
+                let t = k as f64 * 0.01;
+                (1.3 * t).sin() + 0.5 * (3.7 * t).sin() + 0.3 * (0.4 * t).cos()
+            })
+            .collect();
+        let delayed = |n: usize| -> Vec<f64> {
+            (0..3000)
+                .map(|k| if k >= n { x[k - n] } else { 0.0 })
+                .collect()
+        };
+        let inside = run(&x, &delayed(25));
+        assert!(!inside.ed_at_bound && (inside.ed_s - 0.25).abs() < 1e-12);
+        // 1.5 s of delay, 1 s searched: the answer is the edge, and says so.
+        let beyond = run(&x, &delayed(150));
+        assert!(beyond.ed_at_bound, "{beyond:?}");
+        assert_eq!(beyond.ed_s.abs(), 1.0);
     }
 
     #[test]

@@ -13,7 +13,7 @@ use crate::model::stewart::Stewart;
 use crate::profile::Profile;
 
 /// Lags searched for the equivalent delay (s).
-const MAX_LAG_S: f64 = 1.0;
+pub const MAX_LAG_S: f64 = 1.0;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
@@ -22,6 +22,32 @@ pub struct Summary {
     pub steps: u64,
     pub rate_hz: f64,
     pub algorithms: BTreeMap<String, AlgorithmSummary>,
+    /// Samples of the aircraft's motion clipped by the profile's `[input]` limits, per axis
+    /// (fx, fy, fz as the change from 1 g; p, q, r), before any algorithm saw them.
+    #[serde(default)]
+    pub input_clipped: BTreeMap<String, u64>,
+}
+
+/// The input axes [`Summary::input_clipped`] counts, in the order of `cue_sample`.
+pub const INPUT_AXES: [&str; 6] = ["fx", "fy", "fz", "p", "q", "r"];
+
+impl Summary {
+    /// "fx 12 (0.2 %), r 3 (0.1 %)" for the axes with clipped samples; `None` when none was.
+    pub fn clipping_line(&self) -> Option<String> {
+        let parts: Vec<String> = INPUT_AXES
+            .iter()
+            .filter_map(|axis| {
+                let n = self.input_clipped.get(*axis).copied().unwrap_or(0);
+                (n > 0).then(|| {
+                    format!(
+                        "{axis} {n} ({:.1} %)",
+                        100.0 * n as f64 / self.steps.max(1) as f64
+                    )
+                })
+            })
+            .collect();
+        (!parts.is_empty()).then(|| parts.join(", "))
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -48,6 +74,7 @@ pub struct AlgorithmSummary {
 /// DoF names in pose order.
 pub const DOFS: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
 
+#[derive(Clone)]
 struct AlgorithmAccumulator {
     channels: Vec<ChannelAccumulator>,
     times: TimeHistogram,
@@ -60,7 +87,9 @@ struct AlgorithmAccumulator {
     max_dof_usage: [f64; 6],
 }
 
-/// Accumulates frames into a [`Summary`] in constant memory.
+/// Accumulates frames into a [`Summary`] in constant memory. Cloned, it is a checkpoint of
+/// the running metrics (the console's seeking keeps some).
+#[derive(Clone)]
 pub struct SummaryBuilder {
     trace: String,
     profile: String,
@@ -70,6 +99,9 @@ pub struct SummaryBuilder {
     thresholds: [f64; 6],
     steps: u64,
     algorithms: BTreeMap<AlgorithmId, AlgorithmAccumulator>,
+    /// The `[input]` limits: specific force (m/s²) and angular velocity (rad/s).
+    input_limits: (f64, f64),
+    input_clipped: [u64; 6],
 }
 
 impl SummaryBuilder {
@@ -92,11 +124,24 @@ impl SummaryBuilder {
             ],
             steps: 0,
             algorithms: BTreeMap::new(),
+            input_limits: (
+                profile.input.specific_force_limit_mps2,
+                profile.input.angular_velocity_limit_dps.to_radians(),
+            ),
+            input_clipped: [0; 6],
         }
     }
 
     pub fn push(&mut self, frame: &Frame) {
         self.steps += 1;
+        // The same comparison as `engine::cue_sample`'s clamp.
+        let (f_max, w_max) = self.input_limits;
+        let df = frame.aircraft.delta_f_mps2();
+        let w = frame.aircraft.angular_velocity_radps;
+        for i in 0..3 {
+            self.input_clipped[i] += u64::from(df[i].abs() > f_max);
+            self.input_clipped[3 + i] += u64::from(w[i].abs() > w_max);
+        }
         let reference = frame.reference.channels();
         for lane in &frame.lanes {
             let (thresholds, dt) = (self.thresholds, 1.0 / self.rate_hz);
@@ -180,6 +225,11 @@ impl SummaryBuilder {
             steps: self.steps,
             rate_hz: self.rate_hz,
             algorithms,
+            input_clipped: INPUT_AXES
+                .iter()
+                .zip(self.input_clipped)
+                .map(|(axis, n)| (axis.to_string(), n))
+                .collect(),
         }
     }
 }

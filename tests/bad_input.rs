@@ -53,6 +53,20 @@ const BAD_TRACES: &[(&str, usize, &[&str])] = &[
     ("long-row.csv", 4, &["8 field"]),
     ("utf16-bom.csv", 1, &["UTF-8"]),
     ("tiny-step.csv", 0, &["shorter than one step"]),
+    // `time` for `t` in a native header: the missing column is `t`, not a JSBSim one.
+    (
+        "time-header.csv",
+        1,
+        &["missing column `t`", "rename column `time`"],
+    ),
+    // Believable numbers in the wrong units or convention (docs/formats.md, "Units and signs").
+    ("z-up.csv", 0, &["column `fz`", "z-up", "negate fz"]),
+    ("ft-per-s2.csv", 0, &["ft/s²", "0.3048"]),
+    (
+        "deg-per-s.csv",
+        0,
+        &["`p`, `q`, `r`", "°/s", "57.3× slower"],
+    ),
     // Two rows a million seconds apart would resample to 10^8 samples: refused, not allocated.
     ("two-rows-a-million-seconds.csv", 0, &["4000000 samples"]),
 ];

@@ -20,9 +20,10 @@ trap 'rm -rf "$tmp"' EXIT
 hexcue play --headless --trace recordings/traces/horizontal-stall.csv \
     --record "$tmp/horizontal-stall.mcap" > "$tmp/horizontal-stall.txt"
 hexcue plot "$tmp/horizontal-stall.mcap" --channels fx,fy \
-    -o docs/images/horizontal-stall-fx-fy.png
+    -o docs/images/horizontal-stall-fx-fy.png --force
 hexcue plot "$tmp/horizontal-stall.mcap" --channels legs \
-    -o docs/images/horizontal-stall-legs.png
+    -o docs/images/horizontal-stall-legs.png --force
 
 # The OMCT of every algorithm: docs/omct/omct.md, omct.json and one Bode plot per test.
-hexcue omct --frequencies "${OMCT_FREQUENCIES:-12}" --out docs/omct
+# --force: these replace the shipped figures (hexcue never overwrites without it).
+hexcue omct --frequencies "${OMCT_FREQUENCIES:-12}" --out docs/omct --force

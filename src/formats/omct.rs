@@ -69,8 +69,9 @@ impl OmctReport {
             "ICAO 9625 OMCT, measured by `hexcue omct`: each aircraft channel is driven by \
              A·sin(ωt) from rest, the platform's response at the pilot's head (after the \
              workspace limiter) is fitted after the transient, and gain = response amplitude / A, \
-             phase = the response's phase against the input (negative: a lag). A starts at \
-             0.1 g or 5 °/s and is halved until the limiter stays idle; `*` marks a point at \
+             phase = the response's phase against the input (negative: a lag), wrapped into \
+             (−180°, 180°]; the Bode plots unwrap it along frequency, so a lag past −180° reads \
+             there as −190° and here as +170°. A starts at 0.1 g or 5 °/s and is halved until the limiter stays idle; `*` marks a point at \
              which the limiter still acted at the smallest amplitude tried.\n\n",
         );
         for &test in &self.tests {

@@ -14,6 +14,48 @@ use crate::trace::MAX_TRACE_SAMPLES;
 use crate::trace::{resample_uniform, AircraftSample, ResampleError, Trace, TraceInfo};
 use crate::G_MPS2;
 
+/// Every shipped trace, `recordings/traces/<name>.csv` and its sidecar, embedded so that
+/// `hexcue compare` finds them wherever it runs: (name, CSV, sidecar JSON).
+pub const SHIPPED_TRACES: [(&str, &str, &str); 5] = [
+    ("horizontal-stall", DEFAULT_TRACE_CSV, DEFAULT_TRACE_SIDECAR),
+    (
+        "landing",
+        include_str!("../../recordings/traces/landing.csv"),
+        include_str!("../../recordings/traces/landing.json"),
+    ),
+    (
+        "steep-turn",
+        include_str!("../../recordings/traces/steep-turn.csv"),
+        include_str!("../../recordings/traces/steep-turn.json"),
+    ),
+    (
+        "takeoff",
+        include_str!("../../recordings/traces/takeoff.csv"),
+        include_str!("../../recordings/traces/takeoff.json"),
+    ),
+    (
+        "turbulence-cruise",
+        include_str!("../../recordings/traces/turbulence-cruise.csv"),
+        include_str!("../../recordings/traces/turbulence-cruise.json"),
+    ),
+];
+
+/// The shipped traces (embedded), in name order, at `target_rate_hz`, with their sidecars.
+pub fn shipped_traces(target_rate_hz: f64) -> Result<Vec<Trace>, TraceError> {
+    SHIPPED_TRACES
+        .iter()
+        .map(|(name, csv, json)| {
+            let source = format!("recordings/traces/{name}.csv (embedded)");
+            let (mut trace, measured) = parse_measured(csv, &source, name, target_rate_hz)?;
+            match parse_sidecar(json, &source) {
+                Ok(info) => attach_info(&mut trace, info, measured),
+                Err(e) => trace.notices.push(format!("sidecar ignored: {e}")),
+            }
+            Ok(trace)
+        })
+        .collect()
+}
+
 /// The default trace, `recordings/traces/horizontal-stall.csv`, as shipped.
 pub const DEFAULT_TRACE_CSV: &str = include_str!("../../recordings/traces/horizontal-stall.csv");
 /// Its sidecar.
@@ -71,6 +113,8 @@ pub enum TraceErrorKind {
     TooManySamples,
     BadRate,
     Sidecar,
+    /// Believable numbers in the wrong units or sign convention (z up, ft/s², g, °/s, °).
+    Units,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -420,7 +464,15 @@ fn layout(header: &str, line: usize, ctx: &Ctx) -> Result<Layout, TraceError> {
     }
     let names: Vec<String> = raw.iter().map(|(_, f)| normalise_header(f)).collect();
     let native = names.iter().any(|n| n == "t");
+    // A header with the native names of the motion columns is native even when its time
+    // column is misnamed (`time` for `t`): the missing column is then `t`, not a JSBSim one.
+    let native_motion = ["fx", "fy", "fz", "p", "q", "r"]
+        .iter()
+        .filter(|want| names.iter().any(|n| n == *want))
+        .count()
+        >= 4;
     let jsbsim = !native
+        && !native_motion
         && (names.first().is_some_and(|n| n == "time") || names.iter().any(|n| n.contains('/')));
 
     let mut sources: [Option<Source>; 10] = Default::default();
@@ -483,7 +535,22 @@ fn layout(header: &str, line: usize, ctx: &Ctx) -> Result<Layout, TraceError> {
                         names.join(" or ")
                     )
                 } else {
-                    format!("the columns `{NATIVE_HEADER}` (phi, theta, psi optional)")
+                    let hint = if q == Quantity::T {
+                        names
+                            .iter()
+                            .zip(&raw)
+                            .find(|(n, _)| {
+                                ["time", "time_s", "t_s", "times", "tt", "sim-time-sec"]
+                                    .contains(&n.as_str())
+                            })
+                            .map(|(_, (_, text))| {
+                                format!(" (rename column {} to `t`)", shown(unquote(text)))
+                            })
+                            .unwrap_or_default()
+                    } else {
+                        String::new()
+                    };
+                    format!("the columns `{NATIVE_HEADER}` (phi, theta, psi optional){hint}")
                 };
                 return Err(ctx.at(
                     line,
@@ -647,6 +714,7 @@ fn parse_measured(
             ),
         ));
     }
+    check_units(&rows, &layout, &ctx)?;
     let time_header = layout.time.header.clone();
     let mut notices = layout.notices;
 
@@ -720,6 +788,179 @@ fn parse_measured(
         notices,
     };
     Ok((trace, 1.0 / median_step))
+}
+
+/// Thresholds of [`check_units`] (docs/formats.md, "Units and signs").
+mod units {
+    /// Trace time at the start that stands for "at rest or trimmed" (s).
+    pub const START_S: f64 = 1.0;
+    /// |f| within this factor of 1 g in the other unit counts as that unit.
+    pub const UNIT_TOLERANCE: f64 = 0.2;
+    /// Median fz above this (m/s², half a g, positive = up) at the start and over the whole
+    /// trace is a z-up convention.
+    pub const Z_UP_MPS2: f64 = 4.9;
+    /// Rate magnitude (rad/s, 115°/s) beyond which a light aircraft does not stay long...
+    pub const FAST_RATE_RADPS: f64 = 2.0;
+    /// ...for this long in total (s) and this share of the trace.
+    pub const FAST_FOR_S: f64 = 2.0;
+    pub const FAST_SHARE: f64 = 0.1;
+    /// The attitude check needs this much attitude motion (RMS Euler rate, rad/s)...
+    pub const MIN_ATTITUDE_RMS_RADPS: f64 = 0.01;
+    /// ...and rates that explain it this well (correlation of the Euler rates from p, q, r
+    /// with the attitude's derivative) to decide.
+    pub const MIN_CORRELATION: f64 = 0.9;
+    /// Fitted ratio (attitude's derivative / Euler rates from p, q, r) inside this band means
+    /// p, q, r are 57.3× too large (°/s); its inverse band means the attitude is in degrees.
+    pub const DEG_BAND: (f64, f64) = (1.0 / 80.0, 1.0 / 40.0);
+    /// Pitch beyond which the Euler kinematics are too ill-conditioned to use (|cos θ| <).
+    pub const MIN_COS_THETA: f64 = 0.3;
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// Refuses the clear unit and sign mistakes that pass the range checks: a z-up frame
+/// (fz ≈ +9.81 at rest), specific force in ft/s² or in g, body rates in °/s (decided by the
+/// attitude's derivative when the trace has attitude, else by sustained rates no light
+/// aircraft flies), attitude in degrees. Each message names the column and the likely cause.
+fn check_units(rows: &[AircraftSample], layout: &Layout, ctx: &Ctx) -> Result<(), TraceError> {
+    let header = |q: Quantity| {
+        layout.sources[q.index()]
+            .as_ref()
+            .map_or(q.native_name().to_string(), |s| s.header.clone())
+    };
+    let refuse = |message: String| Err(ctx.file(TraceErrorKind::Units, message));
+    let t0 = rows[0].t_s;
+    let start: Vec<&AircraftSample> = rows
+        .iter()
+        .take_while(|s| s.t_s - t0 <= units::START_S)
+        .collect();
+    let norm_start = median(start.iter().map(|s| s.specific_force_mps2.norm()).collect());
+    let norm_all = median(rows.iter().map(|s| s.specific_force_mps2.norm()).collect());
+    let near = |v: f64, unit: f64| (v - unit).abs() <= units::UNIT_TOLERANCE * unit;
+    let f_columns = format!(
+        "`{}`, `{}`, `{}`",
+        header(Quantity::Fx),
+        header(Quantity::Fy),
+        header(Quantity::Fz)
+    );
+    const FT_PER_M: f64 = 1.0 / FT_TO_M;
+    if near(norm_start, G_MPS2 * FT_PER_M) && near(norm_all, G_MPS2 * FT_PER_M) {
+        return refuse(format!(
+            "columns {f_columns}: |f| is {norm_start:.2} at the start (median of the first second) and {norm_all:.2} over the trace, which is 1 g in ft/s² (32.17); expected m/s² (9.81): multiply by 0.3048 (JSBSim's `accelerations/a-pilot-*-ft_sec2` headers are converted when kept as JSBSim writes them)"
+        ));
+    }
+    if near(norm_start, 1.0) && near(norm_all, 1.0) {
+        return refuse(format!(
+            "columns {f_columns}: |f| is {norm_start:.2} at the start and {norm_all:.2} over the trace, which is 1 g as a load factor; expected m/s² (9.81): multiply by 9.80665"
+        ));
+    }
+    let fz_start = median(start.iter().map(|s| s.specific_force_mps2.z).collect());
+    let fz_all = median(rows.iter().map(|s| s.specific_force_mps2.z).collect());
+    if fz_start > units::Z_UP_MPS2 && fz_all > 0.0 {
+        return refuse(format!(
+            "column `{}`: fz is {fz_start:+.2} m/s² at the start (median of the first second) and {fz_all:+.2} over the trace: a z-up convention? hexcue's head frame has z down, so rest and level flight give fz = −9.81; negate fz (a z-up frame usually flips y, q and r as well)",
+            header(Quantity::Fz)
+        ));
+    }
+
+    let rate_columns = format!(
+        "`{}`, `{}`, `{}`",
+        header(Quantity::P),
+        header(Quantity::Q),
+        header(Quantity::R)
+    );
+    let has_attitude = [Quantity::Phi, Quantity::Theta, Quantity::Psi]
+        .iter()
+        .all(|q| layout.sources[q.index()].is_some());
+    if has_attitude {
+        if let Some(ratio) = attitude_rate_ratio(rows) {
+            let att_columns = format!(
+                "`{}`, `{}`, `{}`",
+                header(Quantity::Phi),
+                header(Quantity::Theta),
+                header(Quantity::Psi)
+            );
+            let (lo, hi) = units::DEG_BAND;
+            if (lo..=hi).contains(&ratio) {
+                return refuse(format!(
+                    "columns {rate_columns}: the attitude ({att_columns}) changes {:.1}× slower than these rates say; rates in °/s? expected rad/s: multiply by π/180 (0.017453)",
+                    1.0 / ratio
+                ));
+            }
+            if (1.0 / hi..=1.0 / lo).contains(&ratio) {
+                return refuse(format!(
+                    "columns {att_columns}: the attitude changes {ratio:.1}× faster than the rates {rate_columns} say; attitude in degrees? expected radians: multiply by π/180"
+                ));
+            }
+            // The rates explain the attitude: whatever their size, they are in rad/s.
+            return Ok(());
+        }
+    }
+    let dt = (rows[rows.len() - 1].t_s - t0) / (rows.len() - 1) as f64;
+    let fast = rows
+        .iter()
+        .filter(|s| s.angular_velocity_radps.amax() > units::FAST_RATE_RADPS)
+        .count();
+    let fast_s = fast as f64 * dt;
+    let share = fast as f64 / rows.len() as f64;
+    if fast_s >= units::FAST_FOR_S && share >= units::FAST_SHARE {
+        return refuse(format!(
+            "columns {rate_columns}: a rate beyond {} rad/s ({:.0}°/s) for {fast_s:.1} s ({:.0} % of the trace); rates in °/s? expected rad/s: multiply by π/180 (0.017453)",
+            units::FAST_RATE_RADPS,
+            units::FAST_RATE_RADPS.to_degrees(),
+            100.0 * share
+        ));
+    }
+    Ok(())
+}
+
+/// The least-squares ratio b ≈ s·a of the attitude's derivative b (finite differences of φ,
+/// θ, ψ) to the Euler rates a that p, q, r give through the attitude kinematics; `None` when
+/// the attitude barely moves or the two do not match well enough to decide.
+fn attitude_rate_ratio(rows: &[AircraftSample]) -> Option<f64> {
+    let wrap = |d: f64| {
+        let two_pi = std::f64::consts::TAU;
+        d - two_pi * (d / two_pi).round()
+    };
+    let (mut sab, mut saa, mut sbb, mut n) = (0.0, 0.0, 0.0, 0usize);
+    for w in rows.windows(2) {
+        let dt = w[1].t_s - w[0].t_s;
+        let att = (w[0].attitude_rad + w[1].attitude_rad) / 2.0;
+        let rate = (w[0].angular_velocity_radps + w[1].angular_velocity_radps) / 2.0;
+        let (sp, cp) = att.x.sin_cos();
+        let (st, ct) = att.y.sin_cos();
+        if ct.abs() < units::MIN_COS_THETA || dt <= 0.0 {
+            continue;
+        }
+        let (p, q, r) = (rate.x, rate.y, rate.z);
+        let a = Vector3::new(
+            p + (q * sp + r * cp) * st / ct,
+            q * cp - r * sp,
+            (q * sp + r * cp) / ct,
+        );
+        let d = w[1].attitude_rad - w[0].attitude_rad;
+        let b = Vector3::new(wrap(d.x), d.y, wrap(d.z)) / dt;
+        if !(a.iter().chain(b.iter()).all(|v| v.is_finite())) {
+            continue;
+        }
+        sab += a.dot(&b);
+        saa += a.norm_squared();
+        sbb += b.norm_squared();
+        n += 1;
+    }
+    if n < 10 || saa <= 0.0 || sbb <= 0.0 {
+        return None;
+    }
+    let rms_b = (sbb / (3 * n) as f64).sqrt();
+    let correlation = sab / (saa * sbb).sqrt();
+    (rms_b >= units::MIN_ATTITUDE_RMS_RADPS && correlation >= units::MIN_CORRELATION)
+        .then(|| sab / saa)
 }
 
 fn parse_row(
@@ -936,6 +1177,7 @@ pub fn default_trace(target_rate_hz: f64) -> LoadedTrace {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::{PI, TAU};
 
     const RATE: f64 = 100.0;
 
@@ -1129,6 +1371,98 @@ mod tests {
             let m = refused(&text, TraceErrorKind::MissingColumn, Some(1), Some(column));
             assert!(m.contains(NATIVE_HEADER), "{m}");
         }
+    }
+
+    #[test]
+    fn a_misnamed_time_column_is_named_not_a_later_one() {
+        let text = "time,fx,fy,fz,p,q,r\n0,0,0,-9.8,0,0,0\n0.01,0,0,-9.8,0,0,0\n";
+        let m = refused(text, TraceErrorKind::MissingColumn, Some(1), Some("t"));
+        assert!(m.contains("missing column `t`"), "{m}");
+        assert!(m.contains("rename column `time` to `t`"), "{m}");
+        assert!(!m.contains("column `fx`"), "{m}");
+    }
+
+    /// A native trace of `seconds` at 100 Hz from a function of time giving
+    /// [fx, fy, fz, p, q, r, phi, theta, psi].
+    fn synthetic(seconds: f64, row: impl Fn(f64) -> [f64; 9]) -> String {
+        let mut s = format!("{NATIVE_HEADER}\n");
+        for k in 0..=(seconds * 100.0) as usize {
+            let t = k as f64 / 100.0;
+            let v = row(t).map(|x| format!("{x:.9}")).join(",");
+            s += &format!("{t:.2},{v}\n");
+        }
+        s
+    }
+
+    /// A rolling manoeuvre: p = 0.3 sin(0.5 t) rad/s and the roll angle it gives.
+    fn rolling(p_scale: f64, phi_scale: f64) -> String {
+        synthetic(20.0, |t| {
+            let p = 0.3 * (0.5 * t).sin();
+            let phi = 0.6 * (1.0 - (0.5 * t).cos());
+            [
+                0.1,
+                0.0,
+                -9.81,
+                p * p_scale,
+                0.0,
+                0.0,
+                phi * phi_scale,
+                0.05,
+                1.0,
+            ]
+        })
+    }
+
+    #[test]
+    fn unit_and_sign_mistakes_are_refused_with_the_likely_cause() {
+        let level = |fz: f64| synthetic(5.0, move |_| [0.2, 0.0, fz, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        let m = refused(&level(9.81), TraceErrorKind::Units, None, None);
+        assert!(m.contains("column `fz`") && m.contains("z-up"), "{m}");
+        let m = refused(&level(-32.17), TraceErrorKind::Units, None, None);
+        assert!(m.contains("ft/s²") && m.contains("0.3048"), "{m}");
+        let m = refused(&level(-1.0), TraceErrorKind::Units, None, None);
+        assert!(m.contains("load factor") && m.contains("9.80665"), "{m}");
+        assert!(parse(&level(-9.81)).is_ok());
+
+        // Rates in °/s: the roll angle changes 57× slower than p says.
+        let m = refused(&rolling(180.0 / PI, 1.0), TraceErrorKind::Units, None, None);
+        assert!(m.contains("`p`, `q`, `r`") && m.contains("°/s"), "{m}");
+        assert!(m.contains("57.3× slower"), "{m}");
+        // Attitude in degrees: 57× faster.
+        let m = refused(&rolling(1.0, 180.0 / PI), TraceErrorKind::Units, None, None);
+        assert!(
+            m.contains("`phi`, `theta`, `psi`") && m.contains("degrees"),
+            "{m}"
+        );
+        assert!(parse(&rolling(1.0, 1.0)).is_ok());
+
+        // Fast rates that the attitude confirms are an aerobatic roll, not °/s.
+        let roll = synthetic(10.0, |t| {
+            let phi = 3.0 * t;
+            [
+                0.0,
+                0.0,
+                -9.81,
+                3.0,
+                0.0,
+                0.0,
+                phi - TAU * (phi / TAU).round(),
+                0.0,
+                0.0,
+            ]
+        });
+        assert!(parse(&roll).is_ok());
+        // Without attitude, sustained rates no light aircraft flies are refused.
+        let no_attitude = |p: f64| {
+            let mut s = String::from("t,fx,fy,fz,p,q,r\n");
+            for k in 0..=1000 {
+                s += &format!("{},0,0,-9.81,{p},0,0\n", k as f64 / 100.0);
+            }
+            s
+        };
+        let m = refused(&no_attitude(5.0), TraceErrorKind::Units, None, None);
+        assert!(m.contains("°/s") && m.contains("10.0 s"), "{m}");
+        assert!(parse(&no_attitude(0.5)).is_ok());
     }
 
     #[test]
@@ -1486,6 +1820,17 @@ mod tests {
             .unwrap()
             .trace;
         assert!((stall.samples[0].specific_force_mps2.z + 9.795856).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_embedded_shipped_traces_are_the_files() {
+        let embedded = shipped_traces(100.0).unwrap();
+        assert_eq!(embedded.len(), 5);
+        for t in &embedded {
+            let file = load_trace(&shipped(&t.name), 100.0).unwrap().trace;
+            assert_eq!(t.samples, file.samples, "{}", t.name);
+            assert_eq!(t.info, file.info, "{}", t.name);
+        }
     }
 
     #[test]

@@ -188,6 +188,36 @@ pub trait MotionCueing: Send {
     fn state(&self) -> AlgorithmState;
     /// Back to rest at neutral, as at the start of a trace.
     fn reset(&mut self);
+    /// The running state, so that [`MotionCueing::restore`] can return to this step: the
+    /// console keeps some to seek back without replaying from the start. `None` when the
+    /// algorithm cannot (the console then replays).
+    fn snapshot(&self) -> Option<AlgorithmSnapshot> {
+        None
+    }
+    /// Returns to a state [`MotionCueing::snapshot`] took of this algorithm; false (and
+    /// nothing changed) if the snapshot is another algorithm's.
+    fn restore(&mut self, _snapshot: &AlgorithmSnapshot) -> bool {
+        false
+    }
+}
+
+/// An algorithm's running state, opaque to everyone but the algorithm that took it.
+pub struct AlgorithmSnapshot(Box<dyn std::any::Any + Send + Sync>);
+
+impl AlgorithmSnapshot {
+    pub fn new<T: std::any::Any + Send + Sync>(state: T) -> Self {
+        AlgorithmSnapshot(Box::new(state))
+    }
+
+    pub fn get<T: std::any::Any>(&self) -> Option<&T> {
+        self.0.downcast_ref()
+    }
+}
+
+impl std::fmt::Debug for AlgorithmSnapshot {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("AlgorithmSnapshot(..)")
+    }
 }
 
 /// Error building an algorithm from a profile.

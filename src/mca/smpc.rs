@@ -30,6 +30,19 @@ pub struct Smpc {
     reports: [super::SolverReport; 2],
 }
 
+/// [`MotionCueing::snapshot`] of an S-MPC: both MPCs' running states and the switching's.
+struct SmpcState {
+    cotc: super::mpc::MpcRunningState,
+    free: super::mpc::MpcRunningState,
+    supervisor: Supervisor,
+    mixer: SwitchMixer,
+    regulator: AdaptiveWeightRegulator,
+    outgoing: Controller,
+    mode: Mode,
+    time_in_mode_s: f64,
+    reports: [super::SolverReport; 2],
+}
+
 impl Smpc {
     pub fn new(profile: &Profile) -> Result<Self, MpcError> {
         Ok(Smpc {
@@ -179,6 +192,36 @@ impl MotionCueing for Smpc {
             last_switch_reason: self.supervisor.last_reason().map(str::to_string),
             solvers: self.reports.to_vec(),
         }
+    }
+
+    fn snapshot(&self) -> Option<super::AlgorithmSnapshot> {
+        Some(super::AlgorithmSnapshot::new(SmpcState {
+            cotc: self.cotc.running_state(),
+            free: self.free.running_state(),
+            supervisor: self.supervisor.clone(),
+            mixer: self.mixer.clone(),
+            regulator: self.regulator.clone(),
+            outgoing: self.outgoing,
+            mode: self.mode,
+            time_in_mode_s: self.time_in_mode_s,
+            reports: self.reports.clone(),
+        }))
+    }
+
+    fn restore(&mut self, snapshot: &super::AlgorithmSnapshot) -> bool {
+        let Some(s) = snapshot.get::<SmpcState>() else {
+            return false;
+        };
+        self.cotc.restore_running_state(&s.cotc);
+        self.free.restore_running_state(&s.free);
+        self.supervisor.clone_from(&s.supervisor);
+        self.mixer.clone_from(&s.mixer);
+        self.regulator.clone_from(&s.regulator);
+        self.outgoing = s.outgoing;
+        self.mode = s.mode;
+        self.time_in_mode_s = s.time_in_mode_s;
+        self.reports.clone_from(&s.reports);
+        true
     }
 
     fn reset(&mut self) {

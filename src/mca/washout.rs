@@ -8,7 +8,9 @@
 use nalgebra::{DMatrix, Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
-use super::{AlgorithmId, AlgorithmState, CueInput, Mode, MotionCueing, PlatformCommand};
+use super::{
+    AlgorithmId, AlgorithmSnapshot, AlgorithmState, CueInput, Mode, MotionCueing, PlatformCommand,
+};
 use crate::model::lti::{LtiFilter, StateSpace};
 use crate::profile::{positive, Profile, ProfileError};
 use crate::G_MPS2;
@@ -196,6 +198,7 @@ impl TiltTracker {
     }
 }
 
+#[derive(Clone)]
 pub struct Washout {
     params: WashoutParams,
     translational: [LtiFilter; 3],
@@ -203,6 +206,8 @@ pub struct Washout {
     rotational: [LtiFilter; 3],
     tilt: [TiltTracker; 2],
     last_rot_rate: Vector3<f64>,
+    /// Time since the start: the washout has one mode, in which it has been all along.
+    running_s: f64,
 }
 
 impl Washout {
@@ -221,6 +226,7 @@ impl Washout {
             }),
             tilt: Default::default(),
             last_rot_rate: Vector3::zeros(),
+            running_s: 0.0,
         }
     }
 }
@@ -233,6 +239,7 @@ impl MotionCueing for Washout {
     fn step(&mut self, input: &CueInput) -> PlatformCommand {
         let p = &self.params;
         let dt = input.dt_s;
+        self.running_s += dt;
         let f = input
             .sample
             .delta_f_mps2
@@ -288,7 +295,24 @@ impl MotionCueing for Washout {
     }
 
     fn state(&self) -> AlgorithmState {
-        AlgorithmState::simple(Mode::Washout)
+        AlgorithmState {
+            time_in_mode_s: self.running_s,
+            ..AlgorithmState::simple(Mode::Washout)
+        }
+    }
+
+    fn snapshot(&self) -> Option<AlgorithmSnapshot> {
+        Some(AlgorithmSnapshot::new(self.clone()))
+    }
+
+    fn restore(&mut self, snapshot: &AlgorithmSnapshot) -> bool {
+        match snapshot.get::<Washout>() {
+            Some(saved) => {
+                self.clone_from(saved);
+                true
+            }
+            None => false,
+        }
     }
 
     fn reset(&mut self) {
@@ -297,6 +321,7 @@ impl MotionCueing for Washout {
         self.rotational.iter_mut().for_each(LtiFilter::reset);
         self.tilt = Default::default();
         self.last_rot_rate = Vector3::zeros();
+        self.running_s = 0.0;
     }
 }
 

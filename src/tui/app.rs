@@ -34,10 +34,13 @@ pub trait EventSource {
     fn next(&mut self, timeout: Duration) -> anyhow::Result<Option<UiEvent>>;
 }
 
-/// Scale of the leg-margin gauges and their thresholds.
+/// The leg gauges' geometry and thresholds. The bars show each leg's usage as `plot` and the
+/// summary do: the fraction of the stroke from neutral to the nearer end stop (0 at neutral,
+/// 1 at the end stop); the marks go by the margin left.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LegScale {
-    /// Margin of each leg at the neutral pose (m): a full bar.
+    pub stewart: crate::model::stewart::Stewart,
+    /// Margin of each leg at the neutral pose (m).
     pub neutral_margin_m: [f64; 6],
     /// Below this the leg is marked `!` (m).
     pub warn_m: f64,
@@ -58,6 +61,7 @@ impl LegScale {
         // Critical: the limiter is about to act (or has); warning: a fifth of the stroke left.
         let crit_m = (1.5 * limiter).max(0.005);
         LegScale {
+            stewart: stewart.clone(),
             neutral_margin_m,
             warn_m: (0.2 * least).max(2.0 * crit_m),
             crit_m,
@@ -71,6 +75,10 @@ pub struct App {
     /// Index into [`CHANNELS`].
     pub channel: usize,
     pub help: bool,
+    /// Playback was running when the help opened: closing it plays again.
+    help_paused_playback: bool,
+    /// The go-to-time prompt (`g`), with what has been typed.
+    pub goto: Option<String>,
     pub theme: Theme,
     pub legs: LegScale,
     quit: Option<&'static str>,
@@ -83,6 +91,8 @@ impl App {
             snapshot: Arc::new(Snapshot::empty(Vec::new(), 0, profile.rate_hz)),
             channel: 0,
             help: false,
+            help_paused_playback: false,
+            goto: None,
             theme,
             legs: LegScale::of(profile),
             quit: None,
@@ -114,10 +124,28 @@ impl App {
         if self.help {
             // The overlay takes any key to close, so that a stray key is not also an action.
             self.help = false;
+            let resume = std::mem::take(&mut self.help_paused_playback);
             return match key.code {
                 KeyCode::Char('q') => self.quit_with("key"),
+                _ if resume => Some(Command::SetPaused(false)),
                 _ => None,
             };
+        }
+        if let Some(typed) = &mut self.goto {
+            match key.code {
+                KeyCode::Char(c @ ('0'..='9' | '.')) if typed.len() < 12 => typed.push(c),
+                KeyCode::Backspace => {
+                    typed.pop();
+                }
+                KeyCode::Enter => {
+                    let t = typed.parse::<f64>().ok().filter(|t| t.is_finite());
+                    self.goto = None;
+                    return t.map(Command::SeekTo);
+                }
+                KeyCode::Esc => self.goto = None,
+                _ => {}
+            }
+            return None;
         }
         let paused = self.snapshot.paused;
         match key.code {
@@ -128,6 +156,11 @@ impl App {
             KeyCode::Right | KeyCode::Char(']') => Some(Command::SeekBy(SEEK_STEP_S)),
             KeyCode::Left | KeyCode::Char('[') => Some(Command::SeekBy(-SEEK_STEP_S)),
             KeyCode::Home => Some(Command::Home),
+            KeyCode::End => Some(Command::End),
+            KeyCode::Char('g') | KeyCode::Char('G') => {
+                self.goto = Some(String::new());
+                None
+            }
             KeyCode::Char('+') | KeyCode::Char('=') => Some(Command::Faster),
             KeyCode::Char('-') | KeyCode::Char('_') => Some(Command::Slower),
             KeyCode::Char('l') | KeyCode::Char('L') => Some(Command::ToggleLoop),
@@ -145,8 +178,10 @@ impl App {
                 None
             }
             KeyCode::Char('?') | KeyCode::F(1) => {
+                // Reading the help should not cost the flight it explains.
                 self.help = true;
-                None
+                self.help_paused_playback = !paused;
+                (!paused).then_some(Command::SetPaused(true))
             }
             _ => None,
         }

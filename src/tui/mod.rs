@@ -85,6 +85,30 @@ pub trait FrameSource: Send {
     fn is_empty(&self) -> bool {
         self.len() == 0
     }
+    /// The source's state at [`FrameSource::position`], for [`FrameSource::restore`]: the
+    /// player keeps some so that seeking back does not replay from the start. `None` when the
+    /// source cannot; seeking back then rewinds and replays.
+    fn checkpoint(&self) -> Option<SourceCheckpoint> {
+        None
+    }
+    /// Returns to a checkpoint this source took; false if it cannot (the player then
+    /// rewinds).
+    fn restore(&mut self, _checkpoint: &SourceCheckpoint) -> bool {
+        false
+    }
+}
+
+/// A [`FrameSource`]'s state at one position, opaque to the player.
+pub struct SourceCheckpoint(Box<dyn std::any::Any + Send>);
+
+impl SourceCheckpoint {
+    pub fn new<T: std::any::Any + Send>(state: T) -> Self {
+        SourceCheckpoint(Box::new(state))
+    }
+
+    pub fn get<T: std::any::Any>(&self) -> Option<&T> {
+        self.0.downcast_ref()
+    }
 }
 
 impl FrameSource for Engine {
@@ -105,6 +129,14 @@ impl FrameSource for Engine {
     }
     fn rate_hz(&self) -> f64 {
         self.profile().rate_hz
+    }
+    fn checkpoint(&self) -> Option<SourceCheckpoint> {
+        self.snapshot().map(SourceCheckpoint::new)
+    }
+    fn restore(&mut self, checkpoint: &SourceCheckpoint) -> bool {
+        checkpoint
+            .get::<crate::engine::EngineSnapshot>()
+            .is_some_and(|s| Engine::restore(self, s))
     }
 }
 
@@ -152,6 +184,18 @@ impl FrameSource for RecordedFrames {
     fn start_t_s(&self) -> f64 {
         self.frames.first().map_or(0.0, |f| f.t_s)
     }
+    fn checkpoint(&self) -> Option<SourceCheckpoint> {
+        Some(SourceCheckpoint::new(self.next))
+    }
+    fn restore(&mut self, checkpoint: &SourceCheckpoint) -> bool {
+        match checkpoint.get::<usize>() {
+            Some(&k) if k <= self.frames.len() => {
+                self.next = k;
+                true
+            }
+            _ => false,
+        }
+    }
 }
 
 /// What the header shows about the session; fixed for its whole life.
@@ -169,7 +213,16 @@ pub struct SessionInfo {
 
 impl SessionInfo {
     pub fn for_trace(trace: &Trace, profile: &Profile) -> Self {
-        let (description, events) = match &trace.info {
+        Self::described(&trace.name, trace.info.as_ref(), &profile.name)
+    }
+
+    /// From a trace's name and sidecar: the sidecar's aircraft, scenario and events.
+    pub fn described(
+        trace_name: &str,
+        info: Option<&crate::trace::TraceInfo>,
+        profile_name: &str,
+    ) -> Self {
+        let (description, events) = match info {
             Some(info) => {
                 let words: Vec<&str> = [&info.aircraft, &info.scenario]
                     .into_iter()
@@ -183,10 +236,10 @@ impl SessionInfo {
             None => (None, Vec::new()),
         };
         SessionInfo {
-            trace_name: trace.name.clone(),
+            trace_name: trace_name.to_string(),
             description,
             events,
-            profile_name: profile.name.clone(),
+            profile_name: profile_name.to_string(),
             review_of: None,
         }
     }
@@ -203,6 +256,10 @@ pub struct LiveConfig {
     /// Where `r` puts new recordings (`recordings` by default).
     pub recordings_dir: PathBuf,
     pub start_paused: bool,
+    /// Index into [`player::SPEEDS`] to start at (`--speed`).
+    pub speed: usize,
+    /// Start with loop on (`--loop`).
+    pub looping: bool,
 }
 
 impl LiveConfig {
@@ -214,6 +271,8 @@ impl LiveConfig {
             record: None,
             recordings_dir: PathBuf::from("recordings"),
             start_paused: false,
+            speed: player::REAL_TIME,
+            looping: false,
         }
     }
 }
@@ -225,6 +284,9 @@ pub struct ReviewConfig {
     pub source: Box<dyn FrameSource>,
     pub info: SessionInfo,
     pub start_paused: bool,
+    /// Index into [`player::SPEEDS`] to start at.
+    pub speed: usize,
+    pub looping: bool,
 }
 
 /// How a session ended.
@@ -252,6 +314,8 @@ pub fn run_live(cfg: LiveConfig, sink_factory: SinkFactory) -> anyhow::Result<Ou
     let opts = player::PlayerOptions {
         start_paused: cfg.start_paused,
         recording: Some(recording),
+        speed: cfg.speed,
+        looping: cfg.looping,
     };
     run_terminal(info, cfg.profile, Box::new(engine), opts)
 }
@@ -261,6 +325,8 @@ pub fn run_review(cfg: ReviewConfig) -> anyhow::Result<Outcome> {
     let opts = player::PlayerOptions {
         start_paused: cfg.start_paused,
         recording: None,
+        speed: cfg.speed,
+        looping: cfg.looping,
     };
     run_terminal(cfg.info, cfg.profile, cfg.source, opts)
 }

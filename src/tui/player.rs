@@ -3,7 +3,6 @@
 //! interface. The algorithms never run on the interface's thread, so a slow solve cannot stall
 //! the screen or the keys, and a slow terminal cannot stall the algorithms.
 
-use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex};
@@ -15,7 +14,7 @@ use crate::mca::AlgorithmId;
 use crate::profile::Profile;
 use crate::summary::{Summary, SummaryBuilder};
 
-use super::{FrameSink, FrameSource, RecordingRequest, SessionInfo, SinkFactory};
+use super::{FrameSink, FrameSource, RecordingRequest, SessionInfo, SinkFactory, SourceCheckpoint};
 
 /// Playback speeds offered by `+`/`-`; `None` is "as fast as possible".
 pub const SPEEDS: [Option<f64>; 8] = [
@@ -47,6 +46,15 @@ const METER_WINDOW: Duration = Duration::from_secs(1);
 /// Behind by more than this (wall time), the schedule is moved rather than caught up in a
 /// burst that would race through the trace.
 const MAX_DEBT: Duration = Duration::from_millis(500);
+/// A checkpoint of the engine is kept after this much stepping work (wall time), so that a
+/// seek back replays at most about this long: well within the 0.3 s a seek may take...
+const CHECKPOINT_WORK: Duration = Duration::from_millis(50);
+/// ...or after this much trace time, whichever comes first (fast algorithms).
+const CHECKPOINT_EVERY_S: f64 = 0.5;
+/// At most this many checkpoints; beyond, every other one is dropped and the spacing doubled,
+/// so that memory stays bounded on long traces (a checkpoint of three algorithms is ~0.2 MB,
+/// mostly the running metrics).
+pub const MAX_CHECKPOINTS: usize = 256;
 
 pub fn speed_label(idx: usize) -> String {
     match SPEEDS.get(idx).copied().flatten() {
@@ -62,9 +70,15 @@ pub enum Command {
     TogglePause,
     /// One sample forward; pauses first if playing.
     Step,
-    /// Seek by this much trace time (s); back means replaying from the start.
+    /// Seek by this much trace time (s); back restores the nearest checkpoint before.
     SeekBy(f64),
+    /// Seek to this trace time (s).
+    SeekTo(f64),
     Home,
+    /// To the last step.
+    End,
+    /// Pause (true) or play (false), whatever the state was: the help overlay pauses.
+    SetPaused(bool),
     Faster,
     Slower,
     ToggleLoop,
@@ -190,6 +204,29 @@ pub struct RecordingSetup {
 pub struct PlayerOptions {
     pub start_paused: bool,
     pub recording: Option<RecordingSetup>,
+    /// Index into [`SPEEDS`] to start at.
+    pub speed: usize,
+    /// Start with loop on.
+    pub looping: bool,
+}
+
+impl Default for PlayerOptions {
+    fn default() -> Self {
+        PlayerOptions {
+            start_paused: false,
+            recording: None,
+            speed: REAL_TIME,
+            looping: false,
+        }
+    }
+}
+
+/// The player's state at one position, to seek back to without replaying from the start.
+struct Checkpoint {
+    position: usize,
+    source: SourceCheckpoint,
+    summary: SummaryBuilder,
+    last: Option<Frame>,
 }
 
 struct ActiveRecording {
@@ -210,8 +247,16 @@ pub struct Player {
     summary_cache: Option<Arc<Summary>>,
     summary_at: Option<Instant>,
     summary_dirty: bool,
-    window: VecDeque<WindowRow>,
+    /// The chart row of every position reached so far (index = frame index): the window is
+    /// its last [`WINDOW_S`] before the position, also after a jump to a checkpoint.
+    history: Vec<WindowRow>,
     window_len: usize,
+    checkpoints: Vec<Checkpoint>,
+    /// Stepping work since the last checkpoint, and the work that triggers the next one.
+    work_since_checkpoint: Duration,
+    checkpoint_work: Duration,
+    steps_since_checkpoint: usize,
+    checkpoint_steps: usize,
     last: Option<Frame>,
     paused: bool,
     speed: usize,
@@ -250,12 +295,17 @@ impl Player {
             summary_cache: None,
             summary_at: None,
             summary_dirty: true,
-            window: VecDeque::new(),
+            history: Vec::new(),
             window_len: (WINDOW_S * rate_hz).ceil().max(1.0) as usize,
+            checkpoints: Vec::new(),
+            work_since_checkpoint: Duration::ZERO,
+            checkpoint_work: CHECKPOINT_WORK,
+            steps_since_checkpoint: 0,
+            checkpoint_steps: (CHECKPOINT_EVERY_S * rate_hz).ceil().max(1.0) as usize,
             last: None,
             paused: opts.start_paused,
-            speed: REAL_TIME,
-            looping: false,
+            speed: opts.speed.min(SPEEDS.len() - 1),
+            looping: opts.looping,
             target: None,
             anchor: (now, 0),
             meter: (now, 0),
@@ -331,7 +381,25 @@ impl Player {
                 let k = k.clamp(0.0, self.source.len() as f64) as usize;
                 self.seek_to(k, now);
             }
+            Command::SeekTo(t_s) => {
+                // Position k shows frame k − 1: the one at trace time t.
+                let k = ((t_s - self.source.start_t_s()) * self.rate_hz).round() + 1.0;
+                let k = if k.is_finite() {
+                    k.clamp(0.0, self.source.len() as f64) as usize
+                } else {
+                    0
+                };
+                self.seek_to(k, now);
+            }
             Command::Home => self.seek_to(0, now),
+            Command::End => self.seek_to(self.source.len(), now),
+            Command::SetPaused(paused) => {
+                if !paused && self.paused && self.at_end() && self.target.is_none() {
+                    self.seek_to(0, now);
+                }
+                self.paused = paused;
+                self.achieved = None;
+            }
             // A measurement at the old speed says nothing about keeping up with the new one.
             Command::Faster => {
                 self.speed = (self.speed + 1).min(SPEEDS.len() - 1);
@@ -353,35 +421,116 @@ impl Player {
         self.version += 1;
     }
 
-    /// Moves to position `k` (frames consumed): forward by stepping, back by replaying from
-    /// the start; the stepping happens in [`Player::pump`], a slice at a time.
+    /// Moves to position `k` (frames consumed): back by restoring the nearest checkpoint
+    /// before `k` (or rewinding), forward by stepping, or by a checkpoint nearer than the
+    /// current position when not recording; the stepping happens in [`Player::pump`], a slice
+    /// at a time.
     fn seek_to(&mut self, k: usize, now: Instant) {
-        if k < self.source.position() || self.target.is_some_and(|t| k < t) {
-            if self.recording.is_some() {
+        let position = self.source.position();
+        let back = k < position;
+        let nearest = self.checkpoints.iter().rposition(|c| c.position <= k);
+        // Forward, a checkpoint past the current position saves stepping, unless a recording
+        // needs every frame stepped through.
+        let jump_ahead = !back
+            && self.recording.is_none()
+            && nearest.is_some_and(|i| self.checkpoints[i].position > position);
+        if back || jump_ahead {
+            if back && self.recording.is_some() {
                 // A recording is one continuous run: going back would repeat trace time in it.
                 self.stop_recording(now, "recording closed before seeking back");
             }
-            self.source.rewind();
-            self.summary = SummaryBuilder::new(&self.profile, &self.trace_name);
+            let restored = nearest.is_some_and(|i| {
+                let c = &self.checkpoints[i];
+                self.source.restore(&c.source)
+            });
+            match nearest.filter(|_| restored) {
+                Some(i) => {
+                    let c = &self.checkpoints[i];
+                    self.summary = c.summary.clone();
+                    self.last = c.last.clone();
+                }
+                None => {
+                    self.source.rewind();
+                    self.summary = SummaryBuilder::new(&self.profile, &self.trace_name);
+                    self.last = None;
+                }
+            }
             self.summary_dirty = true;
-            self.window.clear();
-            self.last = None;
+            self.work_since_checkpoint = Duration::ZERO;
+            self.steps_since_checkpoint = 0;
         }
         self.target = (k != self.source.position()).then_some(k);
         self.achieved = None;
     }
 
+    /// Keeps a checkpoint at the current position when enough work has been done since the
+    /// last one and the position is new ground.
+    fn maybe_checkpoint(&mut self) {
+        let position = self.source.position();
+        let due = self.work_since_checkpoint >= self.checkpoint_work
+            || self.steps_since_checkpoint >= self.checkpoint_steps;
+        if !due
+            || self
+                .checkpoints
+                .last()
+                .is_some_and(|c| c.position >= position)
+        {
+            return;
+        }
+        self.work_since_checkpoint = Duration::ZERO;
+        self.steps_since_checkpoint = 0;
+        let Some(source) = self.source.checkpoint() else {
+            return;
+        };
+        self.checkpoints.push(Checkpoint {
+            position,
+            source,
+            summary: self.summary.clone(),
+            last: self.last.clone(),
+        });
+        if self.checkpoints.len() > MAX_CHECKPOINTS {
+            let mut i = 0;
+            self.checkpoints.retain(|_| {
+                i += 1;
+                i % 2 == 0
+            });
+            self.checkpoint_work *= 2;
+            self.checkpoint_steps *= 2;
+        }
+    }
+
+    /// Positions of the checkpoints kept (for tests and the documentation's figures).
+    pub fn checkpoint_positions(&self) -> Vec<usize> {
+        self.checkpoints.iter().map(|c| c.position).collect()
+    }
+
+    /// The chart rows of the last [`WINDOW_S`] before the current position.
+    fn window(&self) -> &[WindowRow] {
+        let end = self.source.position().min(self.history.len());
+        &self.history[end.saturating_sub(self.window_len)..end]
+    }
+
     /// Steps one frame into the summary, the window and the recording.
     fn advance(&mut self, now: Instant) -> bool {
+        let k = self.source.position();
+        let started = Instant::now();
         let Some(frame) = self.source.next_frame() else {
             return false;
         };
+        self.work_since_checkpoint += started.elapsed();
+        self.steps_since_checkpoint += 1;
         self.summary.push(&frame);
         self.summary_dirty = true;
-        if self.window.len() >= self.window_len {
-            self.window.pop_front();
+        let row = WindowRow::of(&frame);
+        match self.history.get_mut(k) {
+            Some(slot) => *slot = row,
+            None => {
+                // Positions are reached in order from 0 or from a checkpoint, which is never
+                // beyond the history.
+                self.history.truncate(k);
+                self.history.push(row);
+            }
         }
-        self.window.push_back(WindowRow::of(&frame));
         if let Some(rec) = &mut self.recording {
             match rec.sink.record(&frame) {
                 Ok(()) => rec.frames += 1,
@@ -389,6 +538,7 @@ impl Player {
             }
         }
         self.last = Some(frame);
+        self.maybe_checkpoint();
         true
     }
 
@@ -486,7 +636,7 @@ impl Player {
                 }
                 self.source.rewind();
                 self.summary = SummaryBuilder::new(&self.profile, &self.trace_name);
-                self.window.clear();
+                self.last = None;
                 self.reanchor(now);
                 return Wait::Busy;
             }
@@ -572,7 +722,7 @@ impl Player {
             }),
             achieved_speed: self.achieved,
             lagging: self.lagging(),
-            window: self.window.iter().cloned().collect(),
+            window: self.window().to_vec(),
             last: self.last.clone(),
             summary: self.summary_cache.clone(),
             notice: self.notice.clone(),

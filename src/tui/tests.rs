@@ -108,6 +108,7 @@ fn recording_opts(counters: &Counters, dir: &std::path::Path) -> PlayerOptions {
             first_path: None,
             dir: dir.to_path_buf(),
         }),
+        ..Default::default()
     }
 }
 
@@ -134,6 +135,7 @@ fn dressed_snapshot() -> (App, Snapshot) {
         PlayerOptions {
             start_paused: true,
             recording: None,
+            ..Default::default()
         },
     );
     p.apply(Command::SeekBy(12.5), Instant::now());
@@ -184,8 +186,11 @@ fn dressed_snapshot() -> (App, Snapshot) {
     };
     last.lanes[1].limiter_active = true;
     // One leg near its stop and one at it, to show both marks.
-    last.lanes[2].legs.margin_m[1] = 0.08;
-    last.lanes[2].legs.margin_m[4] = 0.01;
+    let stewart = profile.stewart();
+    let legs = &mut last.lanes[2].legs;
+    legs.length_m[1] = stewart.leg_max_m - 0.08;
+    legs.length_m[4] = stewart.leg_max_m - 0.01;
+    legs.margin_m = stewart.margins(&legs.length_m);
     let mut app = App::new(Arc::new(info), &profile, Theme::ANSI16);
     app.snapshot = Arc::new(s.clone());
     (app, s)
@@ -216,7 +221,7 @@ fn renders_at_80x24() {
         "BLEND w=0.42",
         "✗ cotc",
         "✓ free",
-        "▲ACTIVE",
+        "▲ACT",
         "!!",
         "RAE",
         "spc",
@@ -364,10 +369,16 @@ fn keys_map_to_commands() {
     assert_eq!(app.channel_name(), "fx");
     assert_eq!(app.on_key(key(KeyCode::BackTab)), None);
     assert_eq!(app.channel_name(), "wz");
-    app.on_key(key(KeyCode::Char('?')));
+    // The help pauses what plays, and a key closes it and plays on, and does nothing else.
+    assert_eq!(
+        app.on_key(key(KeyCode::Char('?'))),
+        Some(Command::SetPaused(true))
+    );
     assert!(app.help);
-    // A key closes the overlay and does nothing else.
-    assert_eq!(app.on_key(key(KeyCode::Char(' '))), None);
+    assert_eq!(
+        app.on_key(key(KeyCode::Char(' '))),
+        Some(Command::SetPaused(false))
+    );
     assert!(!app.help);
     assert!(!app.should_quit());
     let ctrl_c = KeyEvent::new(KeyCode::Char('c'), KeyModifiers::CONTROL);
@@ -382,6 +393,7 @@ fn player_steps_seeks_and_replays_identically() {
     let opts = PlayerOptions {
         start_paused: true,
         recording: None,
+        ..Default::default()
     };
     let mut p = Player::new(source, &profile, &info, opts);
     let now = Instant::now();
@@ -440,6 +452,7 @@ fn player_plays_in_real_time_and_loops() {
     let opts = PlayerOptions {
         start_paused: false,
         recording: None,
+        ..Default::default()
     };
     let mut p = Player::new(source, &profile, &info, opts);
     let start = Instant::now();
@@ -525,6 +538,7 @@ fn a_failing_sink_stops_the_recording_not_the_session() {
             first_path: Some(PathBuf::from("given.mcap")),
             dir: PathBuf::from("unused"),
         }),
+        ..Default::default()
     };
     let mut p = Player::new(source, &profile, &info, opts);
     assert_eq!(
@@ -551,6 +565,7 @@ fn review_has_no_recording() {
     let opts = PlayerOptions {
         start_paused: true,
         recording: None,
+        ..Default::default()
     };
     let mut p = Player::new(Box::new(review), &profile, &info, opts);
     p.apply(Command::ToggleRecord, Instant::now());
@@ -577,6 +592,7 @@ fn review_of_a_recording_started_mid_session_keeps_trace_time() {
     let opts = PlayerOptions {
         start_paused: true,
         recording: None,
+        ..Default::default()
     };
     let mut p = Player::new(Box::new(review), &profile, &info, opts);
     p.apply(Command::SeekBy(2.0), Instant::now());
@@ -805,6 +821,7 @@ fn the_header_says_when_the_engine_cannot_keep_up() {
     let opts = PlayerOptions {
         start_paused: false,
         recording: None,
+        ..Default::default()
     };
     let session = player::spawn(Box::new(Slow(source)), &profile, &info, opts).unwrap();
     let s = wait_for(&session, "the lag warning", |s| s.lagging);
@@ -831,4 +848,242 @@ fn the_header_says_when_the_engine_cannot_keep_up() {
         ui.join().unwrap().unwrap();
     });
     assert!(session.shutdown().is_empty());
+}
+
+/// Counts the frames a source steps, to tell a restored checkpoint from a replay.
+struct Counting(Box<dyn FrameSource>, Arc<AtomicUsize>);
+
+impl FrameSource for Counting {
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    fn position(&self) -> usize {
+        self.0.position()
+    }
+    fn next_frame(&mut self) -> Option<Frame> {
+        self.1.fetch_add(1, Ordering::SeqCst);
+        self.0.next_frame()
+    }
+    fn rewind(&mut self) {
+        self.0.rewind()
+    }
+    fn algorithms(&self) -> Vec<AlgorithmId> {
+        self.0.algorithms()
+    }
+    fn rate_hz(&self) -> f64 {
+        self.0.rate_hz()
+    }
+    fn checkpoint(&self) -> Option<SourceCheckpoint> {
+        self.0.checkpoint()
+    }
+    fn restore(&mut self, c: &SourceCheckpoint) -> bool {
+        self.0.restore(c)
+    }
+}
+
+/// Paused: every snapshot then has fresh metrics.
+fn paused() -> PlayerOptions {
+    PlayerOptions {
+        start_paused: true,
+        ..Default::default()
+    }
+}
+
+/// Frames and metrics of a snapshot, without the wall-clock step times.
+fn timeless(s: &Snapshot) -> (Frame, crate::summary::Summary) {
+    let mut f = s.last.clone().unwrap();
+    f.lanes.iter_mut().for_each(|l| l.step_time_us = 0.0);
+    let mut sum = (**s.summary.as_ref().unwrap()).clone();
+    for a in sum.algorithms.values_mut() {
+        a.step_time_us = Default::default();
+    }
+    (f, sum)
+}
+
+#[test]
+fn seeking_back_restores_a_checkpoint_instead_of_replaying() {
+    let (source, profile, info) = long_engine(&[AlgorithmId::Cwf]);
+    let steps = Arc::new(AtomicUsize::new(0));
+    let counting = Box::new(Counting(source, steps.clone()));
+    let mut p = Player::new(counting, &profile, &info, paused());
+    let now = Instant::now();
+    p.apply(Command::SeekTo(20.0), now);
+    settle(&mut p);
+    let ahead = p.snapshot(now);
+    assert!((ahead.t_s() - 20.0).abs() < 1e-9, "{}", ahead.t_s());
+    // A checkpoint at least every second of trace time.
+    let marks = p.checkpoint_positions();
+    assert!(marks.len() >= 20, "{marks:?}");
+    assert!(marks.windows(2).all(|w| w[1] - w[0] <= 100), "{marks:?}");
+
+    // Back 5 s: at most a second is stepped again, not 15 s.
+    steps.store(0, Ordering::SeqCst);
+    p.apply(Command::SeekBy(-5.0), now);
+    settle(&mut p);
+    assert!(
+        steps.load(Ordering::SeqCst) <= 100,
+        "{}",
+        steps.load(Ordering::SeqCst)
+    );
+    let back = p.snapshot(now);
+    assert!((back.t_s() - 15.0).abs() < 1e-9, "{}", back.t_s());
+    // Forward again over ground already covered: from a checkpoint too.
+    steps.store(0, Ordering::SeqCst);
+    p.apply(Command::SeekTo(20.0), now);
+    settle(&mut p);
+    assert!(steps.load(Ordering::SeqCst) <= 100);
+    let again = p.snapshot(now);
+    // Exactly what uninterrupted playback shows: frames, metrics and the charts' window.
+    assert_eq!(timeless(&again), timeless(&ahead));
+    assert_eq!(again.window, ahead.window);
+
+    // And the same as a player that went straight to 35 s.
+    let (source, profile, info) = long_engine(&[AlgorithmId::Cwf]);
+    let mut straight = Player::new(source, &profile, &info, paused());
+    straight.apply(Command::SeekTo(15.0), now);
+    settle(&mut straight);
+    let direct = straight.snapshot(now);
+    assert_eq!(timeless(&back), timeless(&direct));
+    assert_eq!(back.window, direct.window);
+}
+
+#[test]
+fn end_and_go_to_a_time_work_from_keys_in_live_and_review() {
+    let (mut app, _) = dressed_snapshot();
+    assert_eq!(app.on_key(key(KeyCode::End)), Some(Command::End));
+    assert_eq!(app.on_key(key(KeyCode::Char('g'))), None);
+    assert_eq!(app.goto.as_deref(), Some(""));
+    for c in "12.x5".chars() {
+        assert_eq!(app.on_key(key(KeyCode::Char(c))), None);
+    }
+    // Typing shows in the footer.
+    assert!(screen(&draw(&app, 80, 24)).contains("go to t = 12.5"));
+    assert_eq!(app.on_key(key(KeyCode::Enter)), Some(Command::SeekTo(12.5)));
+    assert!(app.goto.is_none());
+    app.on_key(key(KeyCode::Char('g')));
+    assert_eq!(app.on_key(key(KeyCode::Esc)), None);
+    assert!(app.goto.is_none());
+
+    // The player, on recorded frames (review) as on the engine.
+    let (mut source, profile, info) = engine(&[AlgorithmId::Cwf]);
+    let frames: Vec<Frame> = std::iter::from_fn(|| source.next_frame()).collect();
+    for src in [
+        Box::new(RecordedFrames::new(frames.clone(), 100.0)) as Box<dyn FrameSource>,
+        engine(&[AlgorithmId::Cwf]).0,
+    ] {
+        let mut p = Player::new(src, &profile, &info, PlayerOptions::default());
+        p.apply(Command::End, Instant::now());
+        settle(&mut p);
+        assert_eq!(p.position(), 3000);
+        p.apply(Command::SeekTo(12.5), Instant::now());
+        settle(&mut p);
+        let s = p.snapshot(Instant::now());
+        assert_eq!(s.last.as_ref().unwrap().k, 1250);
+        assert_eq!(
+            s.last.as_ref().unwrap().lanes[0].command,
+            frames[1250].lanes[0].command
+        );
+    }
+}
+
+#[test]
+fn the_help_pauses_playback_and_closing_it_resumes() {
+    let (mut app, mut s) = dressed_snapshot();
+    s.paused = false;
+    app.snapshot = Arc::new(s.clone());
+    assert_eq!(
+        app.on_key(key(KeyCode::Char('?'))),
+        Some(Command::SetPaused(true))
+    );
+    assert!(app.help);
+    assert_eq!(
+        app.on_key(key(KeyCode::Char('x'))),
+        Some(Command::SetPaused(false))
+    );
+    assert!(!app.help);
+    // Paused already: it stays paused.
+    s.paused = true;
+    app.snapshot = Arc::new(s);
+    assert_eq!(app.on_key(key(KeyCode::Char('?'))), None);
+    assert_eq!(app.on_key(key(KeyCode::Char('x'))), None);
+    // And the overlay explains the screen's words.
+    app.help = true;
+    let text = screen(&draw(&app, 80, 24));
+    for want in [
+        "RAE",
+        "PC",
+        "lim",
+        "⇄n",
+        "•ref ⣿sim",
+        "Δfz",
+        "change from 1 g",
+        "End",
+    ] {
+        assert!(text.contains(want), "missing {want:?} in\n{text}");
+    }
+}
+
+#[test]
+fn start_up_speed_pause_and_loop_are_applied() {
+    let (source, profile, info) = engine(&[AlgorithmId::Cwf]);
+    let opts = PlayerOptions {
+        start_paused: true,
+        speed: 5,
+        looping: true,
+        ..Default::default()
+    };
+    let mut p = Player::new(source, &profile, &info, opts);
+    let s = p.snapshot(Instant::now());
+    assert!(s.paused && s.looping);
+    assert_eq!(player::speed_label(s.speed), "×8");
+}
+
+#[test]
+fn labels_fit_at_80_columns_and_say_what_they_mean() {
+    let (mut app, mut s) = dressed_snapshot();
+    s.recording = Some(player::RecordingStatus {
+        path: "recordings/a-very-long-trace-name-full-flight-20261123T095959Z.mcap".into(),
+        frames: 1234,
+    });
+    s.looping = true;
+    app.snapshot = Arc::new(s.clone());
+    let text = screen(&draw(&app, 80, 24));
+    let lines: Vec<&str> = text.lines().collect();
+    // Every column shows its chart's unit whole, and the gauges have a title.
+    assert_eq!(text.matches(" m/s²").count(), 3, "{text}");
+    assert_eq!(text.matches("legs: % of stroke used").count(), 3, "{text}");
+    assert!(!text.contains("MPC MPC"), "{text}");
+    assert!(!text.contains("idle"), "{text}");
+    assert!(text.contains("step 12µs"), "{text}");
+    // Loop stays in view next to a long recording, which is cut with an ellipsis.
+    assert!(lines[1].contains("↻ loop"), "{text}");
+    assert!(lines[1].contains("● REC 1234"), "{text}");
+    assert!(lines[1].trim_end().ends_with("…\""), "{text}");
+    // Gauges: usage, as plot and the summary (0 at neutral); the leg at 1 cm of its stop
+    // is nearly full and marked.
+    let usage = app
+        .legs
+        .stewart
+        .usage(&s.last.as_ref().unwrap().lanes[2].legs.length_m);
+    assert!(usage.iter().all(|u| (0.0..=1.5).contains(u)), "{usage}");
+    assert!(text.contains("!!"), "{text}");
+
+    // Narrow: a dropped column is announced; at 30×8 the abbreviations are distinct.
+    let text = screen(&draw(&app, 40, 24));
+    assert!(text.contains("▸+1"), "{text}");
+    let text = screen(&draw(&app, 30, 8));
+    assert!(text.contains("lim ") && text.contains("leg max"), "{text}");
+    assert!(!text.contains(" L"), "{text}");
+}
+
+#[test]
+fn a_review_keeps_the_sidecars_aircraft_scenario_and_events() {
+    let info = crate::formats::trace::parse_sidecar(
+        crate::formats::trace::DEFAULT_TRACE_SIDECAR,
+        "s.json",
+    )
+    .unwrap();
+    let s = SessionInfo::described("horizontal-stall", Some(&info), "full-flight");
+    assert!(s.description.as_deref().unwrap().contains("c172p"), "{s:?}");
+    assert_eq!(s.events.len(), 4);
 }

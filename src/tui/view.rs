@@ -31,7 +31,8 @@ pub fn render(app: &App, f: &mut ratatui::Frame, now: Instant) {
     }
     if area.height < 5 || area.width < 20 {
         // Room for a status line only: what is playing and where.
-        let lines: Vec<Line> = vec![status_line(app), header_line2(app)];
+        let w = usize::from(area.width);
+        let lines: Vec<Line> = vec![fit(status_line(app), w), fit(header_line2(app), w)];
         f.render_widget(Paragraph::new(lines), area);
         return;
     }
@@ -42,17 +43,68 @@ pub fn render(app: &App, f: &mut ratatui::Frame, now: Instant) {
         Constraint::Length(1),
     ])
     .areas(area);
+    let w = usize::from(area.width);
     let mut head = vec![status_line(app)];
     if header_h > 1 {
         head.push(header_line2(app));
     } else {
         head[0].spans.extend(header_line2(app).spans);
     }
+    let head: Vec<Line> = head.into_iter().map(|l| fit(l, w)).collect();
     f.render_widget(Paragraph::new(head), header);
     render_columns(app, f, body);
-    f.render_widget(Paragraph::new(footer_line(app, now)), footer);
+    f.render_widget(Paragraph::new(fit(footer_line(app, now), w)), footer);
     if app.help {
         render_help(app, f, area);
+    }
+}
+
+/// Cuts a line to `width` cells, ending it with `…` where something was cut, so that a
+/// narrow terminal shows that there is more rather than a word cut short.
+fn fit(line: Line<'static>, width: usize) -> Line<'static> {
+    if line.width() <= width {
+        return line;
+    }
+    let mut spans = Vec::new();
+    let mut used = 0;
+    let room = width.saturating_sub(1);
+    for span in line.spans {
+        let w = span.width();
+        if used + w <= room {
+            used += w;
+            spans.push(span);
+            continue;
+        }
+        let mut text = String::new();
+        for c in span.content.chars() {
+            let cw = unicode_width(c);
+            if used + cw > room {
+                break;
+            }
+            used += cw;
+            text.push(c);
+        }
+        if !text.is_empty() {
+            spans.push(Span::styled(text, span.style));
+        }
+        break;
+    }
+    if width > 0 {
+        spans.push(Span::raw("…"));
+    }
+    Line::from(spans)
+}
+
+fn unicode_width(c: char) -> usize {
+    Span::raw(c.to_string()).width()
+}
+
+/// How a channel is named on screen: fz is shown as its change from 1 g, as the algorithms
+/// and the metrics use it (0 in level flight).
+fn channel_label(ch: usize) -> &'static str {
+    match CHANNELS[ch % CHANNELS.len()] {
+        "fz" => "Δfz",
+        other => other,
     }
 }
 
@@ -106,23 +158,38 @@ fn header_line2(app: &App) -> Line<'static> {
         }
     }
     spans.push(Span::styled(
-        format!("  ch {}", app.channel_name()),
+        format!("  ch {}", channel_label(app.channel)),
         th.key(),
     ));
+    spans.push(Span::styled(" •ref", th.reference()));
+    spans.push(Span::styled(" ⣿sim", th.perceived()));
     if s.lagging {
         let a = s.achieved_speed.unwrap_or(0.0);
         spans.push(Span::styled(format!("  ⚠ BEHIND ×{a:.2}"), th.crit()));
     }
+    // Loop before the recording: a long file name must not push it off the line.
+    if s.looping {
+        spans.push(Span::styled("  ↻ loop", th.text()));
+    }
     match (&s.recording, s.can_record) {
         (Some(r), _) => spans.push(Span::styled(
-            format!("  ● REC {} {}", r.frames, short_path(&r.path)),
+            format!("  ● REC {} {}", r.frames, truncate(short_path(&r.path), 24)),
             th.recording(),
         )),
         (None, true) => spans.push(Span::styled("  ○ rec off", th.dim())),
         (None, false) => {}
     }
-    if s.looping {
-        spans.push(Span::styled("  ↻ loop", th.text()));
+    if let Some(clipped) = s.summary.as_ref().and_then(|sum| {
+        let parts: Vec<String> = crate::summary::INPUT_AXES
+            .iter()
+            .filter_map(|a| {
+                let n = sum.input_clipped.get(*a).copied().unwrap_or(0);
+                (n > 0).then(|| format!("{a} {n}"))
+            })
+            .collect();
+        (!parts.is_empty()).then(|| parts.join(" "))
+    }) {
+        spans.push(Span::styled(format!("  ✂ clipped {clipped}"), th.warn()));
     }
     let t = s.t_s();
     if let Some((et, name)) = app
@@ -142,6 +209,13 @@ fn short_path(p: &str) -> &str {
 
 fn footer_line(app: &App, now: Instant) -> Line<'static> {
     let th = &app.theme;
+    if let Some(typed) = &app.goto {
+        return Line::from(vec![
+            Span::styled("go to t = ", th.key()),
+            Span::styled(format!("{typed}▏s"), th.text().add_modifier(Modifier::BOLD)),
+            Span::styled("   Enter go  Esc cancel", th.dim()),
+        ]);
+    }
     if let Some(n) = app.notice(now) {
         return Line::from(vec![
             Span::styled("» ", th.key()),
@@ -152,7 +226,7 @@ fn footer_line(app: &App, now: Instant) -> Line<'static> {
     let mut keys: Vec<(&str, &str)> = vec![
         ("spc", "pause"),
         ("←→", "seek"),
-        (".", "step"),
+        ("g", "go to"),
         ("+-", "speed"),
         ("tab", "chan"),
     ];
@@ -191,8 +265,9 @@ fn render_columns(app: &App, f: &mut ratatui::Frame, area: Rect) {
         f.render_widget(Paragraph::new("no algorithms"), area);
         return;
     }
-    let fit = usize::from((area.width / MIN_COLUMN_W).max(1));
-    let shown = &order[..order.len().min(fit)];
+    let fits = usize::from((area.width / MIN_COLUMN_W).max(1));
+    let shown = &order[..order.len().min(fits)];
+    let hidden = order.len() - shown.len();
     let cols = Layout::horizontal(vec![Constraint::Fill(1); shown.len()]).split(area);
     // Every column gets as many state rows as the busiest one, so that charts, metrics and
     // gauges line up across columns for comparison.
@@ -204,25 +279,37 @@ fn render_columns(app: &App, f: &mut ratatui::Frame, area: Rect) {
         })
         .max()
         .unwrap_or(1);
-    for (&lane, &col) in shown.iter().zip(cols.iter()) {
-        render_column(app, f, col, lane, state_h);
+    for (i, (&lane, &col)) in shown.iter().zip(cols.iter()).enumerate() {
+        // The last column says how many did not fit, rather than drop them silently.
+        let more = if i + 1 == shown.len() { hidden } else { 0 };
+        render_column(app, f, col, lane, state_h, more);
     }
 }
 
-fn render_column(app: &App, f: &mut ratatui::Frame, area: Rect, lane: usize, state_h: usize) {
+fn render_column(
+    app: &App,
+    f: &mut ratatui::Frame,
+    area: Rect,
+    lane: usize,
+    state_h: usize,
+    hidden_after: usize,
+) {
     let th = &app.theme;
     let s = &*app.snapshot;
     let id = s.algorithms[lane];
     let frame_lane = s.last.as_ref().and_then(|fr| fr.lanes.get(lane));
-    let title = Line::from(vec![
-        Span::styled(format!(" {} ", id.label()), th.title()),
-        Span::styled(
-            frame_lane.map_or(String::new(), |l| {
-                format!("{} ", mode_badge(&l.state.mode).1)
-            }),
-            th.dim(),
-        ),
-    ]);
+    // The mode word after the name, unless it only repeats it (the MPC's mode is "MPC").
+    let mode = frame_lane
+        .map(|l| mode_badge(&l.state.mode).1)
+        .filter(|m| !m.eq_ignore_ascii_case(id.label()));
+    let mut title_spans = vec![Span::styled(format!(" {} ", id.label()), th.title())];
+    if let Some(m) = mode {
+        title_spans.push(Span::styled(format!("{m} "), th.dim()));
+    }
+    if hidden_after > 0 {
+        title_spans.push(Span::styled(format!("▸+{hidden_after} "), th.warn()));
+    }
+    let title = Line::from(title_spans);
     let inner = if area.height >= 8 && area.width >= 12 {
         let block = Block::new()
             .borders(Borders::ALL)
@@ -241,13 +328,14 @@ fn render_column(app: &App, f: &mut ratatui::Frame, area: Rect, lane: usize, sta
     }
     let w = inner.width as usize;
     let state = state_lines(th, frame_lane, w);
-    let metrics = metric_lines(app, lane, frame_lane);
+    let metrics = metric_lines(app, lane, frame_lane, w);
     let h = inner.height as usize;
     // Tiers of detail, richest first: full gauges and a chart, paired gauges, one summary line.
-    let (legs_rows, state_rows, metric_rows) = if h >= 6 + state_h + 2 + 5 {
-        (6, state_h, 2)
-    } else if h >= 3 + state_h + 1 + 4 {
-        (3, state_h, 1)
+    // Gauge tiers have a title row: six legs, three rows of pairs.
+    let (legs_rows, state_rows, metric_rows) = if h >= 7 + state_h + 2 + 5 {
+        (7, state_h, 2)
+    } else if h >= 4 + state_h + 1 + 4 {
+        (4, state_h, 1)
     } else {
         // Mode, metrics and the tightest leg: the chart gets what is left, if anything.
         (1, 1, 1)
@@ -272,12 +360,16 @@ fn render_column(app: &App, f: &mut ratatui::Frame, area: Rect, lane: usize, sta
     let metric_lines = if metric_rows >= 2 {
         metrics
     } else {
-        vec![compact_metrics(app, lane, frame_lane)]
+        vec![compact_metrics(app, lane, frame_lane, w)]
     };
-    f.render_widget(Paragraph::new(state), state_a);
-    f.render_widget(Paragraph::new(metric_lines), metric_a);
+    // Whatever does not fit ends in `…`, never mid-word without a sign.
+    let fitted = |lines: Vec<Line<'static>>| -> Vec<Line<'static>> {
+        lines.into_iter().map(|l| fit(l, w)).collect()
+    };
+    f.render_widget(Paragraph::new(fitted(state)), state_a);
+    f.render_widget(Paragraph::new(fitted(metric_lines)), metric_a);
     let legs = leg_lines(app, frame_lane, legs_rows, w);
-    f.render_widget(Paragraph::new(legs), legs_a);
+    f.render_widget(Paragraph::new(fitted(legs)), legs_a);
 }
 
 /// Symbol and word of a controller mode, so that it reads without colour.
@@ -433,7 +525,7 @@ fn lane_metrics(app: &App, lane: usize) -> Option<(f64, f64, f64)> {
     Some((m.rae, m.pc, alg.limiter_fraction))
 }
 
-fn metric_lines(app: &App, lane: usize, frame: Option<&LaneFrame>) -> Vec<Line<'static>> {
+fn metric_lines(app: &App, lane: usize, frame: Option<&LaneFrame>, w: usize) -> Vec<Line<'static>> {
     let th = &app.theme;
     let (rae, pc, lim) = match lane_metrics(app, lane) {
         Some((r, p, l)) => (
@@ -444,34 +536,39 @@ fn metric_lines(app: &App, lane: usize, frame: Option<&LaneFrame>) -> Vec<Line<'
         None => ("-".into(), "-".into(), "-".into()),
     };
     let active = frame.is_some_and(|l| l.limiter_active);
+    let step = frame.map_or("-".into(), |l| fmt_us(l.step_time_us));
+    let mut second = vec![Span::styled("lim ", th.dim()), Span::styled(lim, th.text())];
+    if active {
+        // "lim 0.6% ▲ACTIVE step 2.3ms" is 27 cells: narrower columns get "▲ACT".
+        let word = if w >= 27 { " ▲ACTIVE" } else { " ▲ACT" };
+        second.push(Span::styled(word, th.warn().add_modifier(Modifier::BOLD)));
+    }
+    second.push(Span::styled(format!(" step {step}"), th.dim()));
     vec![
         Line::from(vec![
-            Span::styled(format!("{} ", app.channel_name()), th.key()),
+            Span::styled(format!("{} ", channel_label(app.channel)), th.key()),
             Span::styled("RAE ", th.dim()),
             Span::styled(rae, th.text()),
             Span::styled(" PC ", th.dim()),
             Span::styled(pc, th.text()),
         ]),
-        Line::from(vec![
-            Span::styled("lim ", th.dim()),
-            Span::styled(lim, th.text()),
-            if active {
-                Span::styled(" ▲ACTIVE", th.warn().add_modifier(Modifier::BOLD))
-            } else {
-                Span::styled(" idle", th.dim())
-            },
-            Span::styled(
-                format!(" {}", frame.map_or("-".into(), |l| fmt_us(l.step_time_us))),
-                th.dim(),
-            ),
-        ]),
+        Line::from(second),
     ]
 }
 
-fn compact_metrics(app: &App, lane: usize, frame: Option<&LaneFrame>) -> Line<'static> {
+fn compact_metrics(app: &App, lane: usize, frame: Option<&LaneFrame>, w: usize) -> Line<'static> {
     let th = &app.theme;
     let text = match lane_metrics(app, lane) {
-        Some((r, p, l)) => format!("RAE {r:.2} PC {p:+.2} L{:.0}%", l * 100.0),
+        Some((r, p, l)) => {
+            let full = format!("RAE {r:.2} PC {p:+.2} lim {:.0}%", l * 100.0);
+            // The limiter's share goes first when the column is narrow: RAE and PC are
+            // what the column is compared by.
+            if full.chars().count() + 2 <= w {
+                full
+            } else {
+                format!("RAE {r:.2} PC {p:+.2}")
+            }
+        }
         None => "RAE - PC -".into(),
     };
     let mut spans = vec![Span::styled(text, th.text())];
@@ -497,19 +594,23 @@ fn bar(fraction: f64, width: usize) -> (String, String) {
     let f = if fraction.is_finite() {
         fraction.clamp(0.0, 1.0)
     } else {
-        0.0
+        1.0
     };
     let full = ((f * width as f64).round() as usize).min(width);
     ("█".repeat(full), "░".repeat(width - full))
 }
 
-fn fmt_cm(m: f64) -> String {
-    if m.is_finite() {
-        format!("{:.0}", (m * 100.0).clamp(-999.0, 9999.0))
+/// A leg's usage in percent of its stroke from neutral to the nearer end stop.
+fn fmt_pct(usage: f64) -> String {
+    if usage.is_finite() {
+        format!("{:.0}%", (usage * 100.0).clamp(0.0, 999.0))
     } else {
         "?".into()
     }
 }
+
+/// Title of the leg gauges, in the convention of `plot` and the summary.
+const LEGS_TITLE: &str = "legs: % of stroke used";
 
 fn leg_lines(app: &App, lane: Option<&LaneFrame>, rows: usize, w: usize) -> Vec<Line<'static>> {
     let th = &app.theme;
@@ -517,54 +618,58 @@ fn leg_lines(app: &App, lane: Option<&LaneFrame>, rows: usize, w: usize) -> Vec<
         return vec![Line::styled("legs -", th.dim())];
     };
     let margins: [f64; 6] = std::array::from_fn(|i| lane.legs.margin_m[i]);
-    let frac = |i: usize| margins[i] / app.legs.neutral_margin_m[i];
+    let usage = app.legs.stewart.usage(&lane.legs.length_m);
+    let title = || {
+        let text = [LEGS_TITLE, "legs % stroke used", "legs % stroke"]
+            .into_iter()
+            .find(|t| t.chars().count() <= w)
+            .unwrap_or("legs");
+        Line::styled(text, th.dim())
+    };
     match rows {
-        r if r >= 6 => (0..6)
-            .map(|i| {
-                // "1 ████░░ 84cm !!"
-                let bar_w = w.saturating_sub(2 + 1 + 6 + 2).min(MAX_BAR_W);
-                let (full, empty) = bar(frac(i), bar_w);
+        r if r >= 7 => std::iter::once(title())
+            .chain((0..6).map(|i| {
+                // "1 ████░░░░  34% !!"
+                let bar_w = w.saturating_sub(2 + 5 + 2).min(MAX_BAR_W);
+                let (full, empty) = bar(usage[i], bar_w);
                 let (sym, style) = leg_state(app, margins[i]);
                 Line::from(vec![
                     Span::styled(format!("{} ", i + 1), th.dim()),
                     Span::styled(full, style),
                     Span::styled(empty, th.dim()),
-                    Span::styled(format!(" {:>4}cm", fmt_cm(margins[i])), th.text()),
+                    Span::styled(format!(" {:>4}", fmt_pct(usage[i])), th.text()),
                     Span::styled(sym, style),
                 ])
-            })
+            }))
             .collect(),
-        r if r >= 3 => (0..3)
-            .map(|row| {
+        r if r >= 4 => std::iter::once(title())
+            .chain((0..3).map(|row| {
                 let mut spans = Vec::new();
                 for i in [2 * row, 2 * row + 1] {
-                    // Two legs a line: "1███ 84!! "
+                    // Two legs a line: "1███ 34%!! "
                     let bar_w = (w / 2).saturating_sub(1 + 4 + 2 + 1).min(MAX_BAR_W / 2);
-                    let (full, empty) = bar(frac(i), bar_w);
+                    let (full, empty) = bar(usage[i], bar_w);
                     let (sym, style) = leg_state(app, margins[i]);
                     spans.push(Span::styled(format!("{}", i + 1), th.dim()));
                     spans.push(Span::styled(full, style));
                     spans.push(Span::styled(empty, th.dim()));
-                    spans.push(Span::styled(
-                        format!("{:>4}", fmt_cm(margins[i])),
-                        th.text(),
-                    ));
+                    spans.push(Span::styled(format!("{:>4}", fmt_pct(usage[i])), th.text()));
                     spans.push(Span::styled(format!("{sym} "), style));
                 }
                 Line::from(spans)
-            })
+            }))
             .collect(),
         _ => {
-            let (i, m) = margins
+            let (i, u) = usage
                 .iter()
                 .copied()
                 .enumerate()
-                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .max_by(|a, b| a.1.total_cmp(&b.1))
                 .unwrap_or((0, f64::NAN));
-            let (sym, style) = leg_state(app, m);
+            let (sym, style) = leg_state(app, margins[i]);
             vec![Line::from(vec![
-                Span::styled("leg min ", th.dim()),
-                Span::styled(format!("{}cm L{}", fmt_cm(m), i + 1), th.text()),
+                Span::styled("leg max ", th.dim()),
+                Span::styled(format!("{} #{}", fmt_pct(u), i + 1), th.text()),
                 Span::styled(sym.trim().to_string(), style),
             ])]
         }
@@ -632,11 +737,9 @@ fn render_chart(
     ];
     // Axis labels cost a quarter of a narrow column: there the range goes in the caption.
     let wide = plot.width >= 40;
-    let mut cap = vec![
-        Span::styled(format!("{} ", CHANNELS[ch]), th.key()),
-        Span::styled("•ref ", th.reference()),
-        Span::styled("⣿sim", th.perceived()),
-    ];
+    // What must be read stays whole: the channel, its range (on the axis when wide) and its
+    // unit; the legend (also in the header and the help) goes first when the column is narrow.
+    let mut cap = vec![Span::styled(channel_label(ch).to_string(), th.key())];
     if !wide {
         cap.push(Span::styled(
             format!(" {}…{}", fmt_axis(lo), fmt_axis(hi)),
@@ -644,7 +747,18 @@ fn render_chart(
         ));
     }
     cap.push(Span::styled(format!(" {unit}"), th.dim()));
-    f.render_widget(Paragraph::new(Line::from(cap)), caption);
+    let legend = [
+        Span::styled(" •ref", th.reference()),
+        Span::styled(" ⣿sim", th.perceived()),
+    ];
+    let cap_w: usize = cap.iter().map(Span::width).sum();
+    if cap_w + legend.iter().map(Span::width).sum::<usize>() <= usize::from(caption.width) {
+        cap.extend(legend);
+    }
+    f.render_widget(
+        Paragraph::new(fit(Line::from(cap), usize::from(caption.width))),
+        caption,
+    );
     if plot.height < 2 || plot.width < 8 {
         return;
     }
@@ -681,40 +795,50 @@ fn fmt_axis(v: f64) -> String {
 
 const HELP: &[(&str, &str)] = &[
     ("space", "pause / play (at the end: from the start)"),
-    (". or →", "one step (when paused)"),
-    ("← / →", "seek −5 s / +5 s (→ seeks while playing)"),
-    ("[ / ]", "seek −5 s / +5 s"),
-    ("Home", "back to the start"),
+    (". or →", "one step (when paused; → seeks while playing)"),
+    ("← → [ ]", "seek −5 s / +5 s"),
+    ("Home End", "to the start / to the end"),
+    ("g", "go to a time: type seconds, Enter"),
     ("+ / -", "speed ×0.25 … ×16, max"),
     ("l", "loop at the end"),
-    ("tab / 1..6", "channel fx fy fz wx wy wz"),
+    ("tab 1..6", "channel fx fy Δfz wx wy wz"),
     ("r", "record on / off (a new file each time)"),
-    ("?", "this help (any key closes)"),
-    ("q / Ctrl-C", "quit (recording finished)"),
+    ("q Ctrl-C", "quit (recording finished)"),
+    ("?", "this help: paused while open; any key closes"),
+];
+
+/// What the screen's abbreviations mean.
+const LEGEND: &[(&str, &str)] = &[
+    ("•ref ⣿sim", "perceived in the aircraft / on the simulator"),
+    ("Δfz", "fz's change from 1 g (0 in level flight); m/s², °/s"),
+    ("RAE", "Σ|ref − sim| / Σ|ref| since the start; 0 is best"),
+    ("PC", "correlation of ref and sim; +1 is best"),
+    ("lim", "steps the workspace limiter changed; ▲ACTIVE: now"),
+    ("⇄n why", "controller switches (S-MPC) and the last reason"),
+    (
+        "legs",
+        "% of stroke used, neutral to end stop; ! low !! critical",
+    ),
+    ("✂ clipped", "samples cut by the profile's [input] limits"),
 ];
 
 fn render_help(app: &App, f: &mut ratatui::Frame, area: Rect) {
     let th = &app.theme;
-    let mut lines: Vec<Line> = HELP
-        .iter()
-        .map(|(k, what)| {
-            Line::from(vec![
-                Span::styled(format!("{k:>11} "), th.key()),
-                Span::styled(*what, th.text()),
-            ])
-        })
-        .collect();
+    let row = |(k, what): &(&str, &str)| {
+        Line::from(vec![
+            Span::styled(format!("{k:>10} "), th.key()),
+            Span::styled(what.to_string(), th.text()),
+        ])
+    };
+    let mut lines: Vec<Line> = HELP.iter().map(row).collect();
     lines.push(Line::from(""));
+    lines.extend(LEGEND.iter().map(row));
     lines.push(Line::styled(
-        "gauges: leg margin to the nearer end stop;  ! low  !! critical",
-        th.dim(),
-    ));
-    lines.push(Line::styled(
-        "modes: ◆ COTC  ◇ FREE  ◐ BLEND w  ● MPC  ~ WASHOUT  ✖ FALLBACK",
+        "modes: ◆ COTC ◇ FREE ◐ BLEND w ● MPC ~ WASHOUT ✖ FALLBACK",
         th.dim(),
     ));
     let h = (lines.len() as u16 + 2).min(area.height);
-    let w = 70.min(area.width);
+    let w = 72.min(area.width);
     let [popup] = Layout::vertical([Constraint::Length(h)])
         .flex(Flex::Center)
         .areas(area);

@@ -1258,6 +1258,62 @@ impl Mpc {
         self.report.iterations = 0;
         self.report.solve_time_us = 0.0;
     }
+
+    /// The running state (what [`Mpc::reset_state`] resets, and the washout gain), for
+    /// seeking; the QP's structure and the solver are kept, since every solve writes all of
+    /// the values it uses.
+    pub fn running_state(&self) -> MpcRunningState {
+        MpcRunningState {
+            x: self.x.clone(),
+            u_last: self.u_last.clone(),
+            u_before: self.u_before.clone(),
+            ref_x: self.ref_x.clone(),
+            started: self.started,
+            sustained_df_mps2: self.sustained_df_mps2,
+            terminal_tilt_rad: self.terminal_tilt_rad,
+            last_command: self.last_command,
+            plan: self.plan.clone(),
+            report: self.report.clone(),
+            mode: self.mode,
+            time_in_mode_s: self.time_in_mode_s,
+            washout_gain: self.washout_gain,
+        }
+    }
+
+    pub fn restore_running_state(&mut self, s: &MpcRunningState) {
+        self.x.clone_from(&s.x);
+        self.u_last.clone_from(&s.u_last);
+        self.u_before.clone_from(&s.u_before);
+        self.ref_x.clone_from(&s.ref_x);
+        self.started = s.started;
+        self.sustained_df_mps2 = s.sustained_df_mps2;
+        self.terminal_tilt_rad = s.terminal_tilt_rad;
+        self.last_command = s.last_command;
+        self.plan.clone_from(&s.plan);
+        self.report.clone_from(&s.report);
+        self.mode = s.mode;
+        self.time_in_mode_s = s.time_in_mode_s;
+        // Through the setter, which also writes the scaled weights into the solver.
+        self.set_washout_gain(s.washout_gain);
+    }
+}
+
+/// [`Mpc::running_state`]: everything that changes from step to step.
+#[derive(Clone, Debug)]
+pub struct MpcRunningState {
+    x: DVector<f64>,
+    u_last: DVector<f64>,
+    u_before: DVector<f64>,
+    ref_x: DVector<f64>,
+    started: bool,
+    sustained_df_mps2: Vector3<f64>,
+    terminal_tilt_rad: [f64; 2],
+    last_command: PlatformCommand,
+    plan: Plan,
+    report: SolverReport,
+    mode: Mode,
+    time_in_mode_s: f64,
+    washout_gain: f64,
 }
 
 impl MotionCueing for Mpc {
@@ -1282,6 +1338,20 @@ impl MotionCueing for Mpc {
 
     fn reset(&mut self) {
         self.reset_state();
+    }
+
+    fn snapshot(&self) -> Option<crate::mca::AlgorithmSnapshot> {
+        Some(crate::mca::AlgorithmSnapshot::new(self.running_state()))
+    }
+
+    fn restore(&mut self, snapshot: &crate::mca::AlgorithmSnapshot) -> bool {
+        match snapshot.get::<MpcRunningState>() {
+            Some(s) => {
+                self.restore_running_state(s);
+                true
+            }
+            None => false,
+        }
     }
 }
 

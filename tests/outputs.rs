@@ -1,0 +1,186 @@
+//! What a new user runs into (issue 16): outputs are never overwritten without `--force` and
+//! are checked before any work; `compare` checks every trace first and finds the shipped
+//! traces from any directory; input clipping is reported; the OMCT's wording.
+
+mod common;
+
+use std::ffi::OsStr;
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+
+use common::*;
+
+fn play(args: &[&OsStr]) -> Output {
+    let mut all: Vec<&OsStr> = vec!["play".as_ref(), "--headless".as_ref()];
+    all.extend(["--algorithms", "cwf"].iter().map(OsStr::new));
+    all.extend_from_slice(args);
+    hexcue(&all)
+}
+
+#[test]
+fn an_existing_recording_or_summary_is_not_overwritten_without_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let mcap = dir.path().join("flight.mcap");
+    let json = dir.path().join("flight.json");
+    for (path, option) in [(&mcap, "--record"), (&json, "--summary")] {
+        std::fs::write(path, "precious").unwrap();
+        let out = play(&[option.as_ref(), path.as_os_str()]);
+        let err = stderr(&out);
+        assert!(!out.status.success(), "{option} overwrote a file");
+        assert!(err.contains("flight.") && err.contains("--force"), "{err}");
+        assert!(stdout(&out).is_empty(), "no run: {}", stdout(&out));
+        assert_eq!(std::fs::read_to_string(path).unwrap(), "precious");
+        // With --force it is the user's choice.
+        let out = play(&[option.as_ref(), path.as_os_str(), "--force".as_ref()]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        assert_ne!(std::fs::read(path).unwrap(), b"precious");
+    }
+}
+
+#[test]
+fn outputs_are_checked_before_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let mcap = dir.path().join("new.mcap");
+    let bad = dir.path().join("no-such-dir").join("x.json");
+    let out = play(&[
+        "--record".as_ref(),
+        mcap.as_os_str(),
+        "--summary".as_ref(),
+        bad.as_os_str(),
+    ]);
+    let err = stderr(&out);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("x.json") && err.contains("does not exist"),
+        "{err}"
+    );
+    // Nothing ran: no recording was started, no table printed.
+    assert!(!mcap.exists(), "the run started before the check");
+    assert!(stdout(&out).is_empty());
+}
+
+#[test]
+fn recover_plot_and_omct_refuse_to_overwrite() {
+    let dir = tempfile::tempdir().unwrap();
+    let mcap = dir.path().join("run.mcap");
+    let out = play(&["--record".as_ref(), mcap.as_os_str()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let taken = dir.path().join("taken");
+    std::fs::write(&taken, "precious").unwrap();
+
+    let out = hexcue(&["recover".as_ref(), mcap.as_os_str(), taken.as_os_str()]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("taken") && stderr(&out).contains("--force"));
+    let out = hexcue(&[
+        "plot".as_ref(),
+        mcap.as_os_str(),
+        "-o".as_ref(),
+        taken.as_os_str(),
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("taken") && stderr(&out).contains("--force"));
+    assert_eq!(std::fs::read_to_string(&taken).unwrap(), "precious");
+
+    let omct = dir.path().join("omct");
+    std::fs::create_dir(&omct).unwrap();
+    std::fs::write(omct.join("omct.md"), "precious").unwrap();
+    let args = |force: bool| {
+        let mut a: Vec<&OsStr> = ["omct", "--algorithms", "cwf", "--tests", "surge"]
+            .iter()
+            .map(OsStr::new)
+            .collect();
+        a.extend(["--frequencies", "2", "--out"].iter().map(OsStr::new));
+        a.push(omct.as_os_str());
+        if force {
+            a.push("--force".as_ref());
+        }
+        a
+    };
+    let out = hexcue(&args(false));
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("omct.md"), "{}", stderr(&out));
+    assert_eq!(
+        std::fs::read_to_string(omct.join("omct.md")).unwrap(),
+        "precious"
+    );
+    let out = hexcue(&args(true));
+    assert!(out.status.success(), "{}", stderr(&out));
+    // One test, one figure: singular.
+    let err = stderr(&out);
+    assert!(err.contains("1 test × 2 frequencies"), "{err}");
+    assert!(err.contains("and 1 figure"), "{err}");
+    assert!(!err.contains("1 tests"), "{err}");
+}
+
+#[test]
+fn compare_checks_every_trace_before_running_any() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = std::fs::read_to_string(repo().join("recordings/traces/takeoff.csv")).unwrap();
+    std::fs::write(dir.path().join("a-good.csv"), good).unwrap();
+    std::fs::write(dir.path().join("z-bad.csv"), "t,fx\n0,1\n").unwrap();
+    let out = hexcue(&[
+        "compare".as_ref(),
+        "--algorithms".as_ref(),
+        "cwf".as_ref(),
+        "--traces".as_ref(),
+        dir.path().as_os_str(),
+    ]);
+    let err = stderr(&out);
+    assert!(!out.status.success());
+    assert!(err.contains("z-bad.csv"), "{err}");
+    // The good trace, first in the folder, was not run.
+    assert!(!err.contains("s of flight in"), "{err}");
+}
+
+#[test]
+fn compare_finds_the_shipped_traces_from_any_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_hexcue"))
+        .args(["compare", "--algorithms", "cwf"])
+        .current_dir(dir.path())
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let report = stdout(&out);
+    for name in [
+        "horizontal-stall",
+        "landing",
+        "steep-turn",
+        "takeoff",
+        "turbulence-cruise",
+    ] {
+        assert!(report.contains(&format!("## {name}")), "{name}: {report}");
+    }
+}
+
+#[test]
+fn input_clipping_is_reported_on_stderr_and_in_the_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    // 1 s of a 40 m/s² surge: beyond the full-flight profile's 30 m/s² input limit.
+    let mut csv = String::from("t,fx,fy,fz,p,q,r\n");
+    for k in 0..500 {
+        let fx = if (100..200).contains(&k) { 40.0 } else { 0.0 };
+        csv += &format!("{},{fx},0,-9.81,0,0,0\n", k as f64 / 100.0);
+    }
+    let trace = dir.path().join("hard.csv");
+    std::fs::write(&trace, csv).unwrap();
+    let json = dir.path().join("hard.json.out");
+    let out = play(&[
+        "--trace".as_ref(),
+        trace.as_os_str(),
+        "--summary".as_ref(),
+        json.as_os_str(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let err = stderr(&out);
+    assert!(
+        err.contains("input clipped") && err.contains("fx 100 (20.0 %)"),
+        "{err}"
+    );
+    let summary = read_json(Path::new(&json));
+    assert_eq!(summary["input_clipped"]["fx"], 100);
+    assert_eq!(summary["input_clipped"]["fy"], 0);
+    // And the table says in which unit its numbers are.
+    assert!(stdout(&out).contains("m/s²") && stdout(&out).contains("rad/s"));
+}
