@@ -132,15 +132,8 @@ pub struct PlayArgs {
     /// Algorithms to run, comma-separated: smpc (or s-mpc), mpc, cwf.
     #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = DEFAULT_ALGORITHMS)]
     pub algorithms: Vec<String>,
-    /// Console: playback speed to start at (0.25, 0.5, 1, 2, 4, 8, 16 or max).
-    #[arg(long, value_name = "X", default_value = "1", value_parser = parse_speed)]
-    pub speed: usize,
-    /// Console: start paused.
-    #[arg(long)]
-    pub paused: bool,
-    /// Console: start with loop on (at the end, start over).
-    #[arg(long = "loop")]
-    pub looping: bool,
+    #[command(flatten)]
+    pub start: ConsoleStart,
     /// Let the MPCs see the trace's true future over their horizon (offline studies), instead
     /// of holding the current sample as a live simulator must. Overrides `[mpc] reference`.
     #[arg(long)]
@@ -181,13 +174,20 @@ pub struct ReviewArgs {
     /// Overwrite the --summary file if it exists.
     #[arg(long)]
     pub force: bool,
+    #[command(flatten)]
+    pub start: ConsoleStart,
+}
+
+/// How the console starts, for `play` and `review` alike.
+#[derive(Args, Debug, Default, Clone, Copy)]
+pub struct ConsoleStart {
     /// Console: playback speed to start at (0.25, 0.5, 1, 2, 4, 8, 16 or max).
     #[arg(long, value_name = "X", default_value = "1", value_parser = parse_speed)]
     pub speed: usize,
     /// Console: start paused.
     #[arg(long)]
     pub paused: bool,
-    /// Console: start with loop on.
+    /// Console: start with loop on (at the end, start over).
     #[arg(long = "loop")]
     pub looping: bool,
 }
@@ -935,17 +935,17 @@ mod tests {
     fn console_start_up_options_parse() {
         let cli = parse(&["--speed", "4", "--paused", "--loop"]);
         assert_eq!(
-            crate::tui::player::speed_label(cli.play.speed),
+            crate::tui::player::speed_label(cli.play.start.speed),
             "×4".to_string()
         );
-        assert!(cli.play.paused && cli.play.looping);
+        assert!(cli.play.start.paused && cli.play.start.looping);
         let cli = parse(&["play", "--speed", "max"]);
         let Some(Command::Play(args)) = cli.command else {
             panic!("play")
         };
-        assert_eq!(crate::tui::player::speed_label(args.speed), "max");
+        assert_eq!(crate::tui::player::speed_label(args.start.speed), "max");
         assert_eq!(
-            parse(&[]).play.speed,
+            parse(&[]).play.start.speed,
             crate::tui::player::REAL_TIME,
             "×1 by default"
         );
@@ -958,8 +958,8 @@ mod tests {
         let Some(Command::Review(args)) = cli.command else {
             panic!("review")
         };
-        assert_eq!(crate::tui::player::speed_label(args.speed), "×0.5");
-        assert!(args.looping && !args.paused);
+        assert_eq!(crate::tui::player::speed_label(args.start.speed), "×0.5");
+        assert!(args.start.looping && !args.start.paused);
     }
 
     #[test]

@@ -62,9 +62,9 @@ pub fn run_live(args: &PlayArgs) -> Result<()> {
     let trace = Arc::new(session.trace.trace.clone());
     let mut cfg = LiveConfig::new(session.profile.clone(), trace, session.algorithms.clone());
     cfg.record = args.record.clone();
-    cfg.start_paused = args.paused;
-    cfg.speed = args.speed;
-    cfg.looping = args.looping;
+    cfg.start_paused = args.start.paused;
+    cfg.speed = args.start.speed;
+    cfg.looping = args.start.looping;
     let factory: tui::SinkFactory = Box::new(move |request: &tui::RecordingRequest| {
         let recorder = Recorder::create(&request.path, &meta)?;
         Ok(Box::new(McapSink { recorder }) as Box<dyn FrameSink>)
@@ -100,9 +100,9 @@ pub fn run_review(args: &ReviewArgs) -> Result<()> {
         profile,
         source,
         info,
-        start_paused: args.paused,
-        speed: args.speed,
-        looping: args.looping,
+        start_paused: args.start.paused,
+        speed: args.start.speed,
+        looping: args.start.looping,
     })?;
     exit_for_signal(outcome.signal)
 }
