@@ -387,6 +387,7 @@ mod tests {
                 steps: 10,
                 rate_hz: 100.0,
                 algorithms,
+                live: None,
             },
             description: Some("a test".into()),
         }

@@ -102,3 +102,56 @@ pub fn run_review(path: &Path) -> Result<()> {
     })?;
     exit_for_signal(outcome.signal)
 }
+
+/// `hexcue live` in the console: the session on its clock thread, the screen and keys here.
+/// Signals (SIGINT, SIGTERM, SIGHUP) stop it as `e` does: washout, park, then exit.
+pub fn run_live_session(args: &crate::cli::LiveArgs) -> Result<()> {
+    require_terminal()?;
+    let setup = crate::cli::live_setup(args)?;
+    let info = SessionInfo {
+        trace_name: args.input.clone(),
+        description: None,
+        events: Vec::new(),
+        profile_name: setup.profile.name.clone(),
+        review_of: None,
+    };
+    let mut signals = signal_hook::iterator::Signals::new([
+        signal_hook::consts::SIGTERM,
+        signal_hook::consts::SIGHUP,
+        signal_hook::consts::SIGINT,
+    ])
+    .context("installing signal handlers")?;
+    let handle = signals.handle();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let forwarder = std::thread::spawn(move || {
+        for sig in signals.forever() {
+            if tx.send(sig).is_err() {
+                break;
+            }
+        }
+    });
+    let mut terminal = ratatui::try_init().context("opening the terminal")?;
+    let mut events = tui::live::TerminalEvents { signals: rx };
+    let outcome = tui::live::run(
+        &mut terminal,
+        &mut events,
+        tui::live::LiveConsole {
+            session: setup.session,
+            profile: setup.profile,
+            info,
+            outputs: args.output.clone(),
+            recording: args.record.as_ref().map(|p| p.display().to_string()),
+            theme: tui::Theme::from_env(),
+        },
+    );
+    let _ = terminal.clear();
+    ratatui::restore();
+    handle.close();
+    let _ = forwarder.join();
+    let outcome = outcome?;
+    for line in &outcome.lines {
+        eprintln!("{line}");
+    }
+    eprint!("{}", crate::cli::format_table(&outcome.summary));
+    exit_for_signal(outcome.signal)
+}

@@ -1,7 +1,10 @@
-//! The engine: steps a trace through the aircraft reference model and every algorithm, each
-//! followed by the workspace limiter and judged by the same perception model (DESIGN §4–5).
-//! It produces one [`Frame`] per step: what the recorder writes and the console shows.
+//! The engine: steps aircraft samples from a [`SampleSource`] through the aircraft reference
+//! model and every algorithm, each followed by the workspace limiter and judged by the same
+//! perception model (DESIGN §4–5). It produces one [`Frame`] per step: what the recorder
+//! writes, the console shows and a live session sends to the platform. It holds only the
+//! samples its algorithms may preview, never the whole flight.
 
+use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -15,6 +18,7 @@ use crate::mca::{
 use crate::model::stewart::{head_motion, Stewart};
 use crate::model::vestibular::{Perceived, Vestibular};
 use crate::profile::Profile;
+use crate::source::{SampleSource, SourceError, TraceSamples};
 use crate::trace::{AircraftSample, Trace};
 
 /// How far ahead the engine offers the trace to algorithms that preview it (s).
@@ -114,14 +118,29 @@ impl StepContext<'_> {
     }
 }
 
-/// Steps a trace, sample by sample, through every chosen algorithm.
+/// The samples read from the source but not yet stepped: the current one and, when the source
+/// can read ahead, up to [`PREVIEW_HORIZON_S`] after it.
+struct Window {
+    aircraft: VecDeque<AircraftSample>,
+    /// The same samples as the algorithms see them, contiguous so that the preview is a
+    /// slice; `start` is the current one. Drained once per horizon, not every step.
+    cues: Vec<CueSample>,
+    start: usize,
+    /// The source has said it has no more.
+    exhausted: bool,
+}
+
+/// Steps samples from a source, one at a time, through every chosen algorithm.
 pub struct Engine {
     profile: Profile,
-    trace: Arc<Trace>,
+    source: Box<dyn SampleSource>,
+    source_error: Option<SourceError>,
     stewart: Stewart,
     eye_m: Vector3<f64>,
-    inputs: Vec<CueSample>,
+    window: Window,
     preview_len: usize,
+    /// Scales the cue every algorithm sees (1 unless a live session fades it in or out).
+    cue_gain: f64,
     reference: Vestibular,
     lanes: Vec<Lane>,
     /// Step lanes on two threads (on unless set otherwise).
@@ -139,11 +158,28 @@ pub fn cue_sample(profile: &Profile, s: &AircraftSample) -> CueSample {
     }
 }
 
+/// A cue scaled by `gain`: the aircraft's motion from rest, faded.
+fn scaled(c: &CueSample, gain: f64) -> CueSample {
+    CueSample {
+        delta_f_mps2: c.delta_f_mps2 * gain,
+        angular_velocity_radps: c.angular_velocity_radps * gain,
+    }
+}
+
 impl Engine {
     /// An engine at the start of `trace`, which must be at the profile's rate.
     pub fn new(
         profile: &Profile,
         trace: Arc<Trace>,
+        algorithms: &[AlgorithmId],
+    ) -> Result<Self, BuildError> {
+        Self::with_source(profile, Box::new(TraceSamples::new(trace)), algorithms)
+    }
+
+    /// An engine at the start of `source`, whose samples must be at the profile's rate.
+    pub fn with_source(
+        profile: &Profile,
+        source: Box<dyn SampleSource>,
         algorithms: &[AlgorithmId],
     ) -> Result<Self, BuildError> {
         let dt = profile.dt_s();
@@ -163,18 +199,20 @@ impl Engine {
                 })
             })
             .collect::<Result<Vec<_>, BuildError>>()?;
-        let inputs = trace
-            .samples
-            .iter()
-            .map(|s| cue_sample(profile, s))
-            .collect();
         Ok(Engine {
             profile: profile.clone(),
             preview_len: (PREVIEW_HORIZON_S * profile.rate_hz).ceil() as usize,
-            trace,
+            source,
+            source_error: None,
             stewart,
             eye_m: profile.eye_point(),
-            inputs,
+            window: Window {
+                aircraft: VecDeque::new(),
+                cues: Vec::new(),
+                start: 0,
+                exhausted: false,
+            },
+            cue_gain: 1.0,
             reference: Vestibular::new(&profile.vestibular, dt),
             // Threads pay off only when some lane is expensive: the MPCs.
             parallel: algorithms.iter().any(|a| *a != AlgorithmId::Cwf),
@@ -187,8 +225,26 @@ impl Engine {
         &self.profile
     }
 
-    pub fn trace(&self) -> &Arc<Trace> {
-        &self.trace
+    /// Name of the flight (the trace's, or the live input's).
+    pub fn source_name(&self) -> &str {
+        self.source.name()
+    }
+
+    /// Steps in the whole flight, when the source knows it.
+    pub fn known_len(&self) -> Option<usize> {
+        self.source.known_len()
+    }
+
+    /// Why the source stopped early, if it did: the run ended there.
+    pub fn source_error(&self) -> Option<&SourceError> {
+        self.source_error.as_ref()
+    }
+
+    /// Scales the aircraft cue every algorithm sees, from 0 (the aircraft at rest) to 1 (as
+    /// flown). A live session fades it in and out; the reference model always sees the
+    /// aircraft as flown.
+    pub fn set_cue_gain(&mut self, gain: f64) {
+        self.cue_gain = gain.clamp(0.0, 1.0);
     }
 
     pub fn algorithms(&self) -> Vec<AlgorithmId> {
@@ -201,13 +257,29 @@ impl Engine {
     }
 
     pub fn is_finished(&self) -> bool {
-        self.k >= self.trace.len()
+        self.window.exhausted && self.window.aircraft.is_empty()
     }
 
-    /// Back to the start of the trace, every model at rest.
+    /// Back to the start of the flight, every model at rest. A source that cannot rewind
+    /// (a live stream) ends the run, with its reason in [`Engine::source_error`].
     pub fn reset(&mut self) {
         self.k = 0;
         self.reference.reset();
+        self.reset_lanes();
+        self.window.aircraft.clear();
+        self.window.cues.clear();
+        self.window.start = 0;
+        self.window.exhausted = false;
+        self.source_error = None;
+        if let Err(e) = self.source.rewind() {
+            self.window.exhausted = true;
+            self.source_error = Some(e);
+        }
+    }
+
+    /// Every algorithm and its limiter back to rest at neutral, without touching the source:
+    /// a live session does this before it fades the cue in again.
+    pub fn reset_lanes(&mut self) {
         for lane in &mut self.lanes {
             lane.algorithm.reset();
             lane.limiter.reset();
@@ -215,14 +287,42 @@ impl Engine {
         }
     }
 
-    /// Steps one sample; `None` once the trace is over.
+    /// Reads the source until the window holds the current sample and the preview after it.
+    fn fill_window(&mut self) {
+        let want = if self.source.can_read_ahead() {
+            1 + self.preview_len
+        } else {
+            1
+        };
+        while self.window.aircraft.len() < want && !self.window.exhausted {
+            match self.source.next_sample() {
+                Ok(Some(s)) => {
+                    self.window.aircraft.push_back(s);
+                    self.window.cues.push(cue_sample(&self.profile, &s));
+                }
+                Ok(None) => self.window.exhausted = true,
+                Err(e) => {
+                    self.window.exhausted = true;
+                    self.source_error = Some(e);
+                }
+            }
+        }
+    }
+
+    /// Steps one sample; `None` once the flight is over (or its source failed).
     pub fn step(&mut self) -> Option<Frame> {
+        self.fill_window();
         let k = self.k;
-        let aircraft = *self.trace.samples.get(k)?;
+        let aircraft = self.window.aircraft.pop_front()?;
         let dt = self.profile.dt_s();
-        let sample = self.inputs[k];
-        let preview = &self.inputs
-            [(k + 1).min(self.inputs.len())..(k + 1 + self.preview_len).min(self.inputs.len())];
+        let w = &mut self.window;
+        let (mut sample, mut preview) = (w.cues[w.start], &w.cues[w.start + 1..]);
+        let faded: Vec<CueSample>;
+        if self.cue_gain != 1.0 {
+            sample = scaled(&sample, self.cue_gain);
+            faded = preview.iter().map(|c| scaled(c, self.cue_gain)).collect();
+            preview = &faded;
+        }
         let reference = self
             .reference
             .step(&aircraft.delta_f_mps2(), &aircraft.angular_velocity_radps);
@@ -259,6 +359,11 @@ impl Engine {
             _ => self.lanes.iter_mut().map(|lane| ctx.step(lane)).collect(),
         };
         self.k += 1;
+        w.start += 1;
+        if w.start > self.preview_len {
+            w.cues.drain(..w.start);
+            w.start = 0;
+        }
         Some(Frame {
             k,
             t_s: aircraft.t_s,

@@ -22,6 +22,35 @@ pub struct Summary {
     pub steps: u64,
     pub rate_hz: f64,
     pub algorithms: BTreeMap<String, AlgorithmSummary>,
+    /// A live session's real-time record (`hexcue live`); absent for a playback.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub live: Option<LiveSummary>,
+}
+
+/// How a live session kept time (`hexcue live`, docs/live.md).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LiveSummary {
+    /// Datagrams that carried a sample.
+    pub samples_in: u64,
+    /// Commands sent (one a step, to every output).
+    pub commands_out: u64,
+    /// Steps whose command left later than one period after the step was due.
+    pub deadline_misses: u64,
+    /// From the step's start to its command being sent (ms).
+    pub step_ms: Quantiles,
+    /// From the arrival of the newest sample a command uses to that command being sent (ms),
+    /// over the steps with fresh input.
+    pub latency_ms: Quantiles,
+    /// Time without fresh input (or with the simulator paused) after the first sample (s).
+    pub input_lost_s: f64,
+    /// Datagrams refused and ignored.
+    pub malformed: u64,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Quantiles {
+    pub median: f64,
+    pub p99: f64,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -180,6 +209,7 @@ impl SummaryBuilder {
             steps: self.steps,
             rate_hz: self.rate_hz,
             algorithms,
+            live: None,
         }
     }
 }

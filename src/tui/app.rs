@@ -73,6 +73,8 @@ pub struct App {
     pub help: bool,
     pub theme: Theme,
     pub legs: LegScale,
+    /// A live session's header (`hexcue live`); `None` for playback and review.
+    pub live: Option<super::live::LiveStatus>,
     quit: Option<&'static str>,
 }
 
@@ -85,6 +87,7 @@ impl App {
             help: false,
             theme,
             legs: LegScale::of(profile),
+            live: None,
             quit: None,
         }
     }

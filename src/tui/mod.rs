@@ -11,6 +11,7 @@
 //! The CLI calls [`run_live`] and [`run_review`]; see `docs/console.md` for the layout and keys.
 
 pub mod app;
+pub mod live;
 pub mod player;
 pub mod theme;
 mod time;
@@ -35,12 +36,7 @@ pub use app::{App, UiEvent};
 pub use player::{Command, Snapshot};
 pub use theme::Theme;
 
-/// Where recorded frames go (the MCAP recorder implements it).
-pub trait FrameSink: Send {
-    fn record(&mut self, frame: &Frame) -> anyhow::Result<()>;
-    /// Closes the file; returns a line for the user (typically the path and what was written).
-    fn finish(self: Box<Self>) -> anyhow::Result<String>;
-}
+pub use crate::sinks::FrameSink;
 
 /// What the console asks a [`SinkFactory`] for when a recording starts.
 #[derive(Clone, Debug, PartialEq)]
@@ -89,7 +85,8 @@ pub trait FrameSource: Send {
 
 impl FrameSource for Engine {
     fn len(&self) -> usize {
-        self.trace().len()
+        // A stream of unknown length has, for the player, the steps taken so far.
+        self.known_len().unwrap_or_else(|| self.position())
     }
     fn position(&self) -> usize {
         Engine::position(self)
