@@ -260,7 +260,7 @@ pub fn load_session(args: &PlayArgs) -> Result<Session> {
 }
 
 /// The profile (with its TOML) and the algorithms of a play session.
-fn load_play(args: &PlayArgs) -> Result<(Profile, String, Vec<AlgorithmId>)> {
+pub fn load_play(args: &PlayArgs) -> Result<(Profile, String, Vec<AlgorithmId>)> {
     let (mut profile, profile_toml) = match &args.profile {
         Some(path) => load_profile(path)?,
         None => (default_profile(), DEFAULT_PROFILE_TOML.to_string()),

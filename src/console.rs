@@ -3,13 +3,12 @@
 
 use std::io::IsTerminal;
 use std::path::Path;
-use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 
-use crate::cli::{load_session, recording_meta, PlayArgs};
+use crate::cli::{load_play, open_play_source, PlayArgs};
 use crate::engine::Frame;
-use crate::formats::recording::{Recorder, Recording};
+use crate::formats::recording::{Recorder, Recording, RecordingMeta};
 use crate::tui::{self, FrameSink, LiveConfig, RecordedFrames, ReviewConfig, SessionInfo};
 
 /// An MCAP recorder as the console's frame sink.
@@ -58,14 +57,36 @@ fn exit_for_signal(signal: Option<&str>) -> Result<()> {
 
 pub fn run_live(args: &PlayArgs) -> Result<()> {
     require_terminal()?;
-    let session = load_session(args)?;
-    let meta = recording_meta(&session);
-    let trace = Arc::new(session.trace.trace.clone());
-    let mut cfg = LiveConfig::new(session.profile.clone(), trace, session.algorithms.clone());
+    let (profile, profile_toml, algorithms) = load_play(args)?;
+    let play = open_play_source(args, profile.rate_hz)?;
+    let info = SessionInfo::for_flight(&play.name, play.info.as_ref(), &profile);
+    let mut meta = RecordingMeta {
+        profile_name: profile.name.clone(),
+        profile_toml,
+        trace_name: play.name.clone(),
+        trace_csv: String::new(),
+        trace_sidecar: play
+            .info
+            .as_ref()
+            .and_then(|i| serde_json::to_string_pretty(i).ok()),
+        algorithms: algorithms.clone(),
+        rate_hz: profile.rate_hz,
+    };
+    let trace_path = args.trace.clone();
+    let mut cfg = LiveConfig::streaming(profile, play.source, info, algorithms);
     cfg.record = args.record.clone();
     let factory: tui::SinkFactory = Box::new(move |request: &tui::RecordingRequest| {
-        let recorder = Recorder::create(&request.path, &meta)?;
-        Ok(Box::new(McapSink { recorder }) as Box<dyn FrameSink>)
+        // The trace's text is read for the attachment only while a recording starts.
+        meta.trace_csv = match &trace_path {
+            Some(t) => std::fs::read_to_string(t)
+                .with_context(|| format!("{}: cannot read the trace", t.display()))?,
+            None => crate::formats::trace::DEFAULT_TRACE_CSV.to_string(),
+        };
+        let recorder = Recorder::create(&request.path, &meta);
+        meta.trace_csv = String::new();
+        Ok(Box::new(McapSink {
+            recorder: recorder?,
+        }) as Box<dyn FrameSink>)
     });
     let outcome = tui::run_live(cfg, factory)?;
     exit_for_signal(outcome.signal)

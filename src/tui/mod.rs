@@ -166,7 +166,16 @@ pub struct SessionInfo {
 
 impl SessionInfo {
     pub fn for_trace(trace: &Trace, profile: &Profile) -> Self {
-        let (description, events) = match &trace.info {
+        Self::for_flight(&trace.name, trace.info.as_ref(), profile)
+    }
+
+    /// From a flight's name and sidecar, when the flight itself is streamed.
+    pub fn for_flight(
+        name: &str,
+        info: Option<&crate::trace::TraceInfo>,
+        profile: &Profile,
+    ) -> Self {
+        let (description, events) = match info {
             Some(info) => {
                 let words: Vec<&str> = [&info.aircraft, &info.scenario]
                     .into_iter()
@@ -180,7 +189,7 @@ impl SessionInfo {
             None => (None, Vec::new()),
         };
         SessionInfo {
-            trace_name: trace.name.clone(),
+            trace_name: name.to_string(),
             description,
             events,
             profile_name: profile.name.clone(),
@@ -192,7 +201,9 @@ impl SessionInfo {
 /// How to start a live session.
 pub struct LiveConfig {
     pub profile: Profile,
-    pub trace: Arc<Trace>,
+    /// The flight, streamed: seeking back rewinds it and replays from the start.
+    pub source: Box<dyn crate::source::SampleSource>,
+    pub info: SessionInfo,
     /// In any order: the console shows them in the order of [`AlgorithmId::ALL`].
     pub algorithms: Vec<AlgorithmId>,
     /// `--record FILE`: start recording into this file at once.
@@ -204,9 +215,22 @@ pub struct LiveConfig {
 
 impl LiveConfig {
     pub fn new(profile: Profile, trace: Arc<Trace>, algorithms: Vec<AlgorithmId>) -> Self {
+        let info = SessionInfo::for_trace(&trace, &profile);
+        let source = Box::new(crate::source::TraceSamples::new(trace));
+        Self::streaming(profile, source, info, algorithms)
+    }
+
+    /// A session on a streamed flight (a trace file read as it is played).
+    pub fn streaming(
+        profile: Profile,
+        source: Box<dyn crate::source::SampleSource>,
+        info: SessionInfo,
+        algorithms: Vec<AlgorithmId>,
+    ) -> Self {
         LiveConfig {
             profile,
-            trace,
+            source,
+            info,
             algorithms,
             record: None,
             recordings_dir: PathBuf::from("recordings"),
@@ -238,9 +262,9 @@ pub struct Outcome {
 /// Runs the live console on the real terminal until the user quits or a signal arrives. Every
 /// recording is finished on the way out, and the terminal restored, whatever happens.
 pub fn run_live(cfg: LiveConfig, sink_factory: SinkFactory) -> anyhow::Result<Outcome> {
-    let engine = Engine::new(&cfg.profile, cfg.trace.clone(), &cfg.algorithms)
+    let engine = Engine::with_source(&cfg.profile, cfg.source, &cfg.algorithms)
         .context("building the algorithms")?;
-    let info = SessionInfo::for_trace(&cfg.trace, &cfg.profile);
+    let info = cfg.info;
     let recording = player::RecordingSetup {
         factory: sink_factory,
         first_path: cfg.record,
