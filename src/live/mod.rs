@@ -353,3 +353,72 @@ pub fn run(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::profile::tests::full_flight;
+    use crate::sources::jsbsim::Jsbsim;
+    use crate::sources::live::Endpoint;
+
+    fn session() -> (LiveSession, std::net::SocketAddr) {
+        let input = LiveInput::with_decoder(
+            "jsbsim://127.0.0.1:0",
+            Box::new(Jsbsim::default()),
+            Endpoint::Listen("127.0.0.1:0".parse().unwrap()),
+        )
+        .unwrap();
+        let addr = input.local_addr().unwrap();
+        let profile = live_profile(&full_flight());
+        let s = LiveSession::new(
+            &profile,
+            &[AlgorithmId::Cwf],
+            AlgorithmId::Cwf,
+            input,
+            SafetyParams::default(),
+        )
+        .unwrap();
+        (s, addr)
+    }
+
+    #[test]
+    fn a_flood_is_read_a_bounded_amount_a_step_and_counted() {
+        let (mut s, addr) = session();
+        let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        // Two steps' budgets (as many as the socket's default buffer surely holds; a real
+        // flood overflows it and the kernel drops the rest), half of them malformed.
+        for k in 0..200 {
+            let line = if k % 2 == 0 {
+                format!("{},1,0,-32.17,0,0,0,0,0,0\n", k as f64 * 0.01)
+            } else {
+                "garbage".to_string()
+            };
+            tx.send_to(line.as_bytes(), addr).unwrap();
+        }
+        std::thread::sleep(Duration::from_millis(50));
+        let mut read = 0;
+        for _ in 0..3 {
+            let r = s.step(Instant::now(), Control::Continue).unwrap();
+            let total = r.stats.samples_in + r.stats.malformed;
+            assert!(total - read <= MAX_READS_PER_STEP as u64, "{total}");
+            read = total;
+        }
+        assert_eq!(read, 200);
+        assert_eq!(s.stats().malformed, 100);
+        assert_eq!(s.stats().commands_out, 3);
+    }
+
+    #[test]
+    fn a_stop_parks_and_every_step_sends_a_command() {
+        let (mut s, _) = session();
+        let mut k = 0;
+        while !s.is_stopped() {
+            let r = s.step(Instant::now(), Control::Stop).unwrap();
+            assert_eq!(r.output.seq, k);
+            assert_eq!(r.output.pose, nalgebra::Vector6::zeros());
+            k += 1;
+            assert!(k < 10);
+        }
+        assert_eq!(s.summary().live.unwrap().commands_out, k);
+    }
+}
