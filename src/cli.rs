@@ -53,6 +53,48 @@ pub enum Command {
     /// Run the Objective Motion Cueing Test (ICAO 9625) on the algorithms: a table, JSON and
     /// one Bode plot per test.
     Omct(OmctArgs),
+    /// Sit between a running simulator and a motion platform: the algorithms side by side on
+    /// the live flight, one of them driving the platform (docs/live.md).
+    Live(LiveArgs),
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct LiveArgs {
+    /// The simulator: jsbsim://HOST:PORT (listen where JSBSim's socket output sends),
+    /// flightgear://HOST:PORT (listen for FlightGear's generic protocol) or
+    /// xplane://HOST:PORT (X-Plane's address; hexcue subscribes to its datarefs).
+    #[arg(long, value_name = "URL")]
+    pub input: String,
+    /// Where every step's command goes, any number of times: udp://HOST:PORT (hexcue's JSON
+    /// datagram) or moog://HOST:PORT (Moog 6DOF2000E DOF mode).
+    #[arg(long, value_name = "URL")]
+    pub output: Vec<String>,
+    /// The algorithm whose command drives the platform.
+    #[arg(long, value_name = "ALG", default_value = "smpc", value_parser = ["smpc", "mpc", "cwf"])]
+    pub drive: String,
+    /// Algorithms to run side by side, comma-separated (the driving one among them): smpc
+    /// (or s-mpc), mpc, cwf.
+    #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = DEFAULT_ALGORITHMS)]
+    pub algorithms: Vec<String>,
+    /// Simulator profile (TOML). Default: the embedded profiles/full-flight.toml.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+    /// Record the session to this MCAP file, its input as the trace; `review` opens it
+    /// (refused if it exists, unless --force).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
+    /// Overwrite the --record and --summary files if they exist.
+    #[arg(long)]
+    pub force: bool,
+    /// Run without the console, until --duration, SIGINT or SIGTERM; print the summary.
+    #[arg(long)]
+    pub headless: bool,
+    /// With --headless: stop after this many seconds (washout to neutral, park, exit).
+    #[arg(long, value_name = "S")]
+    pub duration: Option<f64>,
+    /// With --headless: write the session's summary as JSON to this file.
+    #[arg(long, value_name = "FILE.json")]
+    pub summary: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -341,24 +383,67 @@ pub struct Session {
 }
 
 pub fn load_session(args: &PlayArgs) -> Result<Session> {
-    let (profile, profile_toml) = match &args.profile {
-        Some(path) => load_profile(path)?,
-        None => (default_profile(), DEFAULT_PROFILE_TOML.to_string()),
-    };
+    let (profile, profile_toml, algorithms) = load_play(args)?;
     let trace = match &args.trace {
         Some(path) => load_trace(path, profile.rate_hz)?,
         None => default_trace(profile.rate_hz),
     };
-    let algorithms = parse_algorithms(&args.algorithms)?;
-    let mut profile = profile;
-    if args.preview {
-        profile.mpc.reference = crate::mca::mpc::params::ReferenceMode::Preview;
-    }
     Ok(Session {
         profile,
         profile_toml,
         trace,
         algorithms,
+    })
+}
+
+/// The profile (with its TOML) and the algorithms of a play session.
+pub fn load_play(args: &PlayArgs) -> Result<(Profile, String, Vec<AlgorithmId>)> {
+    let (mut profile, profile_toml) = match &args.profile {
+        Some(path) => load_profile(path)?,
+        None => (default_profile(), DEFAULT_PROFILE_TOML.to_string()),
+    };
+    let algorithms = parse_algorithms(&args.algorithms)?;
+    if args.preview {
+        profile.mpc.reference = crate::mca::mpc::params::ReferenceMode::Preview;
+    }
+    Ok((profile, profile_toml, algorithms))
+}
+
+/// A play session's samples, streamed from the trace file (or the embedded trace), with
+/// what the user is told about it.
+pub struct PlaySource {
+    pub source: Box<dyn crate::source::SampleSource>,
+    pub name: String,
+    pub len: usize,
+    pub notices: Vec<String>,
+    pub info: Option<crate::trace::TraceInfo>,
+}
+
+/// Opens `--trace` as a stream: checked whole on a first pass, then read as it is stepped, so
+/// memory does not grow with its length (docs/performance.md).
+pub fn open_play_source(args: &PlayArgs, rate_hz: f64) -> Result<PlaySource> {
+    Ok(match &args.trace {
+        Some(path) => {
+            let file = crate::sources::trace_file::TraceFile::open(path, rate_hz)?;
+            let plan = file.plan().clone();
+            PlaySource {
+                source: Box::new(file),
+                name: plan.name,
+                len: plan.len,
+                notices: plan.notices,
+                info: plan.info,
+            }
+        }
+        None => {
+            let trace = default_trace(rate_hz).trace;
+            PlaySource {
+                name: trace.name.clone(),
+                len: trace.len(),
+                notices: trace.notices.clone(),
+                info: trace.info.clone(),
+                source: Box::new(crate::source::TraceSamples::new(Arc::new(trace))),
+            }
+        }
     })
 }
 
@@ -395,19 +480,40 @@ fn install_stop_flag() -> Result<Arc<AtomicBool>> {
 }
 
 pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
-    let session = load_session(args)?;
-    for notice in &session.trace.trace.notices {
-        eprintln!("note: {}: {notice}", session.trace.trace.name);
+    let (profile, profile_toml, algorithms) = load_play(args)?;
+    let play = open_play_source(args, profile.rate_hz)?;
+    for notice in &play.notices {
+        eprintln!("note: {}: {notice}", play.name);
     }
-    let trace = Arc::new(session.trace.trace.clone());
-    let mut engine = Engine::new(&session.profile, trace.clone(), &session.algorithms)?;
+    let (name, len) = (play.name.clone(), play.len);
     let mut recorder = match &args.record {
-        Some(path) => Some(Recorder::create(path, &recording_meta(&session))?),
+        Some(path) => {
+            // The attachment is the trace's text as read; it is held only while written.
+            let trace_csv = match &args.trace {
+                Some(t) => std::fs::read_to_string(t)
+                    .with_context(|| format!("{}: cannot read the trace", t.display()))?,
+                None => crate::formats::trace::DEFAULT_TRACE_CSV.to_string(),
+            };
+            let meta = RecordingMeta {
+                profile_name: profile.name.clone(),
+                profile_toml,
+                trace_name: name.clone(),
+                trace_csv,
+                trace_sidecar: play
+                    .info
+                    .as_ref()
+                    .and_then(|i| serde_json::to_string_pretty(i).ok()),
+                algorithms: algorithms.clone(),
+                rate_hz: profile.rate_hz,
+            };
+            Some(Recorder::create(path, &meta)?)
+        }
         None => None,
     };
-    let mut summary = SummaryBuilder::new(&session.profile, &trace.name);
+    let mut engine = Engine::with_source(&profile, play.source, &algorithms)?;
+    let mut summary = SummaryBuilder::new(&profile, &name);
     let progress = if std::io::stderr().is_terminal() {
-        let bar = indicatif::ProgressBar::new(trace.len() as u64);
+        let bar = indicatif::ProgressBar::new(len as u64);
         bar.set_style(
             indicatif::ProgressStyle::with_template(
                 "{spinner} {msg} [{bar:40}] {pos}/{len} steps ({rate}, {eta} left)",
@@ -421,7 +527,7 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
                 },
             ),
         );
-        bar.set_message(trace.name.clone());
+        bar.set_message(name.clone());
         Some(bar)
     } else {
         None
@@ -453,21 +559,128 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
             .with_context(|| format!("{}: cannot finish the recording", path.display()))?;
         eprintln!("recorded {} ({} messages)", path.display(), stats.messages);
     }
+    if let Some(e) = engine.source_error() {
+        bail!("{e}");
+    }
     let summary = summary.finish();
     if let Some(line) = summary.clipping_line() {
         eprintln!(
             "note: {}: input clipped by the profile's [input] limits (±{} m/s², ±{}°/s), \
              samples per axis: {line}",
-            trace.name,
-            session.profile.input.specific_force_limit_mps2,
-            session.profile.input.angular_velocity_limit_dps
+            name, profile.input.specific_force_limit_mps2, profile.input.angular_velocity_limit_dps
         );
     }
     if interrupted {
         eprintln!(
             "stopped by a signal after {} of {} steps; the summary covers those",
-            summary.steps,
-            trace.len()
+            summary.steps, len
+        );
+    }
+    Ok(summary)
+}
+
+/// A live session, ready to run: profile (with its TOML) and the session itself.
+pub struct LiveSetup {
+    pub profile: Profile,
+    pub session: crate::live::LiveSession,
+}
+
+/// Opens the input, the outputs and the recording of `hexcue live`.
+pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
+    use crate::live::{live_profile, recording::LiveRecording, LiveSession};
+    if let Some(d) = args.duration {
+        if !(d.is_finite() && d > 0.0) {
+            bail!("--duration {d}: expected a positive number of seconds");
+        }
+        if !args.headless {
+            bail!("--duration goes with --headless");
+        }
+    }
+    let (profile, profile_toml) = match &args.profile {
+        Some(path) => load_profile(path)?,
+        None => (default_profile(), DEFAULT_PROFILE_TOML.to_string()),
+    };
+    let profile = live_profile(&profile);
+    let algorithms = parse_algorithms(&args.algorithms)?;
+    let drive = AlgorithmId::from_key(&args.drive)
+        .with_context(|| format!("--drive {}: expected smpc, mpc or cwf", args.drive))?;
+    let input = crate::sources::live::LiveInput::open(&args.input)?;
+    let mut session = LiveSession::new(
+        &profile,
+        &algorithms,
+        drive,
+        input,
+        crate::safety::SafetyParams::default(),
+    )?;
+    for url in &args.output {
+        session.add_output(crate::sinks::open_output(url)?);
+    }
+    if let Some(path) = &args.record {
+        session.add_frame_sink(Box::new(LiveRecording::create(
+            path,
+            &profile.name,
+            &profile_toml,
+            &args.input,
+            &algorithms,
+            drive,
+            profile.rate_hz,
+        )?));
+    }
+    Ok(LiveSetup { profile, session })
+}
+
+pub fn run_live_headless(args: &LiveArgs) -> Result<Summary> {
+    use crate::live::Control;
+    let LiveSetup {
+        profile,
+        mut session,
+    } = live_setup(args)?;
+    let stop = install_stop_flag()?;
+    let outputs = if args.output.is_empty() {
+        "no output".to_string()
+    } else {
+        args.output.join(", ")
+    };
+    eprintln!(
+        "live: {} → {outputs}; {} drives, {} Hz; SIGINT or SIGTERM to stop",
+        args.input,
+        session.drive().label(),
+        profile.rate_hz
+    );
+    let started = std::time::Instant::now();
+    let duration = args.duration.map(std::time::Duration::from_secs_f64);
+    crate::live::run(
+        &mut session,
+        |_| {
+            let over = duration.is_some_and(|d| started.elapsed() >= d);
+            if over || stop.load(Ordering::Relaxed) {
+                Control::Stop
+            } else {
+                Control::Continue
+            }
+        },
+        |report| {
+            for event in report.events {
+                let level = match event.level {
+                    crate::live::EventLevel::Info => "",
+                    crate::live::EventLevel::Warning => "warning: ",
+                    crate::live::EventLevel::Error => "error: ",
+                };
+                eprintln!("live: t {:.2} s: {level}{}", event.t_s, event.text);
+            }
+        },
+    )?;
+    let (summary, lines) = session.finish()?;
+    for line in lines {
+        eprintln!("{line}");
+    }
+    if let Some(line) = summary.clipping_line() {
+        eprintln!(
+            "note: {}: input clipped by the profile's [input] limits (±{} m/s², ±{}°/s), \
+             samples per axis: {line}",
+            args.input,
+            profile.input.specific_force_limit_mps2,
+            profile.input.angular_velocity_limit_dps
         );
     }
     Ok(summary)
@@ -559,6 +772,24 @@ pub fn format_table(s: &Summary) -> String {
             name,
             dofs.join(", ")
         ));
+    }
+    if let Some(l) = &s.live {
+        out.push_str(&format!(
+            "\nlive: {} samples in, {} commands out, {} deadline misses, step median {:.3} ms p99 {:.3} ms, \
+             latency median {:.3} ms p99 {:.3} ms, input lost {:.2} s, {} malformed\n",
+            l.samples_in,
+            l.commands_out,
+            l.deadline_misses,
+            l.step_ms.median,
+            l.step_ms.p99,
+            l.latency_ms.median,
+            l.latency_ms.p99,
+            l.input_lost_s,
+            l.malformed
+        ));
+        if let Some(w) = &l.unit_warning {
+            out.push_str(&format!("live: warning: {w}\n"));
+        }
     }
     out
 }
@@ -675,6 +906,25 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Compare(args) => run_compare(&args),
         Command::Plot(args) => run_plot(&args),
         Command::Omct(args) => run_omct(&args),
+        Command::Live(args) => {
+            check_distinct(
+                args.record.as_deref(),
+                args.summary.as_deref(),
+                "--record and --summary",
+            )?;
+            if let Some(path) = &args.record {
+                check_output(path, args.force, "--record")?;
+            }
+            if let (Some(path), true) = (&args.summary, args.headless) {
+                check_output(path, args.force, "--summary")?;
+            }
+            headless_or_console(
+                args.headless,
+                args.summary.as_deref(),
+                || run_live_headless(&args),
+                || crate::console::run_live_session(&args),
+            )
+        }
         Command::Recover {
             input,
             output,

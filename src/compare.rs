@@ -388,6 +388,7 @@ mod tests {
                 rate_hz: 100.0,
                 algorithms,
                 input_clipped: BTreeMap::new(),
+                live: None,
             },
             description: Some("a test".into()),
         }

@@ -2,13 +2,12 @@
 //! recordings as the console's frame sink, and recordings as its frame source for review.
 
 use std::io::IsTerminal;
-use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 
-use crate::cli::{load_session, recording_meta, PlayArgs, ReviewArgs};
+use crate::cli::{load_play, open_play_source, PlayArgs, ReviewArgs};
 use crate::engine::Frame;
-use crate::formats::recording::{Recorder, Recording};
+use crate::formats::recording::{Recorder, Recording, RecordingMeta};
 use crate::tui::{self, FrameSink, LiveConfig, RecordedFrames, ReviewConfig, SessionInfo};
 
 /// An MCAP recorder as the console's frame sink.
@@ -57,17 +56,39 @@ fn exit_for_signal(signal: Option<&str>) -> Result<()> {
 
 pub fn run_live(args: &PlayArgs) -> Result<()> {
     require_terminal()?;
-    let session = load_session(args)?;
-    let meta = recording_meta(&session);
-    let trace = Arc::new(session.trace.trace.clone());
-    let mut cfg = LiveConfig::new(session.profile.clone(), trace, session.algorithms.clone());
+    let (profile, profile_toml, algorithms) = load_play(args)?;
+    let play = open_play_source(args, profile.rate_hz)?;
+    let info = SessionInfo::described(&play.name, play.info.as_ref(), &profile.name);
+    let mut meta = RecordingMeta {
+        profile_name: profile.name.clone(),
+        profile_toml,
+        trace_name: play.name.clone(),
+        trace_csv: String::new(),
+        trace_sidecar: play
+            .info
+            .as_ref()
+            .and_then(|i| serde_json::to_string_pretty(i).ok()),
+        algorithms: algorithms.clone(),
+        rate_hz: profile.rate_hz,
+    };
+    let trace_path = args.trace.clone();
+    let mut cfg = LiveConfig::streaming(profile, play.source, info, algorithms);
     cfg.record = args.record.clone();
     cfg.start_paused = args.start.paused;
     cfg.speed = args.start.speed;
     cfg.looping = args.start.looping;
     let factory: tui::SinkFactory = Box::new(move |request: &tui::RecordingRequest| {
-        let recorder = Recorder::create(&request.path, &meta)?;
-        Ok(Box::new(McapSink { recorder }) as Box<dyn FrameSink>)
+        // The trace's text is read for the attachment only while a recording starts.
+        meta.trace_csv = match &trace_path {
+            Some(t) => std::fs::read_to_string(t)
+                .with_context(|| format!("{}: cannot read the trace", t.display()))?,
+            None => crate::formats::trace::DEFAULT_TRACE_CSV.to_string(),
+        };
+        let recorder = Recorder::create(&request.path, &meta);
+        meta.trace_csv = String::new();
+        Ok(Box::new(McapSink {
+            recorder: recorder?,
+        }) as Box<dyn FrameSink>)
     });
     let outcome = tui::run_live(cfg, factory)?;
     exit_for_signal(outcome.signal)
@@ -104,5 +125,58 @@ pub fn run_review(args: &ReviewArgs) -> Result<()> {
         speed: args.start.speed,
         looping: args.start.looping,
     })?;
+    exit_for_signal(outcome.signal)
+}
+
+/// `hexcue live` in the console: the session on its clock thread, the screen and keys here.
+/// Signals (SIGINT, SIGTERM, SIGHUP) stop it as `e` does: washout, park, then exit.
+pub fn run_live_session(args: &crate::cli::LiveArgs) -> Result<()> {
+    require_terminal()?;
+    let setup = crate::cli::live_setup(args)?;
+    let info = SessionInfo {
+        trace_name: args.input.clone(),
+        description: None,
+        events: Vec::new(),
+        profile_name: setup.profile.name.clone(),
+        review_of: None,
+    };
+    let mut signals = signal_hook::iterator::Signals::new([
+        signal_hook::consts::SIGTERM,
+        signal_hook::consts::SIGHUP,
+        signal_hook::consts::SIGINT,
+    ])
+    .context("installing signal handlers")?;
+    let handle = signals.handle();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let forwarder = std::thread::spawn(move || {
+        for sig in signals.forever() {
+            if tx.send(sig).is_err() {
+                break;
+            }
+        }
+    });
+    let mut terminal = ratatui::try_init().context("opening the terminal")?;
+    let mut events = tui::live::TerminalEvents { signals: rx };
+    let outcome = tui::live::run(
+        &mut terminal,
+        &mut events,
+        tui::live::LiveConsole {
+            session: setup.session,
+            profile: setup.profile,
+            info,
+            outputs: args.output.clone(),
+            recording: args.record.as_ref().map(|p| p.display().to_string()),
+            theme: tui::Theme::from_env(),
+        },
+    );
+    let _ = terminal.clear();
+    ratatui::restore();
+    handle.close();
+    let _ = forwarder.join();
+    let outcome = outcome?;
+    for line in &outcome.lines {
+        eprintln!("{line}");
+    }
+    eprint!("{}", crate::cli::format_table(&outcome.summary));
     exit_for_signal(outcome.signal)
 }

@@ -1,7 +1,10 @@
-//! The engine: steps a trace through the aircraft reference model and every algorithm, each
-//! followed by the workspace limiter and judged by the same perception model (DESIGN §4–5).
-//! It produces one [`Frame`] per step: what the recorder writes and the console shows.
+//! The engine: steps aircraft samples from a [`SampleSource`] through the aircraft reference
+//! model and every algorithm, each followed by the workspace limiter and judged by the same
+//! perception model (DESIGN §4–5). It produces one [`Frame`] per step: what the recorder
+//! writes, the console shows and a live session sends to the platform. It holds only the
+//! samples its algorithms may preview, never the whole flight.
 
+use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -15,6 +18,7 @@ use crate::mca::{
 use crate::model::stewart::{head_motion, Stewart};
 use crate::model::vestibular::{Perceived, Vestibular};
 use crate::profile::Profile;
+use crate::source::{SampleSource, SourceError, TraceSamples};
 use crate::trace::{AircraftSample, Trace};
 
 /// How far ahead the engine offers the trace to algorithms that preview it (s).
@@ -129,14 +133,29 @@ impl EngineSnapshot {
     }
 }
 
-/// Steps a trace, sample by sample, through every chosen algorithm.
+/// The samples read from the source but not yet stepped: the current one and, when the source
+/// can read ahead, up to [`PREVIEW_HORIZON_S`] after it.
+struct Window {
+    aircraft: VecDeque<AircraftSample>,
+    /// The same samples as the algorithms see them, contiguous so that the preview is a
+    /// slice; `start` is the current one. Drained once per horizon, not every step.
+    cues: Vec<CueSample>,
+    start: usize,
+    /// The source has said it has no more.
+    exhausted: bool,
+}
+
+/// Steps samples from a source, one at a time, through every chosen algorithm.
 pub struct Engine {
     profile: Profile,
-    trace: Arc<Trace>,
+    source: Box<dyn SampleSource>,
+    source_error: Option<SourceError>,
     stewart: Stewart,
     eye_m: Vector3<f64>,
-    inputs: Vec<CueSample>,
+    window: Window,
     preview_len: usize,
+    /// Scales the cue every algorithm sees (1 unless a live session fades it in or out).
+    cue_gain: f64,
     reference: Vestibular,
     lanes: Vec<Lane>,
     /// Step lanes on two threads (on unless set otherwise).
@@ -154,11 +173,28 @@ pub fn cue_sample(profile: &Profile, s: &AircraftSample) -> CueSample {
     }
 }
 
+/// A cue scaled by `gain`: the aircraft's motion from rest, faded.
+fn scaled(c: &CueSample, gain: f64) -> CueSample {
+    CueSample {
+        delta_f_mps2: c.delta_f_mps2 * gain,
+        angular_velocity_radps: c.angular_velocity_radps * gain,
+    }
+}
+
 impl Engine {
     /// An engine at the start of `trace`, which must be at the profile's rate.
     pub fn new(
         profile: &Profile,
         trace: Arc<Trace>,
+        algorithms: &[AlgorithmId],
+    ) -> Result<Self, BuildError> {
+        Self::with_source(profile, Box::new(TraceSamples::new(trace)), algorithms)
+    }
+
+    /// An engine at the start of `source`, whose samples must be at the profile's rate.
+    pub fn with_source(
+        profile: &Profile,
+        source: Box<dyn SampleSource>,
         algorithms: &[AlgorithmId],
     ) -> Result<Self, BuildError> {
         let dt = profile.dt_s();
@@ -178,18 +214,20 @@ impl Engine {
                 })
             })
             .collect::<Result<Vec<_>, BuildError>>()?;
-        let inputs = trace
-            .samples
-            .iter()
-            .map(|s| cue_sample(profile, s))
-            .collect();
         Ok(Engine {
             profile: profile.clone(),
             preview_len: (PREVIEW_HORIZON_S * profile.rate_hz).ceil() as usize,
-            trace,
+            source,
+            source_error: None,
             stewart,
             eye_m: profile.eye_point(),
-            inputs,
+            window: Window {
+                aircraft: VecDeque::new(),
+                cues: Vec::new(),
+                start: 0,
+                exhausted: false,
+            },
+            cue_gain: 1.0,
             reference: Vestibular::new(&profile.vestibular, dt),
             // Threads pay off only when some lane is expensive: the MPCs.
             parallel: algorithms.iter().any(|a| *a != AlgorithmId::Cwf),
@@ -202,8 +240,26 @@ impl Engine {
         &self.profile
     }
 
-    pub fn trace(&self) -> &Arc<Trace> {
-        &self.trace
+    /// Name of the flight (the trace's, or the live input's).
+    pub fn source_name(&self) -> &str {
+        self.source.name()
+    }
+
+    /// Steps in the whole flight, when the source knows it.
+    pub fn known_len(&self) -> Option<usize> {
+        self.source.known_len()
+    }
+
+    /// Why the source stopped early, if it did: the run ended there.
+    pub fn source_error(&self) -> Option<&SourceError> {
+        self.source_error.as_ref()
+    }
+
+    /// Scales the aircraft cue every algorithm sees, from 0 (the aircraft at rest) to 1 (as
+    /// flown). A live session fades it in and out; the reference model always sees the
+    /// aircraft as flown.
+    pub fn set_cue_gain(&mut self, gain: f64) {
+        self.cue_gain = gain.clamp(0.0, 1.0);
     }
 
     pub fn algorithms(&self) -> Vec<AlgorithmId> {
@@ -216,13 +272,29 @@ impl Engine {
     }
 
     pub fn is_finished(&self) -> bool {
-        self.k >= self.trace.len()
+        self.window.exhausted && self.window.aircraft.is_empty()
     }
 
-    /// Back to the start of the trace, every model at rest.
+    /// Back to the start of the flight, every model at rest. A source that cannot rewind
+    /// (a live stream) ends the run, with its reason in [`Engine::source_error`].
     pub fn reset(&mut self) {
         self.k = 0;
         self.reference.reset();
+        self.reset_lanes();
+        self.window.aircraft.clear();
+        self.window.cues.clear();
+        self.window.start = 0;
+        self.window.exhausted = false;
+        self.source_error = None;
+        if let Err(e) = self.source.rewind() {
+            self.window.exhausted = true;
+            self.source_error = Some(e);
+        }
+    }
+
+    /// Every algorithm and its limiter back to rest at neutral, without touching the source:
+    /// a live session does this before it fades the cue in again.
+    pub fn reset_lanes(&mut self) {
         for lane in &mut self.lanes {
             lane.algorithm.reset();
             lane.limiter.reset();
@@ -252,9 +324,13 @@ impl Engine {
     }
 
     /// Returns to a snapshot this engine took; false, and the engine left as it was or reset,
-    /// if the snapshot does not fit (another engine's).
+    /// if the snapshot does not fit (another engine's) or the source cannot seek back to it
+    /// (a live stream).
     pub fn restore(&mut self, s: &EngineSnapshot) -> bool {
-        if s.lanes.len() != self.lanes.len() || s.k > self.trace.len() {
+        if s.lanes.len() != self.lanes.len()
+            || self.source.known_len().is_some_and(|n| s.k > n)
+            || !self.source.can_seek()
+        {
             return false;
         }
         for (lane, (algorithm, limiter, vestibular)) in self.lanes.iter_mut().zip(&s.lanes) {
@@ -265,19 +341,57 @@ impl Engine {
             lane.limiter.clone_from(limiter);
             lane.vestibular.clone_from(vestibular);
         }
+        // The window is read again from the snapshot's sample on.
+        self.window.aircraft.clear();
+        self.window.cues.clear();
+        self.window.start = 0;
+        self.window.exhausted = false;
+        self.source_error = None;
+        if self.source.seek(s.k).is_err() {
+            self.reset();
+            return false;
+        }
         self.reference.clone_from(&s.reference);
         self.k = s.k;
         true
     }
 
-    /// Steps one sample; `None` once the trace is over.
+    /// Reads the source until the window holds the current sample and the preview after it.
+    fn fill_window(&mut self) {
+        let want = if self.source.can_read_ahead() {
+            1 + self.preview_len
+        } else {
+            1
+        };
+        while self.window.aircraft.len() < want && !self.window.exhausted {
+            match self.source.next_sample() {
+                Ok(Some(s)) => {
+                    self.window.aircraft.push_back(s);
+                    self.window.cues.push(cue_sample(&self.profile, &s));
+                }
+                Ok(None) => self.window.exhausted = true,
+                Err(e) => {
+                    self.window.exhausted = true;
+                    self.source_error = Some(e);
+                }
+            }
+        }
+    }
+
+    /// Steps one sample; `None` once the flight is over (or its source failed).
     pub fn step(&mut self) -> Option<Frame> {
+        self.fill_window();
         let k = self.k;
-        let aircraft = *self.trace.samples.get(k)?;
+        let aircraft = self.window.aircraft.pop_front()?;
         let dt = self.profile.dt_s();
-        let sample = self.inputs[k];
-        let preview = &self.inputs
-            [(k + 1).min(self.inputs.len())..(k + 1 + self.preview_len).min(self.inputs.len())];
+        let w = &mut self.window;
+        let (mut sample, mut preview) = (w.cues[w.start], &w.cues[w.start + 1..]);
+        let faded: Vec<CueSample>;
+        if self.cue_gain != 1.0 {
+            sample = scaled(&sample, self.cue_gain);
+            faded = preview.iter().map(|c| scaled(c, self.cue_gain)).collect();
+            preview = &faded;
+        }
         let reference = self
             .reference
             .step(&aircraft.delta_f_mps2(), &aircraft.angular_velocity_radps);
@@ -314,6 +428,11 @@ impl Engine {
             _ => self.lanes.iter_mut().map(|lane| ctx.step(lane)).collect(),
         };
         self.k += 1;
+        w.start += 1;
+        if w.start > self.preview_len {
+            w.cues.drain(..w.start);
+            w.start = 0;
+        }
         Some(Frame {
             k,
             t_s: aircraft.t_s,
@@ -497,6 +616,63 @@ pub(crate) mod tests {
         let mut cwf = Engine::new(&profile, Arc::new(manoeuvre()), &[AlgorithmId::Cwf]).unwrap();
         assert!(!cwf.restore(&snap));
         assert_eq!(cwf.position(), 0);
+    }
+
+    #[test]
+    fn a_streamed_trace_file_restores_a_snapshot_and_a_live_stream_refuses() {
+        let mut profile = full_flight();
+        profile.mpc.time_limit_ms = f64::INFINITY;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("manoeuvre.csv");
+        let mut csv = String::from("t,fx,fy,fz,p,q,r\n");
+        for s in &manoeuvre().samples {
+            let (f, w) = (s.specific_force_mps2, s.angular_velocity_radps);
+            csv += &format!(
+                "{},{},{},{},{},{},{}\n",
+                s.t_s, f.x, f.y, f.z, w.x, w.y, w.z
+            );
+        }
+        std::fs::write(&path, csv).unwrap();
+        let file = crate::sources::trace_file::TraceFile::open(&path, 100.0).unwrap();
+        let algorithms = [AlgorithmId::Mpc, AlgorithmId::Cwf];
+        let mut engine = Engine::with_source(&profile, Box::new(file), &algorithms).unwrap();
+        // Into the pitch doublet (14–16 s).
+        for _ in 0..1450 {
+            engine.step().unwrap();
+        }
+        let snap = engine.snapshot().unwrap();
+        let first: Vec<Frame> = (0..60).map(|_| timeless(engine.step().unwrap())).collect();
+        // Back 60 steps, and back again after the end of the file.
+        assert!(engine.restore(&snap));
+        let again: Vec<Frame> = (0..60).map(|_| timeless(engine.step().unwrap())).collect();
+        assert_replays(&first, &again);
+        while engine.step().is_some() {}
+        assert!(engine.restore(&snap));
+        let after_end: Vec<Frame> = (0..60).map(|_| timeless(engine.step().unwrap())).collect();
+        assert_replays(&first, &after_end);
+        // The same frames as the trace held in memory.
+        let mut held = Engine::new(&profile, Arc::new(manoeuvre()), &algorithms).unwrap();
+        let from_memory: Vec<Frame> = (0..1510)
+            .map(|_| timeless(held.step().unwrap()))
+            .skip(1450)
+            .collect();
+        // (Times differ in the last bit: k / 100 on the file's grid, k · 0.01 in memory.)
+        let motion = |f: &Frame| {
+            let a = f.aircraft;
+            (a.specific_force_mps2, a.angular_velocity_radps)
+        };
+        assert_eq!(
+            first.iter().map(motion).collect::<Vec<_>>(),
+            from_memory.iter().map(motion).collect::<Vec<_>>()
+        );
+
+        let (live, _handle) = crate::source::HeldSample::new("sim", 100.0);
+        let mut live = Engine::with_source(&profile, Box::new(live), &algorithms).unwrap();
+        let at_zero = live.snapshot().unwrap();
+        live.step().unwrap();
+        assert!(!live.restore(&at_zero), "a live stream cannot go back");
+        assert_eq!(live.position(), 1);
+        assert!(live.step().is_some(), "and goes on");
     }
 
     #[test]

@@ -1,7 +1,8 @@
 //! hexcue: motion cueing for 6-DoF Stewart-platform flight simulators.
 //!
-//! The core (`model`, `mca`, `metrics`, `engine`, `profile`, `trace`, `omct`) does no I/O;
-//! `formats`, `plot`, `cli` and `tui` adapt it to files and the terminal. Frames and units: DESIGN.md §1 and
+//! The core (`model`, `mca`, `metrics`, `engine`, `source`, `safety`, `profile`, `trace`,
+//! `omct`) does no I/O; `formats`, `sources`, `sinks`, `live`, `plot`, `cli` and `tui` adapt
+//! it to files, sockets and the terminal. Frames and units: DESIGN.md §1 and
 //! `docs/design.md`.
 
 pub mod cli;
@@ -9,6 +10,7 @@ pub mod compare;
 pub mod console;
 pub mod engine;
 pub mod formats;
+pub mod live;
 pub mod mca;
 pub mod metrics;
 pub mod model;
@@ -16,6 +18,10 @@ pub mod omct;
 pub mod plot;
 pub mod profile;
 pub mod qp;
+pub mod safety;
+pub mod sinks;
+pub mod source;
+pub mod sources;
 pub mod summary;
 pub mod trace;
 pub mod tui;

@@ -26,6 +26,9 @@ pub struct Summary {
     /// (fx, fy, fz as the change from 1 g; p, q, r), before any algorithm saw them.
     #[serde(default)]
     pub input_clipped: BTreeMap<String, u64>,
+    /// A live session's real-time record (`hexcue live`); absent for a playback.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub live: Option<LiveSummary>,
 }
 
 /// The input axes [`Summary::input_clipped`] counts, in the order of `cue_sample`.
@@ -48,6 +51,36 @@ impl Summary {
             .collect();
         (!parts.is_empty()).then(|| parts.join(", "))
     }
+}
+
+/// How a live session kept time (`hexcue live`, docs/live.md).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LiveSummary {
+    /// Datagrams that carried a sample.
+    pub samples_in: u64,
+    /// Commands sent (one a step, to every output).
+    pub commands_out: u64,
+    /// Steps whose command left later than one period after the step was due.
+    pub deadline_misses: u64,
+    /// From the step's start to its command being sent (ms).
+    pub step_ms: Quantiles,
+    /// From the arrival of the newest sample a command uses to that command being sent (ms),
+    /// over the steps with fresh input.
+    pub latency_ms: Quantiles,
+    /// Time without fresh input (or with the simulator paused) after the first sample (s).
+    pub input_lost_s: f64,
+    /// Datagrams refused and ignored.
+    pub malformed: u64,
+    /// The unit or sign mistake the first seconds of input suggest (the checks of a trace
+    /// file, docs/formats.md), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unit_warning: Option<String>,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Quantiles {
+    pub median: f64,
+    pub p99: f64,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -230,6 +263,7 @@ impl SummaryBuilder {
                 .zip(self.input_clipped)
                 .map(|(axis, n)| (axis.to_string(), n))
                 .collect(),
+            live: None,
         }
     }
 }

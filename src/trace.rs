@@ -89,7 +89,7 @@ pub const MAX_TRACE_SAMPLES: usize = 4_000_000;
 
 /// Timestamps within this fraction of a step of the grid count as on it: CSV writers round
 /// time to a few decimals, and that rounding must not trigger an interpolation.
-const GRID_TOLERANCE_STEPS: f64 = 1e-6;
+pub(crate) const GRID_TOLERANCE_STEPS: f64 = 1e-6;
 
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum ResampleError {
@@ -195,7 +195,7 @@ pub fn resample_uniform(
 
 /// Linear interpolation that returns an end point exactly (even −0.0) at w = 0 or 1. Angles
 /// go the short way round, so a heading wrapping from 359° to 1° passes through 0°, not 180°.
-fn lerp3(a: &Vector3<f64>, b: &Vector3<f64>, w: f64, angles: bool) -> Vector3<f64> {
+pub(crate) fn lerp3(a: &Vector3<f64>, b: &Vector3<f64>, w: f64, angles: bool) -> Vector3<f64> {
     Vector3::from_fn(|i, _| {
         let mut d = b[i] - a[i];
         if angles && d.abs() > std::f64::consts::PI {

@@ -38,6 +38,31 @@ fn an_existing_recording_or_summary_is_not_overwritten_without_force() {
 }
 
 #[test]
+fn a_live_session_does_not_overwrite_its_recording_or_summary_without_force() {
+    let dir = tempfile::tempdir().unwrap();
+    for option in ["--record", "--summary"] {
+        let path = dir.path().join(format!("live{option}"));
+        std::fs::write(&path, "precious").unwrap();
+        let out = hexcue(&[
+            "live".as_ref(),
+            "--headless".as_ref(),
+            "--duration".as_ref(),
+            "0.1".as_ref(),
+            "--input".as_ref(),
+            "jsbsim://127.0.0.1:0".as_ref(),
+            option.as_ref(),
+            path.as_os_str(),
+        ]);
+        let err = stderr(&out);
+        assert!(!out.status.success(), "{option} overwrote a file");
+        assert!(err.contains(option) && err.contains("--force"), "{err}");
+        // Refused before the session: it never said it was live.
+        assert!(!err.contains("live: jsbsim"), "{err}");
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "precious");
+    }
+}
+
+#[test]
 fn outputs_are_checked_before_the_run() {
     let dir = tempfile::tempdir().unwrap();
     let mcap = dir.path().join("new.mcap");

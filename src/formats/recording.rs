@@ -502,6 +502,8 @@ pub struct Recorder {
     flushed_t: f64,
     created: Instant,
     buf: Vec<u8>,
+    /// The metadata written at the start; a live session writes it again, completed, at the end.
+    metadata: BTreeMap<String, String>,
 }
 
 impl Recorder {
@@ -544,6 +546,7 @@ impl Recorder {
                 env!("CARGO_PKG_VERSION"),
                 mcap::LIBRARY_IDENTIFIER
             ));
+        let metadata_kept = metadata.clone();
         let mut writer = options
             .create(SessionFile {
                 inner: BufWriter::with_capacity(256 * 1024, file),
@@ -606,6 +609,7 @@ impl Recorder {
             flushed_t: 0.0,
             created: Instant::now(),
             buf: Vec::with_capacity(1024),
+            metadata: metadata_kept,
         };
         for &id in &meta.algorithms {
             recorder.lane_channels(id)?;
@@ -770,6 +774,74 @@ impl Recorder {
 
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// Finishes a recording whose trace was only known at its end (a live session, whose
+    /// input is its trace): attaches `trace_csv` (a file, streamed, not read into memory) and
+    /// writes the metadata again with its SHA-256 and `extra` keys. Readers take the last
+    /// metadata record and attachment of a name, so the file reads like a playback's; a file
+    /// cut short keeps the header-only trace it started with.
+    pub fn finish_with_trace(
+        mut self,
+        trace_csv: &Path,
+        extra: &[(&str, String)],
+    ) -> Result<RecordingStats, RecordingError> {
+        let failed = |action, error| RecordingError::Io {
+            path: trace_csv.display().to_string(),
+            action,
+            error,
+        };
+        let mut hasher = Sha256::new();
+        let mut file = File::open(trace_csv).map_err(|e| failed("open the input log", e))?;
+        let len = io::copy(&mut file, &mut hasher).map_err(|e| failed("read the input log", e))?;
+        let sha: String = hasher
+            .finalize()
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        file.seek(SeekFrom::Start(0))
+            .map_err(|e| failed("read the input log", e))?;
+        let ns = self
+            .start_ns
+            .saturating_add((self.last_t.max(0.0) * 1e9) as u64);
+        let header = mcap::records::AttachmentHeader {
+            log_time: ns,
+            create_time: ns,
+            name: TRACE_ATTACHMENT.to_string(),
+            media_type: "text/csv".to_string(),
+        };
+        let path = shown(&self.path);
+        let wr = |error| RecordingError::Write {
+            path: path.clone(),
+            error,
+        };
+        let mut chunk = vec![0u8; READ_SIZE];
+        {
+            let writer = self.writer();
+            writer.start_attachment(len, header).map_err(wr)?;
+            loop {
+                let n = file
+                    .read(&mut chunk)
+                    .map_err(|e| failed("read the input log", e))?;
+                if n == 0 {
+                    break;
+                }
+                writer.put_attachment_bytes(&chunk[..n]).map_err(wr)?;
+            }
+            writer.finish_attachment().map_err(wr)?;
+        }
+        let mut metadata = self.metadata.clone();
+        metadata.insert("trace_sha256".into(), sha);
+        for (k, v) in extra {
+            metadata.insert(k.to_string(), v.clone());
+        }
+        self.writer()
+            .write_metadata(&Metadata {
+                name: METADATA_NAME.to_string(),
+                metadata,
+            })
+            .map_err(wr)?;
+        self.finish()
     }
 
     /// Writes the summary section and closes the file.

@@ -5,13 +5,14 @@
 //! the format (no quoting, no comments) is simple enough that a general CSV reader adds
 //! nothing but distance between a byte and its line number.
 
-use std::io::Read;
+use std::fs::File;
+use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
 use nalgebra::Vector3;
 
 use crate::trace::MAX_TRACE_SAMPLES;
-use crate::trace::{resample_uniform, AircraftSample, ResampleError, Trace, TraceInfo};
+use crate::trace::{lerp3, AircraftSample, ResampleError, Trace, TraceInfo, GRID_TOLERANCE_STEPS};
 use crate::G_MPS2;
 
 /// Every shipped trace, `recordings/traces/<name>.csv` and its sidecar, embedded so that
@@ -616,53 +617,159 @@ pub fn parse_trace(
 }
 
 /// `parse_trace`, also returning the rate the CSV was written at (1 / median step), which
-/// the sidecar is checked against and resampling has replaced.
+/// the sidecar is checked against and resampling has replaced. The text goes through the
+/// same streaming reader as a trace file (`scan`, then [`GridSamples`]).
 fn parse_measured(
     text: &str,
     source_name: &str,
     name: &str,
     target_rate_hz: f64,
 ) -> Result<(Trace, f64), TraceError> {
-    let ctx = Ctx { source_name };
-    if !(target_rate_hz.is_finite() && target_rate_hz > 0.0 && target_rate_hz <= MAX_TARGET_RATE_HZ)
-    {
-        return Err(ctx.file(
-            TraceErrorKind::BadRate,
-            format!(
-                "cannot resample to {target_rate_hz} Hz; expected a rate in (0, {MAX_TARGET_RATE_HZ}] Hz"
-            ),
-        ));
+    let open = || Ok(text.as_bytes());
+    let plan = scan(&open, source_name, name, target_rate_hz)?;
+    let mut grid = GridSamples::new(open()?, &plan)?;
+    let mut samples = Vec::with_capacity(plan.len);
+    while let Some(s) = grid.next_sample()? {
+        samples.push(s);
     }
-    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let measured = plan.measured_rate_hz;
+    let trace = Trace {
+        name: name.to_string(),
+        rate_hz: target_rate_hz,
+        samples,
+        info: None,
+        notices: plan.notices,
+    };
+    Ok((trace, measured))
+}
 
-    let mut layout_found: Option<Layout> = None;
-    let mut header_line = 0;
-    let mut rows: Vec<AircraftSample> = Vec::new();
-    let mut row_lines: Vec<usize> = Vec::new();
-    for (index, raw_line) in text.split('\n').enumerate() {
-        let line_no = index + 1;
-        if raw_line.len() > MAX_LINE_BYTES {
-            return Err(ctx.at(
-                line_no,
-                1,
-                None,
-                TraceErrorKind::LineTooLong,
-                format!(
-                    "line longer than {MAX_LINE_BYTES} bytes; expected a CSV row of numbers (is this a trace?)"
-                ),
-            ));
+/// The lines of a trace, one at a time: each checked for length before it is decoded, so
+/// that a huge line costs no more than the limit, and for UTF-8. Blank lines are skipped.
+struct Lines<R> {
+    reader: R,
+    line_no: usize,
+    /// Bytes read so far: where the next line starts.
+    offset: u64,
+    buf: Vec<u8>,
+    source_name: String,
+}
+
+impl<R: BufRead> Lines<R> {
+    fn new(reader: R, source_name: &str) -> Self {
+        Lines {
+            reader,
+            line_no: 0,
+            offset: 0,
+            buf: Vec::new(),
+            source_name: source_name.to_string(),
         }
-        let line = raw_line.strip_suffix('\r').unwrap_or(raw_line);
-        // Blank lines carry nothing; trailing ones are what most editors leave behind.
-        if line.trim().is_empty() {
-            continue;
-        }
-        let Some(layout) = &layout_found else {
-            layout_found = Some(layout(line, line_no, &ctx)?);
-            header_line = line_no;
-            continue;
+    }
+
+    /// The next non-blank line (without its line ending) and its 1-based number.
+    fn next_line(&mut self) -> Result<Option<(usize, &str)>, TraceError> {
+        let ctx = Ctx {
+            source_name: &self.source_name,
         };
-        if rows.len() >= MAX_TRACE_SAMPLES {
+        // The line's byte range in `buf`: found in the loop, borrowed after it.
+        let range = loop {
+            self.buf.clear();
+            let n = (&mut self.reader)
+                .take(MAX_LINE_BYTES as u64 + 2)
+                .read_until(b'\n', &mut self.buf)
+                .map_err(|error| TraceError::Io {
+                    source_name: self.source_name.clone(),
+                    error,
+                })?;
+            if n == 0 {
+                return Ok(None);
+            }
+            self.offset += n as u64;
+            self.line_no += 1;
+            let mut end = self.buf.len() - usize::from(self.buf.ends_with(b"\n"));
+            let bom = "\u{feff}".as_bytes();
+            let start = if self.line_no == 1 && self.buf.starts_with(bom) {
+                bom.len()
+            } else {
+                0
+            };
+            if end - start.min(end) > MAX_LINE_BYTES {
+                return Err(ctx.at(
+                    self.line_no,
+                    1,
+                    None,
+                    TraceErrorKind::LineTooLong,
+                    format!(
+                        "line longer than {MAX_LINE_BYTES} bytes; expected a CSV row of numbers (is this a trace?)"
+                    ),
+                ));
+            }
+            if end > start && self.buf[end - 1] == b'\r' {
+                end -= 1;
+            }
+            let bytes = &self.buf[start.min(end)..end];
+            match std::str::from_utf8(bytes) {
+                // Blank lines carry nothing; trailing ones are what most editors leave behind.
+                Ok(line) if line.trim().is_empty() => continue,
+                Ok(_) => break start.min(end)..end,
+                Err(e) => {
+                    let valid = &bytes[..e.valid_up_to()];
+                    return Err(ctx.at(
+                        self.line_no,
+                        String::from_utf8_lossy(valid).chars().count() + 1,
+                        None,
+                        TraceErrorKind::NotUtf8,
+                        "not UTF-8 text; expected a CSV file".to_string(),
+                    ));
+                }
+            }
+        };
+        let line = std::str::from_utf8(&self.buf[range]).unwrap_or_default();
+        Ok(Some((self.line_no, line)))
+    }
+}
+
+/// The data rows of a trace, one at a time, each checked as it is read: fields, numbers,
+/// magnitudes and strictly increasing time.
+struct TraceRows<R> {
+    lines: Lines<R>,
+    layout: Layout,
+    header_line: usize,
+    /// Time and line of the previous row.
+    prev: Option<(f64, usize)>,
+    rows: usize,
+}
+
+impl<R: BufRead> TraceRows<R> {
+    /// Reads up to the header; an empty file is refused here.
+    fn new(reader: R, source_name: &str) -> Result<Self, TraceError> {
+        let mut lines = Lines::new(reader, source_name);
+        let ctx = Ctx { source_name };
+        let Some((header_line, header)) = lines.next_line()? else {
+            return Err(ctx.file(
+                TraceErrorKind::Empty,
+                format!("empty file; expected a header line `{NATIVE_HEADER}` and rows of numbers"),
+            ));
+        };
+        let layout = layout(header, header_line, &ctx)?;
+        Ok(TraceRows {
+            lines,
+            layout,
+            header_line,
+            prev: None,
+            rows: 0,
+        })
+    }
+
+    /// The next row as read (time not shifted) and its line.
+    fn next_row(&mut self) -> Result<Option<(AircraftSample, usize)>, TraceError> {
+        let source_name = self.lines.source_name.clone();
+        let ctx = Ctx {
+            source_name: &source_name,
+        };
+        let Some((line_no, line)) = self.lines.next_line()? else {
+            return Ok(None);
+        };
+        if self.rows >= MAX_TRACE_SAMPLES {
             return Err(ctx.at(
                 line_no,
                 1,
@@ -671,10 +778,11 @@ fn parse_measured(
                 format!("more than {MAX_TRACE_SAMPLES} rows; expected a shorter trace"),
             ));
         }
+        let layout = &self.layout;
         let sample = parse_row(line, line_no, layout, &ctx)?;
-        if let Some(prev) = rows.last() {
-            if sample.t_s <= prev.t_s {
-                let what = if sample.t_s == prev.t_s {
+        if let Some((prev_t, prev_line)) = self.prev {
+            if sample.t_s <= prev_t {
+                let what = if sample.t_s == prev_t {
                     "repeats"
                 } else {
                     "goes back from"
@@ -686,88 +794,154 @@ fn parse_measured(
                     Some(&layout.time.header),
                     TraceErrorKind::TimeNotIncreasing,
                     format!(
-                        "column `{}`: time {} s {what} {} s on line {}; expected strictly increasing time",
-                        layout.time.header,
-                        sample.t_s,
-                        prev.t_s,
-                        row_lines.last().copied().unwrap_or(0)
+                        "column `{}`: time {} s {what} {} s on line {prev_line}; expected strictly increasing time",
+                        layout.time.header, sample.t_s, prev_t
                     ),
                 ));
             }
         }
-        rows.push(sample);
-        row_lines.push(line_no);
+        self.prev = Some((sample.t_s, line_no));
+        self.rows += 1;
+        Ok(Some((sample, line_no)))
     }
+}
 
-    let Some(layout) = layout_found else {
+/// What a first pass over a trace found: enough to put it on the grid while streaming it a
+/// second time, holding two rows at a time.
+#[derive(Clone, Debug)]
+pub struct TracePlan {
+    pub name: String,
+    pub source_name: String,
+    pub rate_hz: f64,
+    /// Samples on the grid.
+    pub len: usize,
+    /// Data rows in the file.
+    rows: usize,
+    /// Time of the first row, subtracted from every row (s).
+    t0: f64,
+    /// Every row already on the grid: taken as they are, timestamps snapped.
+    on_grid: bool,
+    /// 1 / the median step of the rows (Hz).
+    pub measured_rate_hz: f64,
+    pub notices: Vec<String>,
+    /// The sidecar, when one was found and read.
+    pub info: Option<TraceInfo>,
+}
+
+/// First pass: every row checked, and the statistics the grid needs. Memory is a map of the
+/// distinct time steps (a handful for a trace written at a fixed rate), not the rows.
+fn scan<R: BufRead>(
+    open: &dyn Fn() -> Result<R, TraceError>,
+    source_name: &str,
+    name: &str,
+    target_rate_hz: f64,
+) -> Result<TracePlan, TraceError> {
+    let ctx = Ctx { source_name };
+    if !(target_rate_hz.is_finite() && target_rate_hz > 0.0 && target_rate_hz <= MAX_TARGET_RATE_HZ)
+    {
         return Err(ctx.file(
-            TraceErrorKind::Empty,
-            format!("empty file; expected a header line `{NATIVE_HEADER}` and rows of numbers"),
+            TraceErrorKind::BadRate,
+            format!(
+                "cannot resample to {target_rate_hz} Hz; expected a rate in (0, {MAX_TARGET_RATE_HZ}] Hz"
+            ),
         ));
-    };
-    if rows.len() < 2 {
+    }
+    let mut rows = TraceRows::new(open()?, source_name)?;
+    let mut steps: std::collections::BTreeMap<u64, usize> = std::collections::BTreeMap::new();
+    let (mut min_step, mut max_step) = (f64::INFINITY, 0.0f64);
+    let (mut first, mut last) = (None::<f64>, 0.0);
+    let mut grid_ok = true;
+    let mut units = UnitStats::new();
+    let mut k = 0usize;
+    while let Some((s, _)) = rows.next_row()? {
+        units.push(&s);
+        let t0 = *first.get_or_insert(s.t_s);
+        if k > 0 {
+            // Time strictly increases, so steps are positive and their bits order as they do.
+            let step = s.t_s - last;
+            *steps.entry(step.to_bits()).or_default() += 1;
+            min_step = min_step.min(step);
+            max_step = max_step.max(step);
+        }
+        let shifted = s.t_s - t0;
+        grid_ok &=
+            ((shifted - k as f64 / target_rate_hz) * target_rate_hz).abs() <= GRID_TOLERANCE_STEPS;
+        last = s.t_s;
+        k += 1;
+    }
+    let n = rows.rows;
+    let header_line = rows.header_line;
+    let mut notices = std::mem::take(&mut rows.layout.notices);
+    let time_header = rows.layout.time.header.clone();
+    if n < 2 {
         return Err(ctx.file(
             TraceErrorKind::TooFewRows,
             format!(
-                "{} data row(s) after the header on line {header_line}; expected at least two",
-                rows.len()
+                "{n} data row(s) after the header on line {header_line}; expected at least two"
             ),
         ));
     }
-    check_units(&rows, &layout, &ctx)?;
-    let time_header = layout.time.header.clone();
-    let mut notices = layout.notices;
-
-    let mut steps: Vec<f64> = rows.windows(2).map(|w| w[1].t_s - w[0].t_s).collect();
-    let (min_step, max_step) = steps.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &s| {
-        (lo.min(s), hi.max(s))
-    });
-    let mid = steps.len() / 2;
-    let median_step = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
-    if let Some(i) = rows
-        .windows(2)
-        .position(|w| w[1].t_s - w[0].t_s > MAX_GAP_FACTOR * median_step)
-    {
-        let gap = rows[i + 1].t_s - rows[i].t_s;
-        return Err(ctx.at(
-            row_lines[i + 1],
-            1,
-            Some(&time_header),
-            TraceErrorKind::Gap,
-            format!(
-                "gap of {gap} s before this row (line {} is at {} s, the median step is {median_step} s); expected no step longer than {MAX_GAP_FACTOR}× the median",
-                row_lines[i], rows[i].t_s
-            ),
-        ));
-    }
-
-    let t0 = rows[0].t_s;
-    if t0 != 0.0 {
-        for s in &mut rows {
-            s.t_s -= t0;
+    check_units(&units, &rows.layout, &ctx)?;
+    let t0 = first.unwrap_or(0.0);
+    // The median step: the value of rank (n−1)/2 among the n−1 steps, in order.
+    let mid = (n - 1) / 2;
+    let mut seen = 0;
+    let median_step = steps
+        .iter()
+        .find_map(|(bits, count)| {
+            seen += count;
+            (seen > mid).then(|| f64::from_bits(*bits))
+        })
+        .unwrap_or(max_step);
+    if max_step > MAX_GAP_FACTOR * median_step {
+        // Found again on a second pass, for its lines; only a refused file pays for it.
+        let mut rows = TraceRows::new(open()?, source_name)?;
+        let mut prev: Option<(f64, usize)> = None;
+        while let Some((s, line)) = rows.next_row()? {
+            if let Some((pt, pl)) = prev {
+                let gap = s.t_s - pt;
+                if gap > MAX_GAP_FACTOR * median_step {
+                    return Err(ctx.at(
+                        line,
+                        1,
+                        Some(&time_header),
+                        TraceErrorKind::Gap,
+                        format!(
+                            "gap of {gap} s before this row (line {pl} is at {pt} s, the median step is {median_step} s); expected no step longer than {MAX_GAP_FACTOR}× the median"
+                        ),
+                    ));
+                }
+            }
+            prev = Some((s.t_s, line));
         }
+    }
+    if t0 != 0.0 {
         notices.push(format!("time starts at {t0} s; shifted to start at 0"));
     }
-
-    let resampled = resample_uniform(&rows, target_rate_hz).map_err(|e| match e {
-        ResampleError::TooManySamples { .. } => ctx.file(
+    let duration_s = last - t0;
+    let last_k = (duration_s * target_rate_hz + GRID_TOLERANCE_STEPS).floor();
+    if last_k + 1.0 > MAX_TRACE_SAMPLES as f64 {
+        let e = ResampleError::TooManySamples {
+            duration_s,
+            rate_hz: target_rate_hz,
+        };
+        return Err(ctx.file(
             TraceErrorKind::TooManySamples,
             format!("{e}; expected a shorter trace"),
-        ),
-        // Cannot happen after the checks above; reported rather than unwrapped all the same.
-        other => ctx.file(TraceErrorKind::TimeNotIncreasing, other.to_string()),
-    })?;
-    if resampled.samples.len() < 2 {
+        ));
+    }
+    let len = last_k as usize + 1;
+    if len < 2 {
         return Err(ctx.file(
             TraceErrorKind::TooFewRows,
             format!(
-                "{} s of data is shorter than one step at {} Hz; expected at least two samples",
-                rows[rows.len() - 1].t_s,
+                "{duration_s} s of data is shorter than one step at {} Hz; expected at least two samples",
                 format_hz(target_rate_hz)
             ),
         ));
     }
-    if resampled.interpolated {
+    let on_grid = grid_ok && len == n;
+    if !on_grid {
         let irregular = if max_step - min_step > IRREGULAR_SPREAD * median_step {
             " irregular"
         } else {
@@ -779,15 +953,237 @@ fn parse_measured(
             format_hz(target_rate_hz)
         ));
     }
-
-    let trace = Trace {
+    Ok(TracePlan {
         name: name.to_string(),
+        source_name: source_name.to_string(),
         rate_hz: target_rate_hz,
-        samples: resampled.samples,
-        info: None,
+        len,
+        rows: n,
+        t0,
+        on_grid,
+        measured_rate_hz: 1.0 / median_step,
         notices,
+        info: None,
+    })
+}
+
+/// Second pass: the samples on the uniform grid t_k = k / rate, two rows in memory. Values
+/// are those of [`resample_uniform`], bit for bit: a trace on the grid keeps its values and
+/// only its timestamps are snapped; another is linearly interpolated.
+pub struct GridSamples<R> {
+    rows: TraceRows<R>,
+    rate_hz: f64,
+    len: usize,
+    rows_total: usize,
+    t0: f64,
+    on_grid: bool,
+    k: usize,
+    /// The rows around the next grid time (interpolation), and the index of `a`.
+    a: Option<AircraftSample>,
+    b: Option<AircraftSample>,
+    j: usize,
+}
+
+impl<R: BufRead> GridSamples<R> {
+    pub fn new(reader: R, plan: &TracePlan) -> Result<Self, TraceError> {
+        Ok(GridSamples {
+            rows: TraceRows::new(reader, &plan.source_name)?,
+            rate_hz: plan.rate_hz,
+            len: plan.len,
+            rows_total: plan.rows,
+            t0: plan.t0,
+            on_grid: plan.on_grid,
+            k: 0,
+            a: None,
+            b: None,
+            j: 0,
+        })
+    }
+
+    /// Index of the next sample.
+    pub fn position(&self) -> usize {
+        self.k
+    }
+
+    /// Where the stream is, to come back to with [`GridSamples::restore`].
+    pub fn mark(&self) -> GridMark {
+        GridMark {
+            k: self.k,
+            a: self.a,
+            b: self.b,
+            j: self.j,
+            prev: self.rows.prev,
+            rows: self.rows.rows,
+            line_no: self.rows.lines.line_no,
+            offset: self.rows.lines.offset,
+        }
+    }
+
+    fn row(&mut self) -> Result<AircraftSample, TraceError> {
+        match self.rows.next_row()? {
+            Some((mut s, _)) => {
+                if self.t0 != 0.0 {
+                    s.t_s -= self.t0;
+                }
+                Ok(s)
+            }
+            None => Err(TraceError::File {
+                source_name: self.rows.lines.source_name.clone(),
+                kind: TraceErrorKind::TooFewRows,
+                message: "the file has fewer rows than when it was first read; expected it unchanged during the run".into(),
+            }),
+        }
+    }
+
+    pub fn next_sample(&mut self) -> Result<Option<AircraftSample>, TraceError> {
+        if self.k >= self.len {
+            return Ok(None);
+        }
+        let t = self.k as f64 / self.rate_hz;
+        self.k += 1;
+        if self.on_grid {
+            let s = self.row()?;
+            return Ok(Some(AircraftSample { t_s: t, ..s }));
+        }
+        if self.a.is_none() {
+            self.a = Some(self.row()?);
+            self.b = Some(self.row()?);
+        }
+        while self.j + 2 < self.rows_total && self.b.is_some_and(|b| b.t_s <= t) {
+            self.a = self.b;
+            self.b = Some(self.row()?);
+            self.j += 1;
+        }
+        let (Some(a), Some(b)) = (self.a, self.b) else {
+            return Ok(None);
+        };
+        // Clamped because the last grid point may lie a rounding error past the last sample.
+        let w = ((t - a.t_s) / (b.t_s - a.t_s)).clamp(0.0, 1.0);
+        Ok(Some(AircraftSample {
+            t_s: t,
+            specific_force_mps2: lerp3(&a.specific_force_mps2, &b.specific_force_mps2, w, false),
+            angular_velocity_radps: lerp3(
+                &a.angular_velocity_radps,
+                &b.angular_velocity_radps,
+                w,
+                false,
+            ),
+            attitude_rad: lerp3(&a.attitude_rad, &b.attitude_rad, w, true),
+        }))
+    }
+}
+
+/// A position in a [`GridSamples`] stream: its sample index, the rows it interpolates
+/// between, and the byte and line where its reader continues.
+#[derive(Clone, Debug)]
+pub struct GridMark {
+    k: usize,
+    a: Option<AircraftSample>,
+    b: Option<AircraftSample>,
+    j: usize,
+    prev: Option<(f64, usize)>,
+    rows: usize,
+    line_no: usize,
+    offset: u64,
+}
+
+impl GridMark {
+    /// Index of the sample the stream gives next from here.
+    pub fn position(&self) -> usize {
+        self.k
+    }
+}
+
+impl<R: BufRead + std::io::Seek> GridSamples<R> {
+    /// Back (or forward) to a mark this stream took, without reading what lies between.
+    pub fn restore(&mut self, m: &GridMark) -> Result<(), TraceError> {
+        let lines = &mut self.rows.lines;
+        lines
+            .reader
+            .seek(std::io::SeekFrom::Start(m.offset))
+            .map_err(|error| TraceError::Io {
+                source_name: lines.source_name.clone(),
+                error,
+            })?;
+        lines.offset = m.offset;
+        lines.line_no = m.line_no;
+        self.rows.prev = m.prev;
+        self.rows.rows = m.rows;
+        self.k = m.k;
+        self.a = m.a;
+        self.b = m.b;
+        self.j = m.j;
+        Ok(())
+    }
+}
+
+/// Checks a trace file row by row without holding it, and reads its sidecar: the plan to
+/// stream it with [`open_grid`]. Memory does not grow with the file's length.
+pub fn scan_trace_file(path: &Path, target_rate_hz: f64) -> Result<TracePlan, TraceError> {
+    let source_name = path.display().to_string();
+    let name = path
+        .file_stem()
+        .map_or_else(|| "trace".to_string(), |s| s.to_string_lossy().into_owned());
+    let size = std::fs::metadata(path)
+        .map_err(|error| TraceError::Io {
+            source_name: source_name.clone(),
+            error,
+        })?
+        .len();
+    if size > MAX_TRACE_BYTES {
+        return Err(TraceError::File {
+            source_name,
+            kind: TraceErrorKind::TooLarge,
+            message: format!("larger than {MAX_TRACE_BYTES} bytes; expected a trace CSV"),
+        });
+    }
+    let open = || open_file(path, &source_name);
+    let mut plan = scan(&open, &source_name, &name, target_rate_hz)?;
+    let mut trace = Trace {
+        name: name.clone(),
+        rate_hz: target_rate_hz,
+        samples: Vec::new(),
+        info: None,
+        notices: std::mem::take(&mut plan.notices),
     };
-    Ok((trace, 1.0 / median_step))
+    read_sidecar(path, &mut trace, plan.measured_rate_hz);
+    plan.notices = trace.notices;
+    plan.info = trace.info;
+    Ok(plan)
+}
+
+fn open_file(path: &Path, source_name: &str) -> Result<BufReader<File>, TraceError> {
+    File::open(path)
+        .map(|f| BufReader::with_capacity(64 * 1024, f))
+        .map_err(|error| TraceError::Io {
+            source_name: source_name.to_string(),
+            error,
+        })
+}
+
+/// Streams the samples of a scanned trace file from its start.
+pub fn open_grid(
+    path: &Path,
+    plan: &TracePlan,
+) -> Result<GridSamples<BufReader<File>>, TraceError> {
+    GridSamples::new(open_file(path, &plan.source_name)?, plan)
+}
+
+/// Attaches the sidecar `stem.json` beside `path`, if there is one. A broken sidecar is a
+/// notice, not an error: the data are what matter.
+fn read_sidecar(path: &Path, trace: &mut Trace, measured_rate_hz: f64) {
+    let sidecar = path.with_extension("json");
+    if sidecar != path {
+        let sidecar_name = sidecar.display().to_string();
+        match read_text(&sidecar, &sidecar_name, MAX_SIDECAR_BYTES) {
+            Err(TraceError::Io { error, .. }) if error.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => trace.notices.push(format!("sidecar ignored: {e}")),
+            Ok(json) => match parse_sidecar(&json, &sidecar_name) {
+                Ok(info) => attach_info(trace, info, measured_rate_hz),
+                Err(e) => trace.notices.push(format!("sidecar ignored: {e}")),
+            },
+        }
+    }
 }
 
 /// Thresholds of [`check_units`] (docs/formats.md, "Units and signs").
@@ -824,119 +1220,120 @@ fn median(mut v: Vec<f64>) -> f64 {
     *v.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
-/// Refuses the clear unit and sign mistakes that pass the range checks: a z-up frame
-/// (fz ≈ +9.81 at rest), specific force in ft/s² or in g, body rates in °/s (decided by the
-/// attitude's derivative when the trace has attitude, else by sustained rates no light
-/// aircraft flies), attitude in degrees. Each message names the column and the likely cause.
-fn check_units(rows: &[AircraftSample], layout: &Layout, ctx: &Ctx) -> Result<(), TraceError> {
-    let header = |q: Quantity| {
-        layout.sources[q.index()]
-            .as_ref()
-            .map_or(q.native_name().to_string(), |s| s.header.clone())
-    };
-    let refuse = |message: String| Err(ctx.file(TraceErrorKind::Units, message));
-    let t0 = rows[0].t_s;
-    let start: Vec<&AircraftSample> = rows
-        .iter()
-        .take_while(|s| s.t_s - t0 <= units::START_S)
-        .collect();
-    let norm_start = median(start.iter().map(|s| s.specific_force_mps2.norm()).collect());
-    let norm_all = median(rows.iter().map(|s| s.specific_force_mps2.norm()).collect());
-    let near = |v: f64, unit: f64| (v - unit).abs() <= units::UNIT_TOLERANCE * unit;
-    let f_columns = format!(
-        "`{}`, `{}`, `{}`",
-        header(Quantity::Fx),
-        header(Quantity::Fy),
-        header(Quantity::Fz)
-    );
-    const FT_PER_M: f64 = 1.0 / FT_TO_M;
-    if near(norm_start, G_MPS2 * FT_PER_M) && near(norm_all, G_MPS2 * FT_PER_M) {
-        return refuse(format!(
-            "columns {f_columns}: |f| is {norm_start:.2} at the start (median of the first second) and {norm_all:.2} over the trace, which is 1 g in ft/s² (32.17); expected m/s² (9.81): multiply by 0.3048 (JSBSim's `accelerations/a-pilot-*-ft_sec2` headers are converted when kept as JSBSim writes them)"
-        ));
-    }
-    if near(norm_start, 1.0) && near(norm_all, 1.0) {
-        return refuse(format!(
-            "columns {f_columns}: |f| is {norm_start:.2} at the start and {norm_all:.2} over the trace, which is 1 g as a load factor; expected m/s² (9.81): multiply by 9.80665"
-        ));
-    }
-    let fz_start = median(start.iter().map(|s| s.specific_force_mps2.z).collect());
-    let fz_all = median(rows.iter().map(|s| s.specific_force_mps2.z).collect());
-    if fz_start > units::Z_UP_MPS2 && fz_all > 0.0 {
-        return refuse(format!(
-            "column `{}`: fz is {fz_start:+.2} m/s² at the start (median of the first second) and {fz_all:+.2} over the trace: a z-up convention? hexcue's head frame has z down, so rest and level flight give fz = −9.81; negate fz (a z-up frame usually flips y, q and r as well)",
-            header(Quantity::Fz)
-        ));
-    }
-
-    let rate_columns = format!(
-        "`{}`, `{}`, `{}`",
-        header(Quantity::P),
-        header(Quantity::Q),
-        header(Quantity::R)
-    );
-    let has_attitude = [Quantity::Phi, Quantity::Theta, Quantity::Psi]
-        .iter()
-        .all(|q| layout.sources[q.index()].is_some());
-    if has_attitude {
-        if let Some(ratio) = attitude_rate_ratio(rows) {
-            let att_columns = format!(
-                "`{}`, `{}`, `{}`",
-                header(Quantity::Phi),
-                header(Quantity::Theta),
-                header(Quantity::Psi)
-            );
-            let (lo, hi) = units::DEG_BAND;
-            if (lo..=hi).contains(&ratio) {
-                return refuse(format!(
-                    "columns {rate_columns}: the attitude ({att_columns}) changes {:.1}× slower than these rates say; rates in °/s? expected rad/s: multiply by π/180 (0.017453)",
-                    1.0 / ratio
-                ));
-            }
-            if (1.0 / hi..=1.0 / lo).contains(&ratio) {
-                return refuse(format!(
-                    "columns {att_columns}: the attitude changes {ratio:.1}× faster than the rates {rate_columns} say; attitude in degrees? expected radians: multiply by π/180"
-                ));
-            }
-            // The rates explain the attitude: whatever their size, they are in rad/s.
-            return Ok(());
-        }
-    }
-    let dt = (rows[rows.len() - 1].t_s - t0) / (rows.len() - 1) as f64;
-    let fast = rows
-        .iter()
-        .filter(|s| s.angular_velocity_radps.amax() > units::FAST_RATE_RADPS)
-        .count();
-    let fast_s = fast as f64 * dt;
-    let share = fast as f64 / rows.len() as f64;
-    if fast_s >= units::FAST_FOR_S && share >= units::FAST_SHARE {
-        return refuse(format!(
-            "columns {rate_columns}: a rate beyond {} rad/s ({:.0}°/s) for {fast_s:.1} s ({:.0} % of the trace); rates in °/s? expected rad/s: multiply by π/180 (0.017453)",
-            units::FAST_RATE_RADPS,
-            units::FAST_RATE_RADPS.to_degrees(),
-            100.0 * share
-        ));
-    }
-    Ok(())
+/// Values kept for a median in bounded memory: every value up to [`UnitStats::KEPT`], then
+/// every second, fourth, ... (the stride doubles whenever the store is full), so the median
+/// is exact for traces up to that length and a uniform subsample's beyond it.
+#[derive(Clone, Debug, Default)]
+struct Thinned {
+    values: Vec<f64>,
+    stride: usize,
+    seen: usize,
 }
 
-/// The least-squares ratio b ≈ s·a of the attitude's derivative b (finite differences of φ,
-/// θ, ψ) to the Euler rates a that p, q, r give through the attitude kinematics; `None` when
-/// the attitude barely moves or the two do not match well enough to decide.
-fn attitude_rate_ratio(rows: &[AircraftSample]) -> Option<f64> {
-    let wrap = |d: f64| {
-        let two_pi = std::f64::consts::TAU;
-        d - two_pi * (d / two_pi).round()
-    };
-    let (mut sab, mut saa, mut sbb, mut n) = (0.0, 0.0, 0.0, 0usize);
-    for w in rows.windows(2) {
-        let dt = w[1].t_s - w[0].t_s;
-        let att = (w[0].attitude_rad + w[1].attitude_rad) / 2.0;
-        let rate = (w[0].angular_velocity_radps + w[1].angular_velocity_radps) / 2.0;
+impl Thinned {
+    fn push(&mut self, v: f64) {
+        self.stride = self.stride.max(1);
+        if self.seen.is_multiple_of(self.stride) {
+            if self.values.len() >= UnitStats::KEPT {
+                let mut i = 0;
+                self.values.retain(|_| {
+                    i += 1;
+                    i % 2 == 1
+                });
+                self.stride *= 2;
+            }
+            if self.seen.is_multiple_of(self.stride) {
+                self.values.push(v);
+            }
+        }
+        self.seen += 1;
+    }
+}
+
+/// The statistics [`check_units`] decides on, gathered one sample at a time so that a trace
+/// streamed from its file (and a live simulator's first seconds) are checked without being
+/// held: the first second's medians, medians over the whole ([`Thinned`]), the attitude's
+/// derivative against the body rates (running sums) and the time spent at fast rates.
+#[derive(Clone, Debug, Default)]
+pub struct UnitStats {
+    t0: Option<f64>,
+    last_t: f64,
+    rows: usize,
+    start_norm: Vec<f64>,
+    start_fz: Vec<f64>,
+    all_norm: Thinned,
+    all_fz: Thinned,
+    prev: Option<AircraftSample>,
+    /// Sums of the least-squares fit of [`UnitStats::attitude_rate_ratio`].
+    sab: f64,
+    saa: f64,
+    sbb: f64,
+    pairs: usize,
+    fast: usize,
+}
+
+/// Names of the columns a [`UnitStats`] verdict cites, in the order fx, fy, fz, p, q, r, phi,
+/// theta, psi; and what "the whole" is called (`the trace`, `the first 10 s of input`).
+pub struct UnitNames<'a> {
+    pub columns: [String; 9],
+    pub whole: &'a str,
+    pub has_attitude: bool,
+}
+
+impl UnitStats {
+    /// Values kept per median (2 × 256 KiB at most).
+    const KEPT: usize = 1 << 15;
+
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Samples pushed.
+    pub fn len(&self) -> usize {
+        self.rows
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.rows == 0
+    }
+
+    /// Time from the first sample to the last (s).
+    pub fn duration_s(&self) -> f64 {
+        self.t0.map_or(0.0, |t0| self.last_t - t0)
+    }
+
+    pub fn push(&mut self, s: &AircraftSample) {
+        let t0 = *self.t0.get_or_insert(s.t_s);
+        let norm = s.specific_force_mps2.norm();
+        if s.t_s - t0 <= units::START_S && self.start_norm.len() < Self::KEPT {
+            self.start_norm.push(norm);
+            self.start_fz.push(s.specific_force_mps2.z);
+        }
+        self.all_norm.push(norm);
+        self.all_fz.push(s.specific_force_mps2.z);
+        self.fast += usize::from(s.angular_velocity_radps.amax() > units::FAST_RATE_RADPS);
+        if let Some(prev) = self.prev {
+            self.fit_pair(&prev, s);
+        }
+        self.prev = Some(*s);
+        self.last_t = s.t_s;
+        self.rows += 1;
+    }
+
+    /// One pair of consecutive samples into the fit b ≈ s·a of the attitude's derivative b
+    /// (finite differences of φ, θ, ψ) to the Euler rates a that p, q, r give.
+    fn fit_pair(&mut self, w0: &AircraftSample, w1: &AircraftSample) {
+        let wrap = |d: f64| {
+            let two_pi = std::f64::consts::TAU;
+            d - two_pi * (d / two_pi).round()
+        };
+        let dt = w1.t_s - w0.t_s;
+        let att = (w0.attitude_rad + w1.attitude_rad) / 2.0;
+        let rate = (w0.angular_velocity_radps + w1.angular_velocity_radps) / 2.0;
         let (sp, cp) = att.x.sin_cos();
         let (st, ct) = att.y.sin_cos();
         if ct.abs() < units::MIN_COS_THETA || dt <= 0.0 {
-            continue;
+            return;
         }
         let (p, q, r) = (rate.x, rate.y, rate.z);
         let a = Vector3::new(
@@ -944,23 +1341,118 @@ fn attitude_rate_ratio(rows: &[AircraftSample]) -> Option<f64> {
             q * cp - r * sp,
             (q * sp + r * cp) / ct,
         );
-        let d = w[1].attitude_rad - w[0].attitude_rad;
+        let d = w1.attitude_rad - w0.attitude_rad;
         let b = Vector3::new(wrap(d.x), d.y, wrap(d.z)) / dt;
         if !(a.iter().chain(b.iter()).all(|v| v.is_finite())) {
-            continue;
+            return;
         }
-        sab += a.dot(&b);
-        saa += a.norm_squared();
-        sbb += b.norm_squared();
-        n += 1;
+        self.sab += a.dot(&b);
+        self.saa += a.norm_squared();
+        self.sbb += b.norm_squared();
+        self.pairs += 1;
     }
-    if n < 10 || saa <= 0.0 || sbb <= 0.0 {
-        return None;
+
+    /// The least-squares ratio of the attitude's derivative to the Euler rates from p, q, r;
+    /// `None` when the attitude barely moves or the two do not match well enough to decide.
+    fn attitude_rate_ratio(&self) -> Option<f64> {
+        let (sab, saa, sbb, n) = (self.sab, self.saa, self.sbb, self.pairs);
+        if n < 10 || saa <= 0.0 || sbb <= 0.0 {
+            return None;
+        }
+        let rms_b = (sbb / (3 * n) as f64).sqrt();
+        let correlation = sab / (saa * sbb).sqrt();
+        (rms_b >= units::MIN_ATTITUDE_RMS_RADPS && correlation >= units::MIN_CORRELATION)
+            .then(|| sab / saa)
     }
-    let rms_b = (sbb / (3 * n) as f64).sqrt();
-    let correlation = sab / (saa * sbb).sqrt();
-    (rms_b >= units::MIN_ATTITUDE_RMS_RADPS && correlation >= units::MIN_CORRELATION)
-        .then(|| sab / saa)
+
+    /// The clear unit and sign mistakes that pass the range checks: a z-up frame (fz ≈ +9.81
+    /// at rest), specific force in ft/s² or in g, body rates in °/s (decided by the attitude's
+    /// derivative when there is attitude, else by sustained rates no light aircraft flies),
+    /// attitude in degrees. The message names the columns and the likely cause; `None` when
+    /// the numbers are believable (or there are fewer than two samples).
+    pub fn verdict(&self, names: &UnitNames) -> Option<String> {
+        if self.rows < 2 {
+            return None;
+        }
+        let whole = names.whole;
+        let c = &names.columns;
+        let norm_start = median(self.start_norm.clone());
+        let norm_all = median(self.all_norm.values.clone());
+        let near = |v: f64, unit: f64| (v - unit).abs() <= units::UNIT_TOLERANCE * unit;
+        let f_columns = format!("`{}`, `{}`, `{}`", c[0], c[1], c[2]);
+        const FT_PER_M: f64 = 1.0 / FT_TO_M;
+        if near(norm_start, G_MPS2 * FT_PER_M) && near(norm_all, G_MPS2 * FT_PER_M) {
+            return Some(format!(
+                "columns {f_columns}: |f| is {norm_start:.2} at the start (median of the first second) and {norm_all:.2} over {whole}, which is 1 g in ft/s² (32.17); expected m/s² (9.81): multiply by 0.3048 (JSBSim's `accelerations/a-pilot-*-ft_sec2` headers are converted when kept as JSBSim writes them)"
+            ));
+        }
+        if near(norm_start, 1.0) && near(norm_all, 1.0) {
+            return Some(format!(
+                "columns {f_columns}: |f| is {norm_start:.2} at the start and {norm_all:.2} over {whole}, which is 1 g as a load factor; expected m/s² (9.81): multiply by 9.80665"
+            ));
+        }
+        let fz_start = median(self.start_fz.clone());
+        let fz_all = median(self.all_fz.values.clone());
+        if fz_start > units::Z_UP_MPS2 && fz_all > 0.0 {
+            return Some(format!(
+                "column `{}`: fz is {fz_start:+.2} m/s² at the start (median of the first second) and {fz_all:+.2} over {whole}: a z-up convention? hexcue's head frame has z down, so rest and level flight give fz = −9.81; negate fz (a z-up frame usually flips y, q and r as well)",
+                c[2]
+            ));
+        }
+        let rate_columns = format!("`{}`, `{}`, `{}`", c[3], c[4], c[5]);
+        if names.has_attitude {
+            if let Some(ratio) = self.attitude_rate_ratio() {
+                let att_columns = format!("`{}`, `{}`, `{}`", c[6], c[7], c[8]);
+                let (lo, hi) = units::DEG_BAND;
+                if (lo..=hi).contains(&ratio) {
+                    return Some(format!(
+                        "columns {rate_columns}: the attitude ({att_columns}) changes {:.1}× slower than these rates say; rates in °/s? expected rad/s: multiply by π/180 (0.017453)",
+                        1.0 / ratio
+                    ));
+                }
+                if (1.0 / hi..=1.0 / lo).contains(&ratio) {
+                    return Some(format!(
+                        "columns {att_columns}: the attitude changes {ratio:.1}× faster than the rates {rate_columns} say; attitude in degrees? expected radians: multiply by π/180"
+                    ));
+                }
+                // The rates explain the attitude: whatever their size, they are in rad/s.
+                return None;
+            }
+        }
+        let dt = self.duration_s() / (self.rows - 1) as f64;
+        let fast_s = self.fast as f64 * dt;
+        let share = self.fast as f64 / self.rows as f64;
+        if fast_s >= units::FAST_FOR_S && share >= units::FAST_SHARE {
+            return Some(format!(
+                "columns {rate_columns}: a rate beyond {} rad/s ({:.0}°/s) for {fast_s:.1} s ({:.0} % of {whole}); rates in °/s? expected rad/s: multiply by π/180 (0.017453)",
+                units::FAST_RATE_RADPS,
+                units::FAST_RATE_RADPS.to_degrees(),
+                100.0 * share
+            ));
+        }
+        None
+    }
+}
+
+/// Refuses a trace whose [`UnitStats`] show a unit or sign mistake, naming its columns.
+fn check_units(stats: &UnitStats, layout: &Layout, ctx: &Ctx) -> Result<(), TraceError> {
+    let header = |q: Quantity| {
+        layout.sources[q.index()]
+            .as_ref()
+            .map_or(q.native_name().to_string(), |s| s.header.clone())
+    };
+    use Quantity::*;
+    let names = UnitNames {
+        columns: [Fx, Fy, Fz, P, Q, R, Phi, Theta, Psi].map(header),
+        whole: "the trace",
+        has_attitude: [Phi, Theta, Psi]
+            .iter()
+            .all(|q| layout.sources[q.index()].is_some()),
+    };
+    match stats.verdict(&names) {
+        Some(message) => Err(ctx.file(TraceErrorKind::Units, message)),
+        None => Ok(()),
+    }
 }
 
 fn parse_row(
@@ -1128,19 +1620,7 @@ pub fn load_trace(path: &Path, target_rate_hz: f64) -> Result<LoadedTrace, Trace
         .file_stem()
         .map_or_else(|| "trace".to_string(), |s| s.to_string_lossy().into_owned());
     let (mut trace, measured_rate_hz) = parse_measured(&text, &source_name, &name, target_rate_hz)?;
-
-    let sidecar = path.with_extension("json");
-    if sidecar != path {
-        let sidecar_name = sidecar.display().to_string();
-        match read_text(&sidecar, &sidecar_name, MAX_SIDECAR_BYTES) {
-            Err(TraceError::Io { error, .. }) if error.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => trace.notices.push(format!("sidecar ignored: {e}")),
-            Ok(json) => match parse_sidecar(&json, &sidecar_name) {
-                Ok(info) => attach_info(&mut trace, info, measured_rate_hz),
-                Err(e) => trace.notices.push(format!("sidecar ignored: {e}")),
-            },
-        }
-    }
+    read_sidecar(path, &mut trace, measured_rate_hz);
     Ok(LoadedTrace { trace, text })
 }
 
@@ -1463,6 +1943,30 @@ mod tests {
         let m = refused(&no_attitude(5.0), TraceErrorKind::Units, None, None);
         assert!(m.contains("°/s") && m.contains("10.0 s"), "{m}");
         assert!(parse(&no_attitude(0.5)).is_ok());
+    }
+
+    #[test]
+    fn unit_checks_hold_bounded_memory_and_still_decide_on_long_traces() {
+        // Past the kept values the medians are a uniform subsample's: exact before it.
+        let mut t = Thinned::default();
+        for i in 0..UnitStats::KEPT {
+            t.push(i as f64);
+        }
+        assert_eq!(t.values.len(), UnitStats::KEPT);
+        assert_eq!(median(t.values.clone()), (UnitStats::KEPT / 2) as f64);
+        for i in UnitStats::KEPT..10 * UnitStats::KEPT {
+            t.push(i as f64);
+        }
+        assert!(t.values.len() <= UnitStats::KEPT, "{}", t.values.len());
+        assert!(t.values.windows(2).all(|w| w[1] - w[0] == t.stride as f64));
+        let m = median(t.values.clone());
+        assert!((m / (5 * UnitStats::KEPT) as f64 - 1.0).abs() < 0.01, "{m}");
+        // A z-up trace longer than the kept values is refused as a short one is.
+        let z_up = synthetic(UnitStats::KEPT as f64 / 100.0 * 1.5, |_| {
+            [0.2, 0.0, 9.81, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+        });
+        let m = refused(&z_up, TraceErrorKind::Units, None, None);
+        assert!(m.contains("z-up"), "{m}");
     }
 
     #[test]

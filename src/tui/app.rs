@@ -81,6 +81,8 @@ pub struct App {
     pub goto: Option<String>,
     pub theme: Theme,
     pub legs: LegScale,
+    /// A live session's header (`hexcue live`); `None` for playback and review.
+    pub live: Option<super::live::LiveStatus>,
     quit: Option<&'static str>,
 }
 
@@ -95,6 +97,7 @@ impl App {
             goto: None,
             theme,
             legs: LegScale::of(profile),
+            live: None,
             quit: None,
         }
     }

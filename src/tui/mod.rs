@@ -11,6 +11,7 @@
 //! The CLI calls [`run_live`] and [`run_review`]; see `docs/console.md` for the layout and keys.
 
 pub mod app;
+pub mod live;
 pub mod player;
 pub mod theme;
 mod time;
@@ -35,12 +36,7 @@ pub use app::{App, UiEvent};
 pub use player::{Command, Snapshot};
 pub use theme::Theme;
 
-/// Where recorded frames go (the MCAP recorder implements it).
-pub trait FrameSink: Send {
-    fn record(&mut self, frame: &Frame) -> anyhow::Result<()>;
-    /// Closes the file; returns a line for the user (typically the path and what was written).
-    fn finish(self: Box<Self>) -> anyhow::Result<String>;
-}
+pub use crate::sinks::FrameSink;
 
 /// What the console asks a [`SinkFactory`] for when a recording starts.
 #[derive(Clone, Debug, PartialEq)]
@@ -113,7 +109,8 @@ impl SourceCheckpoint {
 
 impl FrameSource for Engine {
     fn len(&self) -> usize {
-        self.trace().len()
+        // A stream of unknown length has, for the player, the steps taken so far.
+        self.known_len().unwrap_or_else(|| self.position())
     }
     fn position(&self) -> usize {
         Engine::position(self)
@@ -248,7 +245,10 @@ impl SessionInfo {
 /// How to start a live session.
 pub struct LiveConfig {
     pub profile: Profile,
-    pub trace: Arc<Trace>,
+    /// The flight, streamed: seeking returns to the engine's nearest checkpoint, the source
+    /// seeking to its sample (`SampleSource::seek`).
+    pub source: Box<dyn crate::source::SampleSource>,
+    pub info: SessionInfo,
     /// In any order: the console shows them in the order of [`AlgorithmId::ALL`].
     pub algorithms: Vec<AlgorithmId>,
     /// `--record FILE`: start recording into this file at once.
@@ -264,9 +264,22 @@ pub struct LiveConfig {
 
 impl LiveConfig {
     pub fn new(profile: Profile, trace: Arc<Trace>, algorithms: Vec<AlgorithmId>) -> Self {
+        let info = SessionInfo::for_trace(&trace, &profile);
+        let source = Box::new(crate::source::TraceSamples::new(trace));
+        Self::streaming(profile, source, info, algorithms)
+    }
+
+    /// A session on a streamed flight (a trace file read as it is played).
+    pub fn streaming(
+        profile: Profile,
+        source: Box<dyn crate::source::SampleSource>,
+        info: SessionInfo,
+        algorithms: Vec<AlgorithmId>,
+    ) -> Self {
         LiveConfig {
             profile,
-            trace,
+            source,
+            info,
             algorithms,
             record: None,
             recordings_dir: PathBuf::from("recordings"),
@@ -303,9 +316,9 @@ pub struct Outcome {
 /// Runs the live console on the real terminal until the user quits or a signal arrives. Every
 /// recording is finished on the way out, and the terminal restored, whatever happens.
 pub fn run_live(cfg: LiveConfig, sink_factory: SinkFactory) -> anyhow::Result<Outcome> {
-    let engine = Engine::new(&cfg.profile, cfg.trace.clone(), &cfg.algorithms)
+    let engine = Engine::with_source(&cfg.profile, cfg.source, &cfg.algorithms)
         .context("building the algorithms")?;
-    let info = SessionInfo::for_trace(&cfg.trace, &cfg.profile);
+    let info = cfg.info;
     let recording = player::RecordingSetup {
         factory: sink_factory,
         first_path: cfg.record,

@@ -96,7 +96,7 @@ pub struct WindowRow {
 }
 
 impl WindowRow {
-    fn of(frame: &Frame) -> Self {
+    pub(crate) fn of(frame: &Frame) -> Self {
         let f32s = |c: [f64; 6]| c.map(|v| v as f32);
         WindowRow {
             t_s: frame.t_s,

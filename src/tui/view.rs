@@ -109,6 +109,9 @@ fn channel_label(ch: usize) -> &'static str {
 }
 
 fn status_line(app: &App) -> Line<'static> {
+    if let Some(live) = &app.live {
+        return super::live::status_line(app, live);
+    }
     let th = &app.theme;
     let s = &app.snapshot;
     let (sym, word, style) = if let Some(t) = s.seeking_to_s {
@@ -142,6 +145,9 @@ fn status_line(app: &App) -> Line<'static> {
 }
 
 fn header_line2(app: &App) -> Line<'static> {
+    if let Some(live) = &app.live {
+        return super::live::header_line2(app, live);
+    }
     let th = &app.theme;
     let s = &app.snapshot;
     // Most important first: narrow terminals cut the end of the line.
@@ -208,6 +214,9 @@ fn short_path(p: &str) -> &str {
 }
 
 fn footer_line(app: &App, now: Instant) -> Line<'static> {
+    if let Some(live) = &app.live {
+        return super::live::footer_line(app, live);
+    }
     let th = &app.theme;
     if let Some(typed) = &app.goto {
         return Line::from(vec![

@@ -1,0 +1,610 @@
+//! `hexcue live`: hexcue between a running simulator and a motion platform (DESIGN §10).
+//!
+//! One thread keeps the clock. Each period it steps once: the latest input sample (held
+//! between arrivals) goes through the engine and every algorithm; the driving algorithm's
+//! command passes the safety stage ([`crate::safety`]) and a last workspace limiter, and goes
+//! to every output; then the frame goes to every frame sink (the recording; Foxglove next).
+//! A command leaves every step, from start to exit, whatever the input does.
+//!
+//! While it waits for the next step it reads the input socket every millisecond, so a
+//! sample's arrival is known to a millisecond, with a bounded number of reads per step so
+//! that a flood of datagrams cannot stall the clock.
+
+pub mod recording;
+
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+
+use crate::engine::{Engine, Frame};
+use crate::formats::trace::{UnitNames, UnitStats};
+use crate::mca::limiter::WorkspaceLimiter;
+use crate::mca::AlgorithmId;
+use crate::metrics::TimeHistogram;
+use crate::model::stewart::Stewart;
+use crate::profile::Profile;
+use crate::safety::{Safety, SafetyParams, SafetyState};
+use crate::sinks::{CommandSink, FrameSink, PlatformOutput};
+use crate::source::{HeldSample, HeldSampleHandle};
+use crate::sources::live::LiveInput;
+use crate::summary::{LiveSummary, Quantiles, Summary, SummaryBuilder};
+
+/// Datagrams read at most per step: ten times what a simulator at 10× the step rate sends.
+pub const MAX_READS_PER_STEP: usize = 100;
+/// How often the input is read while waiting for the next step.
+const POLL_EVERY: Duration = Duration::from_millis(1);
+/// Share of the period the MPCs' solvers may spend on one QP: past it they stop with
+/// `max_time` and the S-MPC takes its fallback chain (free MPC, then washout).
+pub const SOLVER_SHARE: f64 = 0.4;
+
+/// The profile a live session runs: the MPCs' wall-clock limit fits the period.
+pub fn live_profile(profile: &Profile) -> Profile {
+    let mut p = profile.clone();
+    let budget_ms = SOLVER_SHARE * 1e3 / p.rate_hz;
+    p.mpc.time_limit_ms = p.mpc.time_limit_ms.min(budget_ms);
+    p
+}
+
+/// What the clock loop is asked from outside (keys, signals, the duration).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Control {
+    Continue,
+    /// E-stop: washout to neutral, park, and end the session once parked.
+    Stop,
+}
+
+/// Seconds of fresh input the unit and sign checks of a trace file are run on (the first
+/// ones: an operator hears of a mistake before the flight gets going).
+pub const UNIT_CHECK_S: f64 = 10.0;
+
+/// How much an event matters to the operator.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EventLevel {
+    Info,
+    Warning,
+    Error,
+}
+
+/// Something the operator should know, as it happened: a safety state entered, the input
+/// lost or back, a unit or sign mistake suspected in the input.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LiveEvent {
+    /// Session time of the step (s).
+    pub t_s: f64,
+    pub level: EventLevel,
+    pub text: String,
+}
+
+/// One step as it happened, for the console and the tests.
+pub struct StepReport<'a> {
+    pub frame: &'a Frame,
+    pub output: PlatformOutput,
+    /// Age of the held sample when the step began (s); `None` before the first.
+    pub input_age_s: Option<f64>,
+    /// The simulator says it is paused.
+    pub sim_paused: bool,
+    pub time_in_state_s: f64,
+    pub stats: &'a LiveStats,
+    /// What happened at this step (usually nothing).
+    pub events: &'a [LiveEvent],
+}
+
+/// Counters and histograms of the session, in constant memory.
+#[derive(Clone, Debug, Default)]
+pub struct LiveStats {
+    pub commands_out: u64,
+    pub deadline_misses: u64,
+    pub step: TimeHistogram,
+    pub latency: TimeHistogram,
+    pub input_lost_steps: u64,
+    /// Steps with the held sample older than one period when used: the simulator is slower
+    /// than hexcue, or late.
+    pub stale_steps: u64,
+    pub samples_in: u64,
+    pub malformed: u64,
+    /// The unit or sign mistake the first seconds of input suggest, if any.
+    pub unit_warning: Option<String>,
+}
+
+impl LiveStats {
+    pub fn summary(&self, rate_hz: f64) -> LiveSummary {
+        let ms = |h: &TimeHistogram| Quantiles {
+            median: h.quantile(0.5) / 1e3,
+            p99: h.quantile(0.99) / 1e3,
+        };
+        LiveSummary {
+            samples_in: self.samples_in,
+            commands_out: self.commands_out,
+            deadline_misses: self.deadline_misses,
+            step_ms: ms(&self.step),
+            latency_ms: ms(&self.latency),
+            input_lost_s: self.input_lost_steps as f64 / rate_hz,
+            malformed: self.malformed,
+            unit_warning: self.unit_warning.clone(),
+        }
+    }
+}
+
+/// A live session: input, engine, safety, outputs and frame sinks.
+pub struct LiveSession {
+    engine: Engine,
+    held: HeldSampleHandle,
+    safety: Safety,
+    /// The last stage: no command leaves the profile's limits, whatever came before.
+    limiter: WorkspaceLimiter,
+    stewart: Stewart,
+    input: LiveInput,
+    outputs: Vec<Box<dyn CommandSink>>,
+    /// Where whole frames go: the recording, and any other frame sink (Foxglove).
+    frame_sinks: Vec<Box<dyn FrameSink>>,
+    drive: AlgorithmId,
+    period: Duration,
+    rate_hz: f64,
+    summary: SummaryBuilder,
+    stats: LiveStats,
+    seq: u64,
+    reads_left: usize,
+    first_sample_seen: bool,
+    last_frame: Option<Frame>,
+    /// Whether the previous step had fresh input from a running simulator.
+    input_was_ok: bool,
+    /// Since when the input has been lost (session time, s).
+    lost_since_s: Option<f64>,
+    /// The first seconds of fresh input, for the unit and sign checks; `None` once decided.
+    units: Option<UnitStats>,
+    events: Vec<LiveEvent>,
+}
+
+impl LiveSession {
+    /// A session of `algorithms` (which must include `drive`) on `profile` (see
+    /// [`live_profile`]), parked, with no outputs or sinks yet.
+    pub fn new(
+        profile: &Profile,
+        algorithms: &[AlgorithmId],
+        drive: AlgorithmId,
+        input: LiveInput,
+        safety: SafetyParams,
+    ) -> Result<Self> {
+        anyhow::ensure!(
+            algorithms.contains(&drive),
+            "--drive {drive}: the algorithm driving the platform must be among --algorithms"
+        );
+        let (source, held) = HeldSample::new(input.url(), profile.rate_hz);
+        let engine = Engine::with_source(profile, Box::new(source), algorithms)
+            .context("building the algorithms")?;
+        let dt = profile.dt_s();
+        Ok(LiveSession {
+            engine,
+            held,
+            safety: Safety::new(safety, profile.limits.si(), dt),
+            limiter: WorkspaceLimiter::new(
+                profile.stewart(),
+                profile.limits.si(),
+                profile.limiter.leg_margin_m,
+                dt,
+            ),
+            stewart: profile.stewart(),
+            summary: SummaryBuilder::new(profile, input.url()),
+            input,
+            outputs: Vec::new(),
+            frame_sinks: Vec::new(),
+            drive,
+            period: Duration::from_secs_f64(dt),
+            rate_hz: profile.rate_hz,
+            stats: LiveStats::default(),
+            seq: 0,
+            reads_left: MAX_READS_PER_STEP,
+            first_sample_seen: false,
+            last_frame: None,
+            input_was_ok: false,
+            lost_since_s: None,
+            units: Some(UnitStats::new()),
+            events: Vec::new(),
+        })
+    }
+
+    pub fn add_output(&mut self, sink: Box<dyn CommandSink>) {
+        self.outputs.push(sink);
+    }
+
+    /// Attaches a frame sink: it gets every frame after the step's command has been sent.
+    pub fn add_frame_sink(&mut self, sink: Box<dyn FrameSink>) {
+        self.frame_sinks.push(sink);
+    }
+
+    pub fn period(&self) -> Duration {
+        self.period
+    }
+
+    pub fn drive(&self) -> AlgorithmId {
+        self.drive
+    }
+
+    pub fn algorithms(&self) -> Vec<AlgorithmId> {
+        self.engine.algorithms()
+    }
+
+    pub fn input(&self) -> &LiveInput {
+        &self.input
+    }
+
+    pub fn safety(&self) -> &Safety {
+        &self.safety
+    }
+
+    pub fn stats(&self) -> &LiveStats {
+        &self.stats
+    }
+
+    /// Reads the input, within what is left of this step's budget of reads.
+    pub fn poll_input(&mut self, now: Instant) -> Result<()> {
+        let before = self.input.samples_in + self.input.malformed;
+        self.input
+            .poll(now, self.reads_left)
+            .with_context(|| format!("{}: reading the input", self.input.url()))?;
+        let read = (self.input.samples_in + self.input.malformed - before) as usize;
+        self.reads_left = self.reads_left.saturating_sub(read);
+        Ok(())
+    }
+
+    /// One step, due at `due`: input, safety, engine, limiter, outputs, frame sinks.
+    pub fn step(&mut self, due: Instant, control: Control) -> Result<StepReport<'_>> {
+        let started = Instant::now();
+        self.poll_input(started)?;
+        self.reads_left = MAX_READS_PER_STEP;
+        if control == Control::Stop {
+            self.safety.estop();
+        }
+        let latest = self.input.latest();
+        let input_age_s = self.input.age_s(started);
+        let fresh = input_age_s.is_some_and(|a| a <= self.safety.params().input_timeout_s);
+        let input_ok = fresh && !self.input.paused();
+        self.first_sample_seen |= latest.is_some();
+        if self.first_sample_seen && !input_ok {
+            self.stats.input_lost_steps += 1;
+        }
+        if input_age_s.is_some_and(|a| a > self.period.as_secs_f64()) && input_ok {
+            self.stats.stale_steps += 1;
+        }
+
+        self.events.clear();
+        let t_s = self.engine.position() as f64 / self.rate_hz;
+        self.input_events(t_s, input_ok);
+        let state_before = self.safety.state();
+        let plan = self.safety.begin_step(input_ok);
+        if plan.state != state_before {
+            let text = self.state_text(plan.state);
+            let level = match plan.state {
+                SafetyState::Estop => EventLevel::Error,
+                SafetyState::Washout => EventLevel::Warning,
+                _ => EventLevel::Info,
+            };
+            self.events.push(LiveEvent { t_s, level, text });
+        }
+        if plan.reset_algorithms {
+            self.engine.reset_lanes();
+        }
+        self.engine.set_cue_gain(plan.cue_gain);
+        if let Some((sample, _)) = latest {
+            self.held.set(sample);
+        }
+        let frame = self
+            .engine
+            .step()
+            .context("the live source ended, which it never should")?;
+        let wanted = frame
+            .lane(self.drive)
+            .map(|l| l.command)
+            .unwrap_or_default();
+        let command = self.limiter.apply(&self.safety.command(&wanted)).command;
+        self.safety.sent(&command);
+        let output = PlatformOutput {
+            t_s: frame.t_s,
+            seq: self.seq,
+            pose: command.pose,
+            legs_m: self.stewart.leg_lengths(&command.pose),
+            state: self.safety.state(),
+            stopped: self.safety.is_stopped(),
+            algorithm: self.drive,
+        };
+        for out in &mut self.outputs {
+            out.send(&output)
+                .with_context(|| format!("{}: sending the command", out.describe()))?;
+        }
+        let sent = Instant::now();
+        self.seq += 1;
+        self.stats.commands_out += 1;
+        self.stats
+            .step
+            .push(sent.saturating_duration_since(started).as_secs_f64() * 1e6);
+        if sent > due + self.period {
+            self.stats.deadline_misses += 1;
+        }
+        if let (Some((_, arrival)), true) = (latest, input_ok) {
+            self.stats
+                .latency
+                .push(sent.saturating_duration_since(arrival).as_secs_f64() * 1e6);
+        }
+        self.stats.samples_in = self.input.samples_in;
+        self.stats.malformed = self.input.malformed;
+        self.summary.push(&frame);
+        if input_ok {
+            self.check_units(&frame);
+        }
+        for sink in &mut self.frame_sinks {
+            sink.record(&frame)?;
+        }
+        self.last_frame = Some(frame);
+        Ok(StepReport {
+            frame: self.last_frame.as_ref().expect("set just above"),
+            output,
+            input_age_s,
+            sim_paused: self.input.paused(),
+            time_in_state_s: self.safety.time_in_state_s(),
+            stats: &self.stats,
+            events: &self.events,
+        })
+    }
+
+    /// The input lost (after it had been good) and back.
+    fn input_events(&mut self, t_s: f64, input_ok: bool) {
+        let was_ok = std::mem::replace(&mut self.input_was_ok, input_ok);
+        let (level, text) = if was_ok && !input_ok {
+            self.lost_since_s = Some(t_s);
+            let why = if self.input.paused() {
+                "the simulator is paused".to_string()
+            } else {
+                format!(
+                    "no sample for more than {} s",
+                    self.safety.params().input_timeout_s
+                )
+            };
+            (
+                EventLevel::Warning,
+                format!("input lost from {}: {why}", self.input.url()),
+            )
+        } else if !was_ok && input_ok {
+            let Some(since) = self.lost_since_s.take() else {
+                return;
+            };
+            (
+                EventLevel::Info,
+                format!(
+                    "input back from {} after {:.2} s",
+                    self.input.url(),
+                    t_s - since
+                ),
+            )
+        } else {
+            return;
+        };
+        self.events.push(LiveEvent { t_s, level, text });
+    }
+
+    /// What entering `state` means, for the operator.
+    fn state_text(&self, state: SafetyState) -> String {
+        match state {
+            SafetyState::Engaging => format!(
+                "engaging: input from {}, the cue fades in over {} s",
+                self.input.url(),
+                self.safety.params().fade_in_s
+            ),
+            SafetyState::Running => format!("running: {} drives the platform", self.drive.label()),
+            SafetyState::Washout if self.input.paused() => {
+                "washout to neutral: the simulator is paused".to_string()
+            }
+            SafetyState::Washout => "washout to neutral: input lost".to_string(),
+            SafetyState::Estop => "e-stop: washout to neutral, then park".to_string(),
+            SafetyState::Parked if self.safety.estopped() => {
+                "parked at neutral after the e-stop".to_string()
+            }
+            SafetyState::Parked => "parked at neutral, waiting for input".to_string(),
+        }
+    }
+
+    /// Runs the unit and sign checks of a trace file on the first [`UNIT_CHECK_S`] of fresh
+    /// input, once; a suspected mistake becomes a warning (the limiter keeps the platform
+    /// safe whatever the input says, but the cues would be wrong).
+    fn check_units(&mut self, frame: &Frame) {
+        let Some(units) = self.units.as_mut() else {
+            return;
+        };
+        units.push(&frame.aircraft);
+        if units.duration_s() < UNIT_CHECK_S {
+            return;
+        }
+        let names = UnitNames {
+            columns: ["fx", "fy", "fz", "p", "q", "r", "phi", "theta", "psi"].map(String::from),
+            whole: "the first seconds of input",
+            has_attitude: true,
+        };
+        if let Some(message) = units.verdict(&names) {
+            let text = format!(
+                "{}: the input looks wrong after the conversion to hexcue's units: {message}",
+                self.input.url()
+            );
+            self.stats.unit_warning = Some(text.clone());
+            self.events.push(LiveEvent {
+                t_s: frame.t_s,
+                level: EventLevel::Warning,
+                text,
+            });
+        }
+        self.units = None;
+    }
+
+    /// Parked after a stop: the session may end.
+    pub fn is_stopped(&self) -> bool {
+        self.safety.is_stopped()
+    }
+
+    /// The summary so far, with its `live` block.
+    pub fn summary(&self) -> Summary {
+        let mut s = self.summary.finish();
+        s.live = Some(self.stats.summary(self.rate_hz));
+        s
+    }
+
+    /// Says goodbye to the platform (Moog: park) and the simulator, and closes every frame
+    /// sink; returns what each sink said.
+    pub fn finish(mut self) -> Result<(Summary, Vec<String>)> {
+        for out in &mut self.outputs {
+            out.close()
+                .with_context(|| format!("{}: closing", out.describe()))?;
+        }
+        self.input.close();
+        let summary = self.summary();
+        let mut lines = Vec::new();
+        for sink in self.frame_sinks.drain(..) {
+            lines.push(sink.finish()?);
+        }
+        Ok((summary, lines))
+    }
+}
+
+/// The clock: steps `session` every period until `control` has asked it to stop and the
+/// platform is parked. `control` is asked before every step; `on_step` sees every step.
+pub fn run(
+    session: &mut LiveSession,
+    mut control: impl FnMut(&LiveSession) -> Control,
+    mut on_step: impl FnMut(&StepReport),
+) -> Result<()> {
+    let period = session.period();
+    let mut due = Instant::now();
+    loop {
+        // Wait for the step, reading the input as datagrams arrive.
+        loop {
+            let now = Instant::now();
+            if now >= due {
+                break;
+            }
+            session.poll_input(now)?;
+            std::thread::sleep(POLL_EVERY.min(due - now));
+        }
+        let c = control(session);
+        let report = session.step(due, c)?;
+        on_step(&report);
+        if session.is_stopped() {
+            return Ok(());
+        }
+        due += period;
+        let now = Instant::now();
+        if now > due + period {
+            // Far behind (the machine stalled): start the schedule again from now rather
+            // than send a burst of commands to catch up.
+            due = now;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::profile::tests::full_flight;
+    use crate::sources::jsbsim::Jsbsim;
+    use crate::sources::live::Endpoint;
+
+    fn session() -> (LiveSession, std::net::SocketAddr) {
+        let input = LiveInput::with_decoder(
+            "jsbsim://127.0.0.1:0",
+            Box::new(Jsbsim::default()),
+            Endpoint::Listen("127.0.0.1:0".parse().unwrap()),
+        )
+        .unwrap();
+        let addr = input.local_addr().unwrap();
+        let profile = live_profile(&full_flight());
+        let s = LiveSession::new(
+            &profile,
+            &[AlgorithmId::Cwf],
+            AlgorithmId::Cwf,
+            input,
+            SafetyParams::default(),
+        )
+        .unwrap();
+        (s, addr)
+    }
+
+    #[test]
+    fn a_flood_is_read_a_bounded_amount_a_step_and_counted() {
+        let (mut s, addr) = session();
+        let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        // Two steps' budgets (as many as the socket's default buffer surely holds; a real
+        // flood overflows it and the kernel drops the rest), half of them malformed.
+        for k in 0..200 {
+            let line = if k % 2 == 0 {
+                format!("{},1,0,-32.17,0,0,0,0,0,0\n", k as f64 * 0.01)
+            } else {
+                "garbage".to_string()
+            };
+            tx.send_to(line.as_bytes(), addr).unwrap();
+        }
+        std::thread::sleep(Duration::from_millis(50));
+        let mut read = 0;
+        for _ in 0..3 {
+            let r = s.step(Instant::now(), Control::Continue).unwrap();
+            let total = r.stats.samples_in + r.stats.malformed;
+            assert!(total - read <= MAX_READS_PER_STEP as u64, "{total}");
+            read = total;
+        }
+        assert_eq!(read, 200);
+        assert_eq!(s.stats().malformed, 100);
+        assert_eq!(s.stats().commands_out, 3);
+    }
+
+    /// Steps a session for `steps` with one JSBSim line (fz in ft/s² as JSBSim sends it)
+    /// before each step; returns every event.
+    fn fly(fz_ft_s2: f64, steps: usize) -> (Vec<LiveEvent>, Summary) {
+        let (mut s, addr) = session();
+        let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let mut events = Vec::new();
+        for k in 0..steps {
+            let line = format!("{},0.5,0,{fz_ft_s2},0,0,0,0,0,0\n", k as f64 * 0.01);
+            tx.send_to(line.as_bytes(), addr).unwrap();
+            let r = s.step(Instant::now(), Control::Continue).unwrap();
+            events.extend(r.events.iter().cloned());
+        }
+        (events, s.summary())
+    }
+
+    #[test]
+    fn the_first_seconds_of_input_get_the_unit_checks_of_a_trace_file() {
+        let steps = (UNIT_CHECK_S * 100.0) as usize + 50;
+        // z up: +1 g on fz at rest.
+        let (events, summary) = fly(32.17, steps);
+        let warnings: Vec<&LiveEvent> = events
+            .iter()
+            .filter(|e| e.level == EventLevel::Warning)
+            .collect();
+        assert_eq!(warnings.len(), 1, "{events:?}");
+        assert!(warnings[0].text.contains("z-up"), "{}", warnings[0].text);
+        assert!(warnings[0].t_s >= UNIT_CHECK_S, "{:?}", warnings[0]);
+        let live = summary.live.unwrap();
+        assert_eq!(
+            live.unit_warning.as_deref(),
+            Some(warnings[0].text.as_str())
+        );
+        assert!(events[0].text.starts_with("engaging"), "{events:?}");
+        // As JSBSim sends level flight: nothing to say.
+        let (events, summary) = fly(-32.17, steps);
+        assert!(
+            events.iter().all(|e| e.level == EventLevel::Info),
+            "{events:?}"
+        );
+        assert_eq!(summary.live.unwrap().unit_warning, None);
+        assert!(events.iter().any(|e| e.text.starts_with("running")));
+    }
+
+    #[test]
+    fn a_stop_parks_and_every_step_sends_a_command() {
+        let (mut s, _) = session();
+        let mut k = 0;
+        while !s.is_stopped() {
+            let r = s.step(Instant::now(), Control::Stop).unwrap();
+            assert_eq!(r.output.seq, k);
+            assert_eq!(r.output.pose, nalgebra::Vector6::zeros());
+            k += 1;
+            assert!(k < 10);
+        }
+        assert_eq!(s.summary().live.unwrap().commands_out, k);
+    }
+}

@@ -1,0 +1,108 @@
+//! A live session recorded like a playback: the MCAP recorder as a frame sink, with the
+//! session's input written as it comes (hexcue's CSV, at the step rate: the held sample each
+//! step used) to a file beside the recording, attached as `trace.csv` at the end and then
+//! removed. `review` opens the result as it opens a playback's.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+
+use crate::engine::Frame;
+use crate::formats::recording::{Recorder, RecordingMeta};
+use crate::formats::trace::NATIVE_HEADER;
+use crate::mca::AlgorithmId;
+use crate::sinks::FrameSink;
+
+pub struct LiveRecording {
+    recorder: Recorder,
+    input_log: BufWriter<File>,
+    input_log_path: PathBuf,
+    extra: Vec<(&'static str, String)>,
+}
+
+impl LiveRecording {
+    /// Creates `path`, and `path` + `.input.csv` beside it for the input until the end.
+    pub fn create(
+        path: &Path,
+        profile_name: &str,
+        profile_toml: &str,
+        input_url: &str,
+        algorithms: &[AlgorithmId],
+        drive: AlgorithmId,
+        rate_hz: f64,
+    ) -> Result<Self> {
+        let header = format!("{NATIVE_HEADER}\n");
+        let meta = RecordingMeta {
+            profile_name: profile_name.to_string(),
+            profile_toml: profile_toml.to_string(),
+            trace_name: input_url.to_string(),
+            // Known only at the end; a file cut short keeps this header-only trace.
+            trace_csv: header.clone(),
+            trace_sidecar: None,
+            algorithms: algorithms.to_vec(),
+            rate_hz,
+        };
+        let recorder = Recorder::create(path, &meta)?;
+        let mut log_name = path.as_os_str().to_owned();
+        log_name.push(".input.csv");
+        let input_log_path = PathBuf::from(log_name);
+        let mut input_log = BufWriter::new(
+            File::create(&input_log_path)
+                .with_context(|| format!("{}: cannot create", input_log_path.display()))?,
+        );
+        input_log.write_all(header.as_bytes())?;
+        Ok(LiveRecording {
+            recorder,
+            input_log,
+            input_log_path,
+            extra: vec![
+                ("input", input_url.to_string()),
+                ("drive", drive.key().to_string()),
+            ],
+        })
+    }
+}
+
+impl FrameSink for LiveRecording {
+    fn record(&mut self, frame: &Frame) -> Result<()> {
+        self.recorder.record(frame)?;
+        let a = &frame.aircraft;
+        let (f, w, att) = (
+            a.specific_force_mps2,
+            a.angular_velocity_radps,
+            a.attitude_rad,
+        );
+        // `{}` prints the shortest text that reads back to the same f64.
+        writeln!(
+            self.input_log,
+            "{},{},{},{},{},{},{},{},{},{}",
+            frame.t_s, f.x, f.y, f.z, w.x, w.y, w.z, att.x, att.y, att.z
+        )
+        .with_context(|| format!("{}: cannot write", self.input_log_path.display()))
+    }
+
+    fn finish(self: Box<Self>) -> Result<String> {
+        let LiveRecording {
+            recorder,
+            mut input_log,
+            input_log_path,
+            extra,
+        } = *self;
+        input_log
+            .flush()
+            .with_context(|| format!("{}: cannot write", input_log_path.display()))?;
+        drop(input_log);
+        let path = recorder.path().display().to_string();
+        let stats = recorder
+            .finish_with_trace(&input_log_path, &extra)
+            .with_context(|| format!("{path}: cannot finish the recording"))?;
+        std::fs::remove_file(&input_log_path)
+            .with_context(|| format!("{}: cannot remove", input_log_path.display()))?;
+        Ok(format!(
+            "recorded {path}: {} steps, {} messages",
+            stats.steps, stats.messages
+        ))
+    }
+}

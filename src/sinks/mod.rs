@@ -1,0 +1,65 @@
+//! Where frames and platform commands go (DESIGN §11): adapters around the core, each named
+//! for what it is. [`FrameSink`]s take whole frames (the MCAP recorder; Foxglove next);
+//! [`CommandSink`]s take the one command a live session sends to the platform each step
+//! (hexcue's JSON over UDP, Moog's 6DOF2000E DOF mode).
+
+pub mod moog;
+pub mod udp_json;
+
+use anyhow::{bail, Context, Result};
+use nalgebra::Vector6;
+
+use crate::engine::Frame;
+use crate::mca::AlgorithmId;
+use crate::safety::SafetyState;
+
+/// Where recorded frames go (the MCAP recorder implements it).
+pub trait FrameSink: Send {
+    fn record(&mut self, frame: &Frame) -> anyhow::Result<()>;
+    /// Closes the file; returns a line for the user (typically the path and what was written).
+    fn finish(self: Box<Self>) -> anyhow::Result<String>;
+}
+
+/// The command a live session sends at one step, after the safety stage and the limiter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlatformOutput {
+    /// Session time of the step (s).
+    pub t_s: f64,
+    /// Step number, from 0, one per command.
+    pub seq: u64,
+    /// x, y, z (m), roll, pitch, yaw (rad) from neutral, simulator inertial frame (DESIGN §1).
+    pub pose: Vector6<f64>,
+    /// Leg lengths 1..6 (m).
+    pub legs_m: Vector6<f64>,
+    pub state: SafetyState,
+    /// Parked for good after an e-stop.
+    pub stopped: bool,
+    /// The algorithm driving the platform.
+    pub algorithm: AlgorithmId,
+}
+
+/// A platform, or anything listening like one, fed one command per step.
+pub trait CommandSink: Send {
+    /// Sends one command. A full socket buffer or a peer that is not listening is not an
+    /// error here: the next step sends again, and a platform must not stall the clock.
+    fn send(&mut self, out: &PlatformOutput) -> std::io::Result<()>;
+    /// The last words before the session ends (Moog: park).
+    fn close(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+    /// What it is, for the user (`udp://…`).
+    fn describe(&self) -> String;
+}
+
+/// Opens a command sink from `udp://HOST:PORT` or `moog://HOST:PORT`.
+pub fn open_output(url: &str) -> Result<Box<dyn CommandSink>> {
+    let (scheme, addr) = url
+        .split_once("://")
+        .with_context(|| format!("--output {url}: expected udp://HOST:PORT or moog://HOST:PORT"))?;
+    let addr = crate::sources::resolve(addr).with_context(|| format!("--output {url}"))?;
+    Ok(match scheme {
+        "udp" => Box::new(udp_json::UdpJson::open(addr)?),
+        "moog" => Box::new(moog::Moog::open(addr)?),
+        other => bail!("--output {url}: unknown scheme `{other}`; expected udp:// or moog://"),
+    })
+}

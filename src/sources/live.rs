@@ -1,0 +1,222 @@
+//! A live simulator over UDP: a socket, the decoder of its protocol, and the latest sample
+//! with the moment it arrived. Reads never block and are bounded per step, so a flood of
+//! datagrams cannot stall the clock; malformed datagrams are counted and ignored.
+
+use std::net::{SocketAddr, UdpSocket};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+
+use crate::trace::AircraftSample;
+
+/// Largest believable magnitudes (SI) in a live sample; past them a datagram is malformed,
+/// the same bounds as a trace file's.
+const MAX_SPECIFIC_FORCE_MPS2: f64 = 1000.0;
+const MAX_RATE_RADPS: f64 = 100.0;
+
+/// What one datagram said.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Decoded {
+    /// A sample in hexcue's units and frame (DESIGN §1); its `t_s` is the simulator's time,
+    /// when it sends one (else NaN). `paused` when the simulator says it is paused.
+    Sample {
+        sample: AircraftSample,
+        paused: bool,
+    },
+    /// Well formed but carrying no sample (JSBSim's labels line, an X-Plane reply before
+    /// every subscribed value has arrived once).
+    Nothing,
+}
+
+/// One simulator's protocol, pure: bytes in, a sample out.
+pub trait Decoder: Send {
+    /// Decodes one datagram; an error is a malformed datagram, with the reason.
+    fn decode(&mut self, datagram: &[u8]) -> Result<Decoded, String>;
+    /// Datagrams to send to the simulator now (X-Plane's subscription); `receiving` says
+    /// whether samples have arrived lately.
+    fn requests(&mut self, _now_s: f64, _receiving: bool) -> Vec<Vec<u8>> {
+        Vec::new()
+    }
+    /// Datagrams to send on the way out (X-Plane: unsubscribe).
+    fn farewell(&mut self) -> Vec<Vec<u8>> {
+        Vec::new()
+    }
+}
+
+/// Where the socket binds and where requests go, from the URL.
+pub enum Endpoint {
+    /// The simulator sends to HOST:PORT: hexcue listens there (JSBSim, FlightGear).
+    Listen(SocketAddr),
+    /// HOST:PORT is the simulator: hexcue sends requests there from a port of its own, and
+    /// the replies come back to it (X-Plane).
+    Ask(SocketAddr),
+}
+
+/// The latest sample of a live input, with its age.
+pub struct LiveInput {
+    url: String,
+    socket: UdpSocket,
+    peer: Option<SocketAddr>,
+    decoder: Box<dyn Decoder>,
+    opened: Instant,
+    latest: Option<(AircraftSample, Instant)>,
+    paused: bool,
+    /// Datagrams that carried a sample.
+    pub samples_in: u64,
+    /// Datagrams refused (and ignored).
+    pub malformed: u64,
+    /// The last refusal's reason, for the operator.
+    pub last_malformed: Option<String>,
+    buf: Vec<u8>,
+}
+
+impl LiveInput {
+    /// Opens `jsbsim://HOST:PORT`, `flightgear://HOST:PORT` or `xplane://HOST:PORT`.
+    pub fn open(url: &str) -> Result<Self> {
+        let (scheme, addr) = url.split_once("://").with_context(|| {
+            format!("--input {url}: expected jsbsim://HOST:PORT, flightgear://HOST:PORT or xplane://HOST:PORT")
+        })?;
+        let addr = super::resolve(addr).with_context(|| format!("--input {url}"))?;
+        let (decoder, endpoint): (Box<dyn Decoder>, Endpoint) = match scheme {
+            "jsbsim" => (Box::new(super::jsbsim::Jsbsim::default()), Endpoint::Listen(addr)),
+            "flightgear" => (
+                Box::new(super::flightgear::FlightGear),
+                Endpoint::Listen(addr),
+            ),
+            "xplane" => (Box::new(super::xplane::XPlane::new()), Endpoint::Ask(addr)),
+            other => bail!(
+                "--input {url}: unknown simulator `{other}`; expected jsbsim://, flightgear:// or xplane://"
+            ),
+        };
+        Self::with_decoder(url, decoder, endpoint)
+    }
+
+    pub fn with_decoder(url: &str, decoder: Box<dyn Decoder>, endpoint: Endpoint) -> Result<Self> {
+        let (bind, peer) = match endpoint {
+            Endpoint::Listen(a) => (a, None),
+            Endpoint::Ask(a) => {
+                let any: SocketAddr = if a.is_ipv4() {
+                    "0.0.0.0:0".parse()?
+                } else {
+                    "[::]:0".parse()?
+                };
+                (any, Some(a))
+            }
+        };
+        let socket =
+            UdpSocket::bind(bind).with_context(|| format!("--input {url}: cannot bind {bind}"))?;
+        socket.set_nonblocking(true)?;
+        Ok(LiveInput {
+            url: url.to_string(),
+            socket,
+            peer,
+            decoder,
+            opened: Instant::now(),
+            latest: None,
+            paused: false,
+            samples_in: 0,
+            malformed: 0,
+            last_malformed: None,
+            buf: vec![0; 65536],
+        })
+    }
+
+    pub fn url(&self) -> &str {
+        &self.url
+    }
+
+    /// The address the socket is bound to (tests bind port 0).
+    pub fn local_addr(&self) -> std::io::Result<SocketAddr> {
+        self.socket.local_addr()
+    }
+
+    /// Reads what has arrived, at most `max_datagrams`, and sends the decoder's requests.
+    /// Never blocks.
+    pub fn poll(&mut self, now: Instant, max_datagrams: usize) -> std::io::Result<()> {
+        if let Some(peer) = self.peer {
+            let now_s = now.saturating_duration_since(self.opened).as_secs_f64();
+            let receiving = self.age_s(now).is_some_and(|a| a < 1.0);
+            for req in self.decoder.requests(now_s, receiving) {
+                match self.socket.send_to(&req, peer) {
+                    Ok(_) => {}
+                    // Nothing listening yet: the decoder asks again later.
+                    Err(e)
+                        if matches!(
+                            e.kind(),
+                            std::io::ErrorKind::ConnectionRefused | std::io::ErrorKind::WouldBlock
+                        ) => {}
+                    Err(e) => return Err(e),
+                }
+            }
+        }
+        for _ in 0..max_datagrams {
+            let n = match self.socket.recv_from(&mut self.buf) {
+                Ok((n, _)) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
+                // ICMP errors from an earlier send surface here on some systems.
+                Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused => continue,
+                Err(e) => return Err(e),
+            };
+            match self.decoder.decode(&self.buf[..n]).and_then(check) {
+                Ok(Decoded::Sample { sample, paused }) => {
+                    self.latest = Some((sample, Instant::now()));
+                    self.paused = paused;
+                    self.samples_in += 1;
+                }
+                Ok(Decoded::Nothing) => {}
+                Err(why) => {
+                    self.malformed += 1;
+                    self.last_malformed = Some(why);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The latest sample and when it arrived.
+    pub fn latest(&self) -> Option<(AircraftSample, Instant)> {
+        self.latest
+    }
+
+    /// Seconds since the latest sample arrived.
+    pub fn age_s(&self, now: Instant) -> Option<f64> {
+        self.latest
+            .map(|(_, at)| now.saturating_duration_since(at).as_secs_f64())
+    }
+
+    pub fn paused(&self) -> bool {
+        self.paused
+    }
+
+    /// Says goodbye to the simulator (X-Plane: stop sending).
+    pub fn close(&mut self) {
+        if let Some(peer) = self.peer {
+            for req in self.decoder.farewell() {
+                let _ = self.socket.send_to(&req, peer);
+            }
+        }
+    }
+}
+
+/// Refuses samples no aircraft flies: non-finite or beyond the trace files' bounds.
+fn check(d: Decoded) -> Result<Decoded, String> {
+    if let Decoded::Sample { sample, .. } = &d {
+        let f = &sample.specific_force_mps2;
+        let w = &sample.angular_velocity_radps;
+        let a = &sample.attitude_rad;
+        if !(f
+            .iter()
+            .chain(w.iter())
+            .chain(a.iter())
+            .all(|v| v.is_finite()))
+        {
+            return Err("a value is not a finite number".into());
+        }
+        if f.amax() > MAX_SPECIFIC_FORCE_MPS2 || w.amax() > MAX_RATE_RADPS {
+            return Err(format!(
+                "specific force {f:?} m/s² or rates {w:?} rad/s beyond ±{MAX_SPECIFIC_FORCE_MPS2} m/s², ±{MAX_RATE_RADPS} rad/s"
+            ));
+        }
+    }
+    Ok(d)
+}

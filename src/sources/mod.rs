@@ -1,0 +1,22 @@
+//! Sources of aircraft samples (DESIGN §11), adapters around the core's
+//! [`crate::source::SampleSource`]: a trace file streamed row by row, and live simulators
+//! over UDP (JSBSim, FlightGear, X-Plane), each converting its units and signs to hexcue's
+//! at the edge (DESIGN §1).
+
+pub mod flightgear;
+pub mod jsbsim;
+pub mod live;
+pub mod trace_file;
+pub mod xplane;
+
+use std::net::{SocketAddr, ToSocketAddrs};
+
+use anyhow::{Context, Result};
+
+/// `HOST:PORT` to one socket address (the first the resolver gives).
+pub fn resolve(addr: &str) -> Result<SocketAddr> {
+    addr.to_socket_addrs()
+        .with_context(|| format!("`{addr}`: expected HOST:PORT"))?
+        .next()
+        .with_context(|| format!("`{addr}`: no address for this host"))
+}

@@ -1,0 +1,206 @@
+//! X-Plane's UDP dataref subscription (RREF). hexcue sends one request per dataref to
+//! X-Plane's port (49000 by default): `RREF\0`, the rate (i32, per second), an index (i32)
+//! and the dataref's path (400 bytes, NUL-padded), little-endian. X-Plane answers to the
+//! requesting port with `RREF` and one byte, then (index i32, value f32) pairs.
+//!
+//! Units and signs, converted here (docs/live.md; not yet checked against a running
+//! X-Plane): `g_axil`, `g_side`, `g_nrml` are load factors (g) whose signs are the opposite of
+//! a body-axis accelerometer's (`g_nrml` = +1 in level flight), so f = −g_load × 9.80665 on
+//! x forward, y right, z down, as HIL plugins that feed autopilots from them do; `P`, `Q`, `R`
+//! body rates (deg/s); `phi`, `theta`, `psi` attitude (deg); `sim/time/paused` 0 or 1.
+
+use super::live::{Decoded, Decoder};
+use crate::trace::AircraftSample;
+use crate::G_MPS2;
+
+/// The datarefs, in index order.
+pub const DATAREFS: [&str; 10] = [
+    "sim/flightmodel/forces/g_axil",
+    "sim/flightmodel/forces/g_side",
+    "sim/flightmodel/forces/g_nrml",
+    "sim/flightmodel/position/P",
+    "sim/flightmodel/position/Q",
+    "sim/flightmodel/position/R",
+    "sim/flightmodel/position/phi",
+    "sim/flightmodel/position/theta",
+    "sim/flightmodel/position/psi",
+    "sim/time/paused",
+];
+
+/// Replies asked for per second (X-Plane sends at most once a frame).
+pub const RATE_HZ: i32 = 100;
+/// Without replies for this long, subscribe again (X-Plane restarted, or a lost request).
+const RESUBSCRIBE_S: f64 = 2.0;
+
+/// One RREF request: `freq` 0 unsubscribes.
+pub fn request(freq: i32, index: i32, dataref: &str) -> Vec<u8> {
+    let mut b = Vec::with_capacity(413);
+    b.extend(b"RREF\0");
+    b.extend(freq.to_le_bytes());
+    b.extend(index.to_le_bytes());
+    let mut path = [0u8; 400];
+    let n = dataref.len().min(399);
+    path[..n].copy_from_slice(&dataref.as_bytes()[..n]);
+    b.extend(path);
+    b
+}
+
+/// One RREF reply with these (index, value) pairs, as X-Plane sends it (for tests).
+pub fn reply(pairs: &[(i32, f32)]) -> Vec<u8> {
+    let mut b = b"RREF,".to_vec();
+    for (i, v) in pairs {
+        b.extend(i.to_le_bytes());
+        b.extend(v.to_le_bytes());
+    }
+    b
+}
+
+pub struct XPlane {
+    values: [Option<f32>; 10],
+    last_request_s: Option<f64>,
+}
+
+impl XPlane {
+    pub fn new() -> Self {
+        XPlane {
+            values: [None; 10],
+            last_request_s: None,
+        }
+    }
+}
+
+impl Default for XPlane {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Decoder for XPlane {
+    fn decode(&mut self, d: &[u8]) -> Result<Decoded, String> {
+        if d.len() < 5 || &d[..4] != b"RREF" || !(d.len() - 5).is_multiple_of(8) {
+            return Err(format!(
+                "{} bytes; expected an RREF reply (`RREF`, a byte, then 8 bytes a value)",
+                d.len()
+            ));
+        }
+        for pair in d[5..].chunks_exact(8) {
+            let index = i32::from_le_bytes([pair[0], pair[1], pair[2], pair[3]]);
+            let value = f32::from_le_bytes([pair[4], pair[5], pair[6], pair[7]]);
+            // Another program's subscription on the same port: not ours, not an error.
+            if let Some(slot) = usize::try_from(index)
+                .ok()
+                .and_then(|i| self.values.get_mut(i))
+            {
+                *slot = Some(value);
+            }
+        }
+        let Some(v) = self.values.iter().copied().collect::<Option<Vec<f32>>>() else {
+            return Ok(Decoded::Nothing);
+        };
+        let v: Vec<f64> = v.into_iter().map(f64::from).collect();
+        let deg = std::f64::consts::PI / 180.0;
+        Ok(Decoded::Sample {
+            sample: AircraftSample {
+                t_s: f64::NAN,
+                specific_force_mps2: nalgebra::Vector3::new(-v[0], -v[1], -v[2]) * G_MPS2,
+                angular_velocity_radps: nalgebra::Vector3::new(v[3], v[4], v[5]) * deg,
+                attitude_rad: nalgebra::Vector3::new(v[6], v[7], v[8]) * deg,
+            },
+            paused: v[9] != 0.0,
+        })
+    }
+
+    fn requests(&mut self, now_s: f64, receiving: bool) -> Vec<Vec<u8>> {
+        let due = match self.last_request_s {
+            None => true,
+            Some(t) => !receiving && now_s - t >= RESUBSCRIBE_S,
+        };
+        if !due {
+            return Vec::new();
+        }
+        self.last_request_s = Some(now_s);
+        DATAREFS
+            .iter()
+            .enumerate()
+            .map(|(i, d)| request(RATE_HZ, i as i32, d))
+            .collect()
+    }
+
+    fn farewell(&mut self) -> Vec<Vec<u8>> {
+        DATAREFS
+            .iter()
+            .enumerate()
+            .map(|(i, d)| request(0, i as i32, d))
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn requests_are_413_bytes_little_endian() {
+        let r = request(100, 3, "sim/flightmodel/position/P");
+        assert_eq!(r.len(), 413);
+        assert_eq!(&r[..5], b"RREF\0");
+        assert_eq!(&r[5..9], &100i32.to_le_bytes());
+        assert_eq!(&r[9..13], &3i32.to_le_bytes());
+        assert_eq!(&r[13..39], b"sim/flightmodel/position/P");
+        assert_eq!(r[39], 0);
+    }
+
+    #[test]
+    fn a_sample_once_every_value_has_come_in_si() {
+        let mut x = XPlane::new();
+        assert_eq!(
+            x.decode(&reply(&[(0, 0.1), (2, 1.0)])).unwrap(),
+            Decoded::Nothing
+        );
+        let all: Vec<(i32, f32)> = vec![
+            (0, -0.2),
+            (1, 0.05),
+            (2, 1.0),
+            (3, 90.0),
+            (4, -9.0),
+            (5, 0.0),
+            (6, 30.0),
+            (7, 5.0),
+            (8, 180.0),
+            (9, 0.0),
+            (42, 7.0),
+        ];
+        let Decoded::Sample { sample, paused } = x.decode(&reply(&all)).unwrap() else {
+            panic!()
+        };
+        assert!(!paused);
+        // Level flight is f = (0, 0, −g); a forward push (g_axil < 0) is fx > 0.
+        assert!((sample.specific_force_mps2.z + G_MPS2).abs() < 1e-5);
+        assert!((sample.specific_force_mps2.x - 0.2 * G_MPS2).abs() < 1e-5);
+        assert!((sample.specific_force_mps2.y + 0.05 * G_MPS2).abs() < 1e-5);
+        assert!((sample.angular_velocity_radps.x - std::f64::consts::FRAC_PI_2).abs() < 1e-6);
+        assert!((sample.attitude_rad.z - std::f64::consts::PI).abs() < 1e-6);
+        let Decoded::Sample { paused, .. } = x.decode(&reply(&[(9, 1.0)])).unwrap() else {
+            panic!()
+        };
+        assert!(paused);
+    }
+
+    #[test]
+    fn it_subscribes_at_once_and_again_only_when_nothing_comes() {
+        let mut x = XPlane::new();
+        assert_eq!(x.requests(0.0, false).len(), 10);
+        assert!(x.requests(1.0, false).is_empty());
+        assert!(x.requests(5.0, true).is_empty());
+        assert_eq!(x.requests(5.0, false).len(), 10);
+        assert!(x.farewell().iter().all(|r| r[5..9] == [0, 0, 0, 0]));
+    }
+
+    #[test]
+    fn malformed_replies_are_errors() {
+        let mut x = XPlane::new();
+        for bad in [&b""[..], b"RREF", b"DATA*\0\0\0\0", b"RREF,\x01\x00\x00"] {
+            assert!(x.decode(bad).is_err(), "{bad:?}");
+        }
+    }
+}

@@ -1,0 +1,572 @@
+//! The console of `hexcue live`: the playback layout (one column per algorithm) with a live
+//! header (safety state, input, outputs, timing) and live keys (e-stop, quit). The session
+//! runs on its own clock thread; this thread only draws and reads keys, so a slow terminal
+//! cannot delay a platform command.
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use ratatui::backend::Backend;
+use ratatui::crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
+use ratatui::style::Modifier;
+use ratatui::text::{Line, Span};
+use ratatui::Terminal;
+
+use crate::engine::Frame;
+use crate::live::{self, Control, LiveSession, StepReport};
+use crate::mca::AlgorithmId;
+use crate::metrics::CHANNELS;
+use crate::profile::Profile;
+use crate::safety::SafetyState;
+use crate::summary::{Summary, SummaryBuilder};
+
+use super::app::{App, EventSource, UiEvent, FRAME_INTERVAL};
+use super::player::{Snapshot, WindowRow, WINDOW_S};
+use super::{SessionInfo, Theme};
+
+/// What the header shows of a live session, as of one step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LiveStatus {
+    pub input: String,
+    pub outputs: Vec<String>,
+    pub drive: AlgorithmId,
+    pub state: SafetyState,
+    pub time_in_state_s: f64,
+    /// Age of the held sample (s); `None` before the first.
+    pub input_age_s: Option<f64>,
+    pub sim_paused: bool,
+    pub samples_in: u64,
+    pub commands_out: u64,
+    pub deadline_misses: u64,
+    pub malformed: u64,
+    pub latency_p99_ms: f64,
+    pub step_p99_ms: f64,
+    /// An e-stop or quit was asked for: the platform is on its way to park.
+    pub stopping: bool,
+    /// The first seconds of input suggest a unit or sign mistake (the summary says which).
+    pub unit_warning: bool,
+}
+
+impl LiveStatus {
+    fn of(report: &StepReport, input: &str, outputs: &[String], stopping: bool) -> Self {
+        let s = report.stats;
+        LiveStatus {
+            input: input.to_string(),
+            outputs: outputs.to_vec(),
+            drive: report.output.algorithm,
+            state: report.output.state,
+            time_in_state_s: report.time_in_state_s,
+            input_age_s: report.input_age_s,
+            sim_paused: report.sim_paused,
+            samples_in: s.samples_in,
+            commands_out: s.commands_out,
+            deadline_misses: s.deadline_misses,
+            malformed: s.malformed,
+            latency_p99_ms: s.latency.quantile(0.99) / 1e3,
+            step_p99_ms: s.step.quantile(0.99) / 1e3,
+            stopping,
+            unit_warning: s.unit_warning.is_some(),
+        }
+    }
+}
+
+/// The state word, with a symbol so that it reads without colour.
+pub fn state_badge(state: SafetyState) -> (&'static str, &'static str) {
+    match state {
+        SafetyState::Parked => ("■", "PARKED"),
+        SafetyState::Engaging => ("◐", "ENGAGING"),
+        SafetyState::Running => ("▶", "RUNNING"),
+        SafetyState::Washout => ("~", "WASHOUT"),
+        SafetyState::Estop => ("✖", "E-STOP"),
+    }
+}
+
+/// The header's first line in a live session.
+pub(super) fn status_line(app: &App, live: &LiveStatus) -> Line<'static> {
+    let th = &app.theme;
+    let (sym, word) = state_badge(live.state);
+    let style = match live.state {
+        SafetyState::Running => th.ok(),
+        SafetyState::Engaging | SafetyState::Washout => th.warn(),
+        SafetyState::Estop => th.crit(),
+        SafetyState::Parked => th.dim(),
+    };
+    let mut spans = vec![
+        Span::styled(format!("{sym} {word}"), style.add_modifier(Modifier::BOLD)),
+        Span::styled(format!(" {:.1}s", live.time_in_state_s), th.dim()),
+        Span::styled(format!("  LIVE {}", live.input), th.title()),
+        Span::styled("  drive ", th.dim()),
+        Span::styled(live.drive.label(), th.text().add_modifier(Modifier::BOLD)),
+        Span::styled("  profile ", th.dim()),
+        Span::styled(app.info.profile_name.clone(), th.text()),
+    ];
+    if !live.outputs.is_empty() {
+        spans.push(Span::styled(
+            format!("  → {}", live.outputs.join(" ")),
+            th.text(),
+        ));
+    }
+    Line::from(spans)
+}
+
+/// The header's second line: input health first (what an operator watches), then timing.
+pub(super) fn header_line2(app: &App, live: &LiveStatus) -> Line<'static> {
+    let th = &app.theme;
+    let s = &app.snapshot;
+    let input = match live.input_age_s {
+        None => Span::styled(" waiting for input", th.warn()),
+        Some(_) if live.sim_paused => Span::styled(" sim PAUSED", th.warn()),
+        Some(a) if a > 0.2 => Span::styled(format!(" input LOST {a:.1}s"), th.crit()),
+        Some(a) => Span::styled(format!(" input {:.0}ms", a * 1e3), th.ok()),
+    };
+    let mut spans = vec![
+        Span::styled(
+            format!(" t {:6.2}s", s.t_s()),
+            th.text().add_modifier(Modifier::BOLD),
+        ),
+        input,
+    ];
+    // Faults before counters: a narrow terminal cuts the end of the line.
+    if live.deadline_misses > 0 {
+        spans.push(Span::styled(
+            format!("  ⚠ {} missed", live.deadline_misses),
+            th.crit(),
+        ));
+    }
+    if live.unit_warning {
+        spans.push(Span::styled("  ⚠ input units?", th.crit()));
+    }
+    if live.malformed > 0 {
+        spans.push(Span::styled(
+            format!("  {} malformed", live.malformed),
+            th.warn(),
+        ));
+    }
+    spans.push(Span::styled(
+        format!("  ch {}", app.channel_name()),
+        th.key(),
+    ));
+    spans.push(Span::styled(
+        format!(
+            "  in {} out {}  lat p99 {:.1}ms step p99 {:.1}ms",
+            live.samples_in, live.commands_out, live.latency_p99_ms, live.step_p99_ms
+        ),
+        th.dim(),
+    ));
+    if let Some(r) = &s.recording {
+        spans.push(Span::styled(
+            format!(
+                "  ● REC {}",
+                r.path.rsplit(['/', '\\']).next().unwrap_or(&r.path)
+            ),
+            th.recording(),
+        ));
+    }
+    Line::from(spans)
+}
+
+pub(super) fn footer_line(app: &App, live: &LiveStatus) -> Line<'static> {
+    let th = &app.theme;
+    if live.stopping {
+        return Line::from(Span::styled(
+            "stopping: washout to neutral, then park; the session ends once parked",
+            th.warn(),
+        ));
+    }
+    let mut spans = Vec::new();
+    for (k, what) in [("e", "E-STOP"), ("tab", "chan"), ("q", "park & quit")] {
+        spans.push(Span::styled(k.to_string(), th.key()));
+        spans.push(Span::styled(format!(" {what}  "), th.dim()));
+    }
+    Line::from(spans)
+}
+
+/// What the clock thread publishes for the interface.
+#[derive(Clone)]
+pub struct LiveFrame {
+    pub snapshot: Arc<Snapshot>,
+    pub status: LiveStatus,
+}
+
+/// Keeps the charts' window and the running summary on the clock thread, and builds the
+/// interface's snapshots from them.
+pub struct LiveViewModel {
+    algorithms: Vec<AlgorithmId>,
+    rate_hz: f64,
+    window: VecDeque<WindowRow>,
+    capacity: usize,
+    version: u64,
+    recording: Option<String>,
+    summary: SummaryBuilder,
+    summary_cache: Option<Arc<Summary>>,
+    steps: u64,
+}
+
+impl LiveViewModel {
+    pub fn new(
+        profile: &Profile,
+        algorithms: Vec<AlgorithmId>,
+        input: &str,
+        recording: Option<String>,
+    ) -> Self {
+        let capacity = (WINDOW_S * profile.rate_hz).ceil() as usize + 1;
+        LiveViewModel {
+            algorithms,
+            rate_hz: profile.rate_hz,
+            window: VecDeque::with_capacity(capacity),
+            capacity,
+            version: 0,
+            recording,
+            summary: SummaryBuilder::new(profile, input),
+            summary_cache: None,
+            steps: 0,
+        }
+    }
+
+    pub fn push(&mut self, frame: &Frame) {
+        if self.window.len() == self.capacity {
+            self.window.pop_front();
+        }
+        self.window.push_back(WindowRow::of(frame));
+        self.summary.push(frame);
+        self.steps += 1;
+    }
+
+    /// Recomputes the metrics shown (a cross-correlation per channel: not every step).
+    pub fn refresh_summary(&mut self) {
+        self.summary_cache = Some(Arc::new(self.summary.finish()));
+    }
+
+    pub fn snapshot(&mut self, last: &Frame) -> Snapshot {
+        self.version += 1;
+        let mut s = Snapshot::empty(self.algorithms.clone(), self.steps as usize, self.rate_hz);
+        s.version = self.version;
+        s.position = self.steps as usize;
+        s.paused = false;
+        s.window = self.window.iter().cloned().collect();
+        s.last = Some(last.clone());
+        s.summary = self.summary_cache.clone();
+        s.recording = self
+            .recording
+            .as_ref()
+            .map(|path| super::player::RecordingStatus {
+                path: path.clone(),
+                frames: self.steps,
+            });
+        s
+    }
+}
+
+/// How a live console session ended.
+pub struct LiveOutcome {
+    pub summary: Summary,
+    /// What every frame sink said when it closed.
+    pub lines: Vec<String>,
+    /// The signal that ended the session, if one did.
+    pub signal: Option<&'static str>,
+}
+
+/// What the live console shows and runs.
+pub struct LiveConsole {
+    pub session: LiveSession,
+    pub profile: Profile,
+    pub info: SessionInfo,
+    /// The outputs' URLs, for the header.
+    pub outputs: Vec<String>,
+    /// The recording's path, for the header.
+    pub recording: Option<String>,
+    pub theme: Theme,
+}
+
+/// The metrics are refreshed this often on the clock thread.
+const SUMMARY_EVERY: Duration = Duration::from_millis(500);
+
+/// Runs `session` on its clock thread and the console on this one until the operator quits
+/// (or a signal arrives) and the platform is parked. The clock thread ends the session
+/// itself (washout, park, outputs closed, recording finished) whatever happens here.
+pub fn run<B: Backend>(
+    terminal: &mut Terminal<B>,
+    events: &mut dyn EventSource,
+    console: LiveConsole,
+) -> Result<LiveOutcome>
+where
+    B::Error: Send + Sync + 'static,
+{
+    let LiveConsole {
+        mut session,
+        profile,
+        info,
+        outputs,
+        recording,
+        theme,
+    } = console;
+    let profile = &profile;
+    let stop = Arc::new(AtomicBool::new(false));
+    let latest: Arc<Mutex<Option<LiveFrame>>> = Arc::new(Mutex::new(None));
+    let input = session.input().url().to_string();
+    let mut model = LiveViewModel::new(profile, session.algorithms(), &input, recording);
+    let (stop_c, latest_c) = (stop.clone(), latest.clone());
+    let clock = std::thread::Builder::new()
+        .name("hexcue-live-clock".into())
+        .spawn(move || -> Result<(Summary, Vec<String>)> {
+            let mut published: Option<Instant> = None;
+            let mut summarised = Instant::now();
+            let result = live::run(
+                &mut session,
+                |_| {
+                    if stop_c.load(Ordering::Relaxed) {
+                        Control::Stop
+                    } else {
+                        Control::Continue
+                    }
+                },
+                |report| {
+                    model.push(report.frame);
+                    if published.is_some_and(|p| p.elapsed() < FRAME_INTERVAL) {
+                        return;
+                    }
+                    if summarised.elapsed() >= SUMMARY_EVERY || published.is_none() {
+                        model.refresh_summary();
+                        summarised = Instant::now();
+                    }
+                    published = Some(Instant::now());
+                    let frame = LiveFrame {
+                        snapshot: Arc::new(model.snapshot(report.frame)),
+                        status: LiveStatus::of(
+                            report,
+                            &input,
+                            &outputs,
+                            stop_c.load(Ordering::Relaxed),
+                        ),
+                    };
+                    match latest_c.lock() {
+                        Ok(mut l) => *l = Some(frame),
+                        Err(p) => *p.into_inner() = Some(frame),
+                    }
+                },
+            );
+            // Whatever ended the clock, the outputs are closed and the recording finished.
+            let finished = session.finish();
+            result?;
+            finished
+        })
+        .context("starting the clock thread")?;
+
+    let mut app = App::new(Arc::new(info), profile, theme);
+    let mut signal = None;
+    let mut last_draw: Option<Instant> = None;
+    let mut dirty = true;
+    let ui = (|| -> Result<()> {
+        loop {
+            let next = match latest.lock() {
+                Ok(mut l) => l.take(),
+                Err(p) => p.into_inner().take(),
+            };
+            if let Some(lf) = next {
+                app.snapshot = lf.snapshot;
+                app.live = Some(lf.status);
+                dirty = true;
+            }
+            let since = last_draw.map(|t| t.elapsed());
+            if dirty && since.is_none_or(|s| s >= FRAME_INTERVAL) {
+                terminal.draw(|f| app.render(f))?;
+                last_draw = Some(Instant::now());
+                dirty = false;
+            }
+            if clock.is_finished() {
+                return Ok(());
+            }
+            match events.next(FRAME_INTERVAL)? {
+                Some(UiEvent::Key(key)) if key.kind != KeyEventKind::Release => {
+                    let ctrl = key.modifiers.contains(KeyModifiers::CONTROL);
+                    match key.code {
+                        KeyCode::Char('c') | KeyCode::Char('C') if ctrl => {
+                            stop.store(true, Ordering::Relaxed)
+                        }
+                        KeyCode::Char('e' | 'E' | 'q' | 'Q') | KeyCode::Esc => {
+                            stop.store(true, Ordering::Relaxed)
+                        }
+                        KeyCode::Tab => app.channel = (app.channel + 1) % CHANNELS.len(),
+                        KeyCode::BackTab => {
+                            app.channel = (app.channel + CHANNELS.len() - 1) % CHANNELS.len()
+                        }
+                        KeyCode::Char(c @ '1'..='6') => app.channel = (c as usize) - ('1' as usize),
+                        _ => {}
+                    }
+                    dirty = true;
+                }
+                Some(UiEvent::Signal(name)) => {
+                    signal = Some(name);
+                    stop.store(true, Ordering::Relaxed);
+                }
+                Some(_) => dirty = true,
+                None => {}
+            }
+        }
+    })();
+    // The platform must be parked before the process ends, even if the terminal failed.
+    stop.store(true, Ordering::Relaxed);
+    let clocked = clock
+        .join()
+        .unwrap_or_else(|_| Err(anyhow::anyhow!("the clock thread panicked")));
+    ui?;
+    let (summary, lines) = clocked?;
+    Ok(LiveOutcome {
+        summary,
+        lines,
+        signal,
+    })
+}
+
+/// Keys and resizes from crossterm, signals from signal-hook: as the playback console.
+pub struct TerminalEvents {
+    pub signals: mpsc::Receiver<i32>,
+}
+
+impl EventSource for TerminalEvents {
+    fn next(&mut self, timeout: Duration) -> Result<Option<UiEvent>> {
+        if let Ok(sig) = self.signals.try_recv() {
+            return Ok(Some(UiEvent::Signal(super::signal_name(sig))));
+        }
+        if event::poll(timeout)? {
+            return Ok(match event::read()? {
+                Event::Key(key) => Some(UiEvent::Key(key)),
+                Event::Resize(..) => Some(UiEvent::Resize),
+                _ => None,
+            });
+        }
+        Ok(None)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::tests::manoeuvre;
+    use crate::engine::Engine;
+    use crate::profile::tests::full_flight;
+    use ratatui::backend::TestBackend;
+
+    /// Two seconds of the manoeuvre's surge pulse through all three algorithms, as the clock
+    /// thread would have published them, with the timings fixed so the screen is repeatable.
+    fn live_app(state: SafetyState, stopping: bool) -> App {
+        let mut profile = full_flight();
+        // Solved within the iteration cap, not a wall-clock limit: the same on any machine.
+        profile.mpc.time_limit_ms = f64::INFINITY;
+        let mut engine = Engine::new(&profile, Arc::new(manoeuvre()), AlgorithmId::ALL).unwrap();
+        let url = "jsbsim://127.0.0.1:5138";
+        let mut model = LiveViewModel::new(
+            &profile,
+            engine.algorithms(),
+            url,
+            Some("recordings/live.mcap".into()),
+        );
+        let mut last = None;
+        for _ in 0..450 {
+            let f = engine.step().unwrap();
+            model.push(&f);
+            last = Some(f);
+        }
+        model.refresh_summary();
+        let mut last = last.unwrap();
+        for lane in &mut last.lanes {
+            lane.step_time_us = 850.0;
+            for s in &mut lane.state.solvers {
+                s.solve_time_us = 400.0;
+            }
+            lane.state.time_in_mode_s = 4.5;
+        }
+        let info = SessionInfo {
+            trace_name: url.into(),
+            description: None,
+            events: Vec::new(),
+            profile_name: profile.name.clone(),
+            review_of: None,
+        };
+        let mut app = App::new(Arc::new(info), &profile, Theme::ANSI16);
+        app.snapshot = Arc::new(model.snapshot(&last));
+        app.live = Some(LiveStatus {
+            input: url.into(),
+            outputs: vec![
+                "udp://127.0.0.1:6000".into(),
+                "moog://192.168.1.100:991".into(),
+            ],
+            drive: AlgorithmId::Smpc,
+            state,
+            time_in_state_s: 1.5,
+            input_age_s: Some(0.004),
+            sim_paused: false,
+            samples_in: 541,
+            commands_out: 450,
+            deadline_misses: 0,
+            malformed: 2,
+            latency_p99_ms: 9.8,
+            step_p99_ms: 3.1,
+            stopping,
+            unit_warning: false,
+        });
+        app
+    }
+
+    fn screen(app: &App, w: u16, h: u16) -> String {
+        let mut t = Terminal::new(TestBackend::new(w, h)).unwrap();
+        t.draw(|f| app.render(f)).unwrap();
+        t.backend().to_string()
+    }
+
+    #[test]
+    fn live_view_at_80x24() {
+        let app = live_app(SafetyState::Running, false);
+        let text = screen(&app, 80, 24);
+        for want in [
+            "▶ RUNNING",
+            "LIVE jsbsim://",
+            "input 4ms",
+            "e E-STOP",
+            "S-MPC",
+        ] {
+            assert!(text.contains(want), "missing {want:?} in\n{text}");
+        }
+        insta::assert_snapshot!("live_80x24", text);
+    }
+
+    #[test]
+    fn live_view_at_160x40_stopping() {
+        let mut app = live_app(SafetyState::Estop, true);
+        if let Some(l) = app.live.as_mut() {
+            l.input_age_s = Some(0.9);
+            l.deadline_misses = 3;
+        }
+        let text = screen(&app, 160, 40);
+        for want in [
+            "✖ E-STOP",
+            "input LOST 0.9s",
+            "⚠ 3 missed",
+            "2 malformed",
+            "● REC live.mcap",
+            "→ udp://127.0.0.1:6000 moog://192.168.1.100:991",
+            "washout to neutral, then park",
+        ] {
+            assert!(text.contains(want), "missing {want:?} in\n{text}");
+        }
+        insta::assert_snapshot!("live_160x40_stopping", text);
+    }
+
+    #[test]
+    fn every_state_has_a_word_and_a_symbol() {
+        use SafetyState::*;
+        let badges: Vec<_> = [Parked, Engaging, Running, Washout, Estop]
+            .into_iter()
+            .map(state_badge)
+            .collect();
+        for (i, a) in badges.iter().enumerate() {
+            for b in &badges[i + 1..] {
+                assert_ne!(a.0, b.0);
+                assert_ne!(a.1, b.1);
+            }
+        }
+    }
+}
