@@ -1,9 +1,11 @@
 //! The command line: thin glue from arguments to the engine, the formats and the console.
 
 use std::io::{IsTerminal, Write};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -12,6 +14,7 @@ use crate::engine::Engine;
 use crate::formats::profile::{default_profile, load_profile, DEFAULT_PROFILE_TOML};
 use crate::formats::recording::{Recorder, Recording, RecordingMeta};
 use crate::formats::trace::{default_trace, load_trace, LoadedTrace};
+use crate::foxglove::FoxgloveServer;
 use crate::mca::AlgorithmId;
 use crate::metrics::CHANNELS;
 use crate::profile::Profile;
@@ -124,6 +127,24 @@ pub struct PlayArgs {
     /// of holding the current sample as a live simulator must. Overrides `[mpc] reference`.
     #[arg(long)]
     pub preview: bool,
+    /// Serve the session live to Foxglove over its WebSocket protocol, on ADDR (default
+    /// 127.0.0.1:8765; port 0 takes a free one). With --headless the run is paced at real
+    /// time × --speed so that a viewer can follow. See docs/foxglove.md.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::foxglove::DEFAULT_ADDR)]
+    pub foxglove: Option<SocketAddr>,
+    /// With --headless: run at this many times real time (default: as fast as possible, or
+    /// ×1 with --foxglove). The console has its own speed keys (+ and -).
+    #[arg(long, value_name = "X", value_parser = parse_speed)]
+    pub speed: Option<f64>,
+}
+
+fn parse_speed(text: &str) -> std::result::Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!(
+            "expected a speed factor > 0 (e.g. 1, 0.5, 4), found `{text}`"
+        )),
+    }
 }
 
 #[derive(Args, Debug)]
@@ -152,6 +173,14 @@ pub struct ReviewArgs {
     /// With --headless: write the summary as JSON to this file.
     #[arg(long, value_name = "FILE.json")]
     pub summary: Option<PathBuf>,
+    /// Serve the recording to Foxglove over its WebSocket protocol, on ADDR (default
+    /// 127.0.0.1:8765), as if it were live; put FILE before this option. With --headless the
+    /// frames are sent at real time × --speed.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::foxglove::DEFAULT_ADDR)]
+    pub foxglove: Option<SocketAddr>,
+    /// With --headless --foxglove: send the frames at this many times real time (default 1).
+    #[arg(long, value_name = "X", value_parser = parse_speed)]
+    pub speed: Option<f64>,
 }
 
 /// Parses a comma-separated option into known values, in the order given and without
@@ -287,12 +316,23 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
     } else {
         None
     };
+    let mut server = match args.foxglove {
+        Some(addr) => Some(start_foxglove(addr, &session.profile, &session.algorithms)?),
+        None => None,
+    };
+    let mut pacer = args.speed.or(args.foxglove.map(|_| 1.0)).map(Pacer::new);
     let stop = install_stop_flag()?;
     let mut interrupted = false;
     while let Some(frame) = engine.step() {
         summary.push(&frame);
         if let Some(rec) = recorder.as_mut() {
             rec.record(&frame)?;
+        }
+        if let Some(pacer) = pacer.as_mut() {
+            pacer.wait(frame.t_s, &stop);
+        }
+        if let Some(server) = server.as_mut() {
+            server.publish(&frame);
         }
         if let Some(bar) = &progress {
             if frame.k % 50 == 0 {
@@ -306,6 +346,9 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
     }
     if let Some(bar) = progress {
         bar.finish_and_clear();
+    }
+    if let Some(server) = server.take() {
+        server.stop();
     }
     if let Some(rec) = recorder {
         let path = args.record.as_deref().unwrap_or(Path::new(""));
@@ -323,6 +366,72 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
         );
     }
     Ok(summary)
+}
+
+/// Starts the live Foxglove server and tells the user where it is.
+pub fn start_foxglove(
+    addr: SocketAddr,
+    profile: &Profile,
+    algorithms: &[AlgorithmId],
+) -> Result<FoxgloveServer> {
+    let server = FoxgloveServer::start(addr, profile, algorithms)?;
+    eprintln!(
+        "foxglove: serving ws://{} (in Foxglove: Open connection → Foxglove WebSocket)",
+        server.addr()
+    );
+    Ok(server)
+}
+
+/// Holds a headless run to `speed` × real time, from the first frame it sees.
+struct Pacer {
+    speed: f64,
+    start: Option<(Instant, f64)>,
+}
+
+impl Pacer {
+    fn new(speed: f64) -> Self {
+        Pacer { speed, start: None }
+    }
+
+    /// Returns when the frame at trace time `t_s` is due, or on a stop.
+    fn wait(&mut self, t_s: f64, stop: &AtomicBool) {
+        let (wall0, t0) = *self.start.get_or_insert((Instant::now(), t_s));
+        let due_s = (t_s - t0) / self.speed;
+        let due = wall0 + Duration::from_secs_f64(due_s.clamp(0.0, 1e9));
+        while !stop.load(Ordering::Relaxed) {
+            let now = Instant::now();
+            if now >= due {
+                break;
+            }
+            // In slices, so that a signal stops a slow run promptly.
+            std::thread::sleep((due - now).min(Duration::from_millis(50)));
+        }
+    }
+}
+
+/// `review --headless --foxglove`: sends the recording's frames at `speed` × real time while
+/// computing the summary.
+pub fn review_served(path: &Path, addr: SocketAddr, speed: f64) -> Result<Summary> {
+    let recording = Recording::open(path)?;
+    let profile = recording
+        .profile
+        .as_ref()
+        .map_err(|e| anyhow::anyhow!("{e}; the rigs cannot be drawn without it"))?;
+    let mut server = start_foxglove(addr, profile, &recording.algorithms)?;
+    let mut builder = SummaryBuilder::new(profile, &recording.trace_name);
+    let mut pacer = Pacer::new(speed);
+    let stop = install_stop_flag()?;
+    for frame in recording.frames()? {
+        let frame = frame?;
+        pacer.wait(frame.t_s, &stop);
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
+        server.publish(&frame);
+        builder.push(&frame);
+    }
+    server.stop();
+    Ok(builder.finish())
 }
 
 /// The metrics table printed by headless runs: one row per algorithm and channel, then a
@@ -462,6 +571,14 @@ fn headless_or_console(
 
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command.unwrap_or(Command::Play(cli.play)) {
+        Command::Play(args) if args.speed.is_some() && !args.headless => {
+            bail!("--speed goes with --headless (in the console, + and - set the speed)")
+        }
+        Command::Review(args)
+            if args.speed.is_some() && !(args.headless && args.foxglove.is_some()) =>
+        {
+            bail!("--speed goes with --headless --foxglove (in the console, + and - set the speed)")
+        }
         Command::Play(args) => headless_or_console(
             args.headless,
             args.summary.as_deref(),
@@ -471,8 +588,11 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Review(args) => headless_or_console(
             args.headless,
             args.summary.as_deref(),
-            || review_summary(&args.file),
-            || crate::console::run_review(&args.file),
+            || match args.foxglove {
+                Some(addr) => review_served(&args.file, addr, args.speed.unwrap_or(1.0)),
+                None => review_summary(&args.file),
+            },
+            || crate::console::run_review(&args.file, args.foxglove),
         ),
         Command::Compare(args) => run_compare(&args),
         Command::Plot(args) => run_plot(&args),

@@ -10,7 +10,28 @@ use anyhow::{bail, Context, Result};
 use crate::cli::{load_session, recording_meta, PlayArgs};
 use crate::engine::Frame;
 use crate::formats::recording::{Recorder, Recording};
-use crate::tui::{self, FrameSink, LiveConfig, RecordedFrames, ReviewConfig, SessionInfo};
+use crate::foxglove::FoxgloveServer;
+use crate::tui::{
+    self, FrameSink, FrameSource, LiveConfig, RecordedFrames, ReviewConfig, SessionInfo, Teed,
+};
+
+/// The live Foxglove server as a sink attached for the whole session.
+impl FrameSink for FoxgloveServer {
+    fn record(&mut self, frame: &Frame) -> Result<()> {
+        self.publish(frame);
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>) -> Result<String> {
+        let addr = self.addr();
+        self.stop();
+        Ok(format!("foxglove: stopped serving ws://{addr}"))
+    }
+
+    fn rewound(&mut self) {
+        self.restart();
+    }
+}
 
 /// An MCAP recorder as the console's frame sink.
 struct McapSink {
@@ -63,6 +84,10 @@ pub fn run_live(args: &PlayArgs) -> Result<()> {
     let trace = Arc::new(session.trace.trace.clone());
     let mut cfg = LiveConfig::new(session.profile.clone(), trace, session.algorithms.clone());
     cfg.record = args.record.clone();
+    if let Some(addr) = args.foxglove {
+        let server = crate::cli::start_foxglove(addr, &session.profile, &session.algorithms)?;
+        cfg.sinks.push(Box::new(server));
+    }
     let factory: tui::SinkFactory = Box::new(move |request: &tui::RecordingRequest| {
         let recorder = Recorder::create(&request.path, &meta)?;
         Ok(Box::new(McapSink { recorder }) as Box<dyn FrameSink>)
@@ -71,7 +96,7 @@ pub fn run_live(args: &PlayArgs) -> Result<()> {
     exit_for_signal(outcome.signal)
 }
 
-pub fn run_review(path: &Path) -> Result<()> {
+pub fn run_review(path: &Path, foxglove: Option<std::net::SocketAddr>) -> Result<()> {
     require_terminal()?;
     let recording = Recording::open(path)?;
     let profile = recording
@@ -93,7 +118,11 @@ pub fn run_review(path: &Path) -> Result<()> {
     if !recording.finished {
         info.description = Some("unfinished recording (cut short): showing what it holds".into());
     }
-    let source = Box::new(RecordedFrames::new(frames, profile.rate_hz));
+    let mut source: Box<dyn FrameSource> = Box::new(RecordedFrames::new(frames, profile.rate_hz));
+    if let Some(addr) = foxglove {
+        let server = crate::cli::start_foxglove(addr, &profile, &recording.algorithms)?;
+        source = Box::new(Teed::new(source, vec![Box::new(server)]));
+    }
     let outcome = tui::run_review(ReviewConfig {
         profile,
         source,

@@ -1,7 +1,7 @@
 //! hexcue: motion cueing for 6-DoF Stewart-platform flight simulators.
 //!
 //! The core (`model`, `mca`, `metrics`, `engine`, `profile`, `trace`, `omct`) does no I/O;
-//! `formats`, `plot`, `cli` and `tui` adapt it to files and the terminal. Frames and units: DESIGN.md §1 and
+//! `formats`, `plot`, `cli`, `tui` and `foxglove` adapt it to files, the terminal and Foxglove. Frames and units: DESIGN.md §1 and
 //! `docs/design.md`.
 
 pub mod cli;
@@ -9,6 +9,7 @@ pub mod compare;
 pub mod console;
 pub mod engine;
 pub mod formats;
+pub mod foxglove;
 pub mod mca;
 pub mod metrics;
 pub mod model;

@@ -35,11 +35,56 @@ pub use app::{App, UiEvent};
 pub use player::{Command, Snapshot};
 pub use theme::Theme;
 
-/// Where recorded frames go (the MCAP recorder implements it).
+/// Where frames go: a recording (the MCAP recorder), a live view (the Foxglove server).
 pub trait FrameSink: Send {
     fn record(&mut self, frame: &Frame) -> anyhow::Result<()>;
     /// Closes the file; returns a line for the user (typically the path and what was written).
     fn finish(self: Box<Self>) -> anyhow::Result<String>;
+    /// The frames start over (the source rewound): the next one does not follow the last.
+    fn rewound(&mut self) {}
+}
+
+/// A source whose frames also go to sinks attached for the whole session (a live view), as
+/// the source makes them; the player does not know they are there.
+pub struct Teed {
+    source: Box<dyn FrameSource>,
+    sinks: Vec<Box<dyn FrameSink>>,
+}
+
+impl Teed {
+    pub fn new(source: Box<dyn FrameSource>, sinks: Vec<Box<dyn FrameSink>>) -> Self {
+        Teed { source, sinks }
+    }
+}
+
+impl FrameSource for Teed {
+    fn len(&self) -> usize {
+        self.source.len()
+    }
+    fn position(&self) -> usize {
+        self.source.position()
+    }
+    fn next_frame(&mut self) -> Option<Frame> {
+        let frame = self.source.next_frame()?;
+        // A live view that fails must not stop the session: it is dropped.
+        self.sinks.retain_mut(|sink| sink.record(&frame).is_ok());
+        Some(frame)
+    }
+    fn rewind(&mut self) {
+        self.source.rewind();
+        for sink in &mut self.sinks {
+            sink.rewound();
+        }
+    }
+    fn algorithms(&self) -> Vec<AlgorithmId> {
+        self.source.algorithms()
+    }
+    fn rate_hz(&self) -> f64 {
+        self.source.rate_hz()
+    }
+    fn start_t_s(&self) -> f64 {
+        self.source.start_t_s()
+    }
 }
 
 /// What the console asks a [`SinkFactory`] for when a recording starts.
@@ -203,6 +248,8 @@ pub struct LiveConfig {
     /// Where `r` puts new recordings (`recordings` by default).
     pub recordings_dir: PathBuf,
     pub start_paused: bool,
+    /// Sinks fed every frame for the whole session (`--foxglove`), beside any recording.
+    pub sinks: Vec<Box<dyn FrameSink>>,
 }
 
 impl LiveConfig {
@@ -214,6 +261,7 @@ impl LiveConfig {
             record: None,
             recordings_dir: PathBuf::from("recordings"),
             start_paused: false,
+            sinks: Vec::new(),
         }
     }
 }
@@ -253,7 +301,12 @@ pub fn run_live(cfg: LiveConfig, sink_factory: SinkFactory) -> anyhow::Result<Ou
         start_paused: cfg.start_paused,
         recording: Some(recording),
     };
-    run_terminal(info, cfg.profile, Box::new(engine), opts)
+    let source: Box<dyn FrameSource> = if cfg.sinks.is_empty() {
+        Box::new(engine)
+    } else {
+        Box::new(Teed::new(Box::new(engine), cfg.sinks))
+    };
+    run_terminal(info, cfg.profile, source, opts)
 }
 
 /// Runs a review of recorded frames on the real terminal: the live layout, no recording.
