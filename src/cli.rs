@@ -1,9 +1,11 @@
 //! The command line: thin glue from arguments to the engine, the formats and the console.
 
 use std::io::{IsTerminal, Write};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -12,6 +14,7 @@ use crate::engine::Engine;
 use crate::formats::profile::{default_profile, load_profile, DEFAULT_PROFILE_TOML};
 use crate::formats::recording::{Recorder, Recording, RecordingMeta};
 use crate::formats::trace::{default_trace, load_trace, LoadedTrace};
+use crate::foxglove::FoxgloveServer;
 use crate::mca::AlgorithmId;
 use crate::metrics::CHANNELS;
 use crate::profile::Profile;
@@ -95,6 +98,11 @@ pub struct LiveArgs {
     /// With --headless: write the session's summary as JSON to this file.
     #[arg(long, value_name = "FILE.json")]
     pub summary: Option<PathBuf>,
+    /// Serve the session live to Foxglove over its WebSocket protocol, on ADDR (default
+    /// 127.0.0.1:8765; port 0 takes a free one): the recording's channels, the session's
+    /// events on /events. See docs/foxglove.md.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::foxglove::DEFAULT_ADDR)]
+    pub foxglove: Option<SocketAddr>,
 }
 
 #[derive(Args, Debug)]
@@ -180,6 +188,11 @@ pub struct PlayArgs {
     /// of holding the current sample as a live simulator must. Overrides `[mpc] reference`.
     #[arg(long)]
     pub preview: bool,
+    /// Serve the session live to Foxglove over its WebSocket protocol, on ADDR (default
+    /// 127.0.0.1:8765; port 0 takes a free one). With --headless the run is paced at --speed
+    /// (real time by default) so that a viewer can follow. See docs/foxglove.md.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::foxglove::DEFAULT_ADDR)]
+    pub foxglove: Option<SocketAddr>,
 }
 
 #[derive(Args, Debug)]
@@ -218,12 +231,18 @@ pub struct ReviewArgs {
     pub force: bool,
     #[command(flatten)]
     pub start: ConsoleStart,
+    /// Serve the recording to Foxglove over its WebSocket protocol, on ADDR (default
+    /// 127.0.0.1:8765), as if it were live; put FILE before this option. With --headless the
+    /// frames are sent at --speed (real time by default).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::foxglove::DEFAULT_ADDR)]
+    pub foxglove: Option<SocketAddr>,
 }
 
 /// How the console starts, for `play` and `review` alike.
 #[derive(Args, Debug, Default, Clone, Copy)]
 pub struct ConsoleStart {
-    /// Console: playback speed to start at (0.25, 0.5, 1, 2, 4, 8, 16 or max).
+    /// Console: playback speed to start at (0.25, 0.5, 1, 2, 4, 8, 16 or max); also the pace
+    /// of a headless run with --foxglove (max: unpaced).
     #[arg(long, value_name = "X", default_value = "1", value_parser = parse_speed)]
     pub speed: usize,
     /// Console: start paused.
@@ -532,12 +551,26 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
     } else {
         None
     };
+    let mut server = match args.foxglove {
+        Some(addr) => Some(start_foxglove(addr, &profile, &algorithms)?),
+        None => None,
+    };
+    let mut pacer = args
+        .foxglove
+        .and(headless_pace(&args.start))
+        .map(Pacer::new);
     let stop = install_stop_flag()?;
     let mut interrupted = false;
     while let Some(frame) = engine.step() {
         summary.push(&frame);
         if let Some(rec) = recorder.as_mut() {
             rec.record(&frame)?;
+        }
+        if let Some(pacer) = pacer.as_mut() {
+            pacer.wait(frame.t_s, &stop);
+        }
+        if let Some(server) = server.as_mut() {
+            server.publish(&frame);
         }
         if let Some(bar) = &progress {
             if frame.k % 50 == 0 {
@@ -551,6 +584,9 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
     }
     if let Some(bar) = progress {
         bar.finish_and_clear();
+    }
+    if let Some(server) = server.take() {
+        server.stop();
     }
     if let Some(rec) = recorder {
         let path = args.record.as_deref().unwrap_or(Path::new(""));
@@ -626,6 +662,9 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
             profile.rate_hz,
         )?));
     }
+    if let Some(addr) = args.foxglove {
+        session.add_frame_sink(Box::new(start_foxglove(addr, &profile, &algorithms)?));
+    }
     Ok(LiveSetup { profile, session })
 }
 
@@ -684,6 +723,82 @@ pub fn run_live_headless(args: &LiveArgs) -> Result<Summary> {
         );
     }
     Ok(summary)
+}
+
+/// Starts the live Foxglove server and tells the user where it is.
+pub fn start_foxglove(
+    addr: SocketAddr,
+    profile: &Profile,
+    algorithms: &[AlgorithmId],
+) -> Result<FoxgloveServer> {
+    let server = FoxgloveServer::start(addr, profile, algorithms)?;
+    eprintln!(
+        "foxglove: serving ws://{} (in Foxglove: Open connection → Foxglove WebSocket)",
+        server.addr()
+    );
+    Ok(server)
+}
+
+/// Holds a headless run to `speed` × real time, from the first frame it sees.
+struct Pacer {
+    speed: f64,
+    start: Option<(Instant, f64)>,
+}
+
+impl Pacer {
+    fn new(speed: f64) -> Self {
+        Pacer { speed, start: None }
+    }
+
+    /// Returns when the frame at trace time `t_s` is due, or on a stop.
+    fn wait(&mut self, t_s: f64, stop: &AtomicBool) {
+        let (wall0, t0) = *self.start.get_or_insert((Instant::now(), t_s));
+        let due_s = (t_s - t0) / self.speed;
+        let due = wall0 + Duration::from_secs_f64(due_s.clamp(0.0, 1e9));
+        while !stop.load(Ordering::Relaxed) {
+            let now = Instant::now();
+            if now >= due {
+                break;
+            }
+            // In slices, so that a signal stops a slow run promptly.
+            std::thread::sleep((due - now).min(Duration::from_millis(50)));
+        }
+    }
+}
+
+/// The pace of a headless run that serves Foxglove: `--speed` × real time; `None` at `max`.
+fn headless_pace(start: &ConsoleStart) -> Option<f64> {
+    crate::tui::player::SPEEDS
+        .get(start.speed)
+        .copied()
+        .unwrap_or(Some(1.0))
+}
+
+/// `review --headless --foxglove`: sends the recording's frames at `speed` × real time (as
+/// fast as it can with `None`) while computing the summary.
+pub fn review_served(path: &Path, addr: SocketAddr, speed: Option<f64>) -> Result<Summary> {
+    let recording = Recording::open(path)?;
+    let profile = recording
+        .profile
+        .as_ref()
+        .map_err(|e| anyhow::anyhow!("{e}; the rigs cannot be drawn without it"))?;
+    let mut server = start_foxglove(addr, profile, &recording.algorithms)?;
+    let mut builder = SummaryBuilder::new(profile, &recording.trace_name);
+    let mut pacer = speed.map(Pacer::new);
+    let stop = install_stop_flag()?;
+    for frame in recording.frames()? {
+        let frame = frame?;
+        if let Some(pacer) = pacer.as_mut() {
+            pacer.wait(frame.t_s, &stop);
+        }
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
+        server.publish(&frame);
+        builder.push(&frame);
+    }
+    server.stop();
+    Ok(builder.finish())
 }
 
 /// The metrics table printed by headless runs: one row per algorithm and channel, then a
@@ -899,7 +1014,10 @@ pub fn run(cli: Cli) -> Result<()> {
             headless_or_console(
                 args.headless,
                 args.summary.as_deref(),
-                || review_summary(&args.file),
+                || match args.foxglove {
+                    Some(addr) => review_served(&args.file, addr, headless_pace(&args.start)),
+                    None => review_summary(&args.file),
+                },
                 || crate::console::run_review(&args),
             )
         }

@@ -8,7 +8,9 @@ use anyhow::{bail, Context, Result};
 use crate::cli::{load_play, open_play_source, PlayArgs, ReviewArgs};
 use crate::engine::Frame;
 use crate::formats::recording::{Recorder, Recording, RecordingMeta};
-use crate::tui::{self, FrameSink, LiveConfig, RecordedFrames, ReviewConfig, SessionInfo};
+use crate::tui::{
+    self, FrameSink, FrameSource, LiveConfig, RecordedFrames, ReviewConfig, SessionInfo, Teed,
+};
 
 /// An MCAP recorder as the console's frame sink.
 struct McapSink {
@@ -77,6 +79,10 @@ pub fn run_live(args: &PlayArgs) -> Result<()> {
     cfg.start_paused = args.start.paused;
     cfg.speed = args.start.speed;
     cfg.looping = args.start.looping;
+    if let Some(addr) = args.foxglove {
+        let server = crate::cli::start_foxglove(addr, &cfg.profile, &cfg.algorithms)?;
+        cfg.sinks.push(Box::new(server));
+    }
     let factory: tui::SinkFactory = Box::new(move |request: &tui::RecordingRequest| {
         // The trace's text is read for the attachment only while a recording starts.
         meta.trace_csv = match &trace_path {
@@ -116,7 +122,11 @@ pub fn run_review(args: &ReviewArgs) -> Result<()> {
     if !recording.finished {
         info.description = Some("unfinished recording (cut short): showing what it holds".into());
     }
-    let source = Box::new(RecordedFrames::new(frames, profile.rate_hz));
+    let mut source: Box<dyn FrameSource> = Box::new(RecordedFrames::new(frames, profile.rate_hz));
+    if let Some(addr) = args.foxglove {
+        let server = crate::cli::start_foxglove(addr, &profile, &recording.algorithms)?;
+        source = Box::new(Teed::new(source, vec![Box::new(server)]));
+    }
     let outcome = tui::run_review(ReviewConfig {
         profile,
         source,

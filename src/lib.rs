@@ -1,8 +1,8 @@
 //! hexcue: motion cueing for 6-DoF Stewart-platform flight simulators.
 //!
 //! The core (`model`, `mca`, `metrics`, `engine`, `source`, `safety`, `profile`, `trace`,
-//! `omct`) does no I/O; `formats`, `sources`, `sinks`, `live`, `plot`, `cli` and `tui` adapt
-//! it to files, sockets and the terminal. Frames and units: DESIGN.md §1 and
+//! `omct`) does no I/O; `formats`, `sources`, `sinks`, `live`, `foxglove`, `plot`, `cli` and
+//! `tui` adapt it to files, sockets, the terminal and Foxglove. Frames and units: DESIGN.md §1 and
 //! `docs/design.md`.
 
 pub mod cli;
@@ -10,6 +10,7 @@ pub mod compare;
 pub mod console;
 pub mod engine;
 pub mod formats;
+pub mod foxglove;
 pub mod live;
 pub mod mca;
 pub mod metrics;

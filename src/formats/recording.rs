@@ -24,6 +24,8 @@ use sha2::{Digest, Sha256};
 
 use crate::engine::{Frame, LaneFrame, Legs};
 use crate::formats::profile::{parse_profile, ProfileLoadError};
+use crate::foxglove::record::{SceneChannels, SceneWriteError};
+use crate::foxglove::EventLevel;
 use crate::mca::{AlgorithmId, AlgorithmState, Mode, PlatformCommand, SolverReport};
 use crate::model::vestibular::Perceived;
 use crate::profile::Profile;
@@ -215,6 +217,19 @@ impl PerceivedMsg {
     }
 }
 
+impl AircraftMsg {
+    fn new(frame: &Frame) -> Self {
+        let a = &frame.aircraft;
+        AircraftMsg {
+            t: frame.t_s,
+            k: Some(frame.k as u64),
+            specific_force: v3(&a.specific_force_mps2),
+            angular_velocity: v3(&a.angular_velocity_radps),
+            attitude: v3(&a.attitude_rad),
+        }
+    }
+}
+
 #[derive(Debug, Serialize, Deserialize)]
 struct PlatformMsg {
     #[serde(deserialize_with = "nan_f64")]
@@ -227,6 +242,17 @@ struct PlatformMsg {
     acceleration: [f64; 6],
 }
 
+impl PlatformMsg {
+    fn new(t: f64, c: &PlatformCommand) -> Self {
+        PlatformMsg {
+            t,
+            pose: v6(&c.pose),
+            velocity: v6(&c.velocity),
+            acceleration: v6(&c.acceleration),
+        }
+    }
+}
+
 #[derive(Debug, Serialize, Deserialize)]
 struct ActuatorsMsg {
     #[serde(deserialize_with = "nan_f64")]
@@ -237,6 +263,17 @@ struct ActuatorsMsg {
     velocity: [f64; 6],
     #[serde(deserialize_with = "nan_array")]
     margin: [f64; 6],
+}
+
+impl ActuatorsMsg {
+    fn new(t: f64, l: &Legs) -> Self {
+        ActuatorsMsg {
+            t,
+            length: v6(&l.length_m),
+            velocity: v6(&l.velocity_mps),
+            margin: v6(&l.margin_m),
+        }
+    }
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -441,6 +478,67 @@ fn schemas() -> [SchemaDef; 5] {
     ]
 }
 
+/// The JSON schemas of hexcue's own topics, by schema name: what the live Foxglove server
+/// advertises for the same channels.
+pub fn json_schemas() -> Vec<(&'static str, Vec<u8>)> {
+    schemas().into_iter().map(|d| (d.name, d.data)).collect()
+}
+
+/// A frame's messages on hexcue's own topics, in the recorder's order and with the recorder's
+/// bytes: (topic, schema name, JSON).
+pub fn json_messages(frame: &Frame) -> serde_json::Result<Vec<(String, &'static str, Vec<u8>)>> {
+    let t = frame.t_s;
+    let mut out = Vec::with_capacity(2 + 4 * frame.lanes.len());
+    out.push((
+        AIRCRAFT_TOPIC.to_string(),
+        "hexcue.Aircraft",
+        serde_json::to_vec(&AircraftMsg::new(frame))?,
+    ));
+    out.push((
+        REFERENCE_TOPIC.to_string(),
+        "hexcue.Perceived",
+        serde_json::to_vec(&PerceivedMsg::new(t, &frame.reference))?,
+    ));
+    for lane in &frame.lanes {
+        let topic = |kind: &str| format!("/{}/{kind}", lane.id.key());
+        out.push((
+            topic(LANE_KINDS[0]),
+            "hexcue.Perceived",
+            serde_json::to_vec(&PerceivedMsg::new(t, &lane.perceived))?,
+        ));
+        out.push((
+            topic(LANE_KINDS[1]),
+            "hexcue.Platform",
+            serde_json::to_vec(&PlatformMsg::new(t, &lane.command))?,
+        ));
+        out.push((
+            topic(LANE_KINDS[2]),
+            "hexcue.Actuators",
+            serde_json::to_vec(&ActuatorsMsg::new(t, &lane.legs))?,
+        ));
+        out.push((
+            topic(LANE_KINDS[3]),
+            "hexcue.Controller",
+            serde_json::to_vec(&ControllerMsg::new(t, lane))?,
+        ));
+    }
+    Ok(out)
+}
+
+fn scene_error(path: &Path, e: SceneWriteError) -> RecordingError {
+    match e {
+        SceneWriteError::Mcap(error) => RecordingError::Write {
+            path: shown(path),
+            error,
+        },
+        SceneWriteError::Encode { .. } => RecordingError::Io {
+            path: shown(path),
+            action: "encode a message",
+            error: io::Error::other(e.to_string()),
+        },
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Writer
 
@@ -504,6 +602,9 @@ pub struct Recorder {
     buf: Vec<u8>,
     /// The metadata written at the start; a live session writes it again, completed, at the end.
     metadata: BTreeMap<String, String>,
+    /// Foxglove's 3D topics (`/ALG/tf`, `/ALG/scene`, `/events`); `None` when the attached
+    /// profile does not load, so that the rigs' geometry is unknown.
+    foxglove: Option<SceneChannels>,
 }
 
 impl Recorder {
@@ -610,9 +711,17 @@ impl Recorder {
             created: Instant::now(),
             buf: Vec::with_capacity(1024),
             metadata: metadata_kept,
+            foxglove: None,
         };
         for &id in &meta.algorithms {
             recorder.lane_channels(id)?;
+        }
+        // The rigs are drawn from the attached profile, so that a recovered copy gets the
+        // same scene as the original.
+        if let Ok(profile) = parse_profile(&meta.profile_toml, PROFILE_ATTACHMENT) {
+            let scene = SceneChannels::new(recorder.writer(), &profile, &meta.algorithms)
+                .map_err(|e| recorder.write_error(e))?;
+            recorder.foxglove = Some(scene);
         }
         Ok(recorder)
     }
@@ -698,18 +807,7 @@ impl Recorder {
         let log_time = self
             .start_ns
             .saturating_add((t * 1e9).round().min(u64::MAX as f64 / 2.0) as u64);
-        let a = &frame.aircraft;
-        self.write(
-            self.aircraft,
-            log_time,
-            &AircraftMsg {
-                t,
-                k: Some(frame.k as u64),
-                specific_force: v3(&a.specific_force_mps2),
-                angular_velocity: v3(&a.angular_velocity_radps),
-                attitude: v3(&a.attitude_rad),
-            },
-        )?;
+        self.write(self.aircraft, log_time, &AircraftMsg::new(frame))?;
         self.write(
             self.reference,
             log_time,
@@ -720,29 +818,15 @@ impl Recorder {
             let (perceived, platform, actuators, controller) =
                 (ch.perceived, ch.platform, ch.actuators, ch.controller);
             self.write(perceived, log_time, &PerceivedMsg::new(t, &lane.perceived))?;
-            let c = &lane.command;
-            self.write(
-                platform,
-                log_time,
-                &PlatformMsg {
-                    t,
-                    pose: v6(&c.pose),
-                    velocity: v6(&c.velocity),
-                    acceleration: v6(&c.acceleration),
-                },
-            )?;
-            let l = &lane.legs;
-            self.write(
-                actuators,
-                log_time,
-                &ActuatorsMsg {
-                    t,
-                    length: v6(&l.length_m),
-                    velocity: v6(&l.velocity_mps),
-                    margin: v6(&l.margin_m),
-                },
-            )?;
+            self.write(platform, log_time, &PlatformMsg::new(t, &lane.command))?;
+            self.write(actuators, log_time, &ActuatorsMsg::new(t, &lane.legs))?;
             self.write(controller, log_time, &ControllerMsg::new(t, lane))?;
+        }
+        if let (Some(scene), Some(writer)) = (self.foxglove.as_mut(), self.writer.as_mut()) {
+            match scene.write(writer, frame, log_time, self.steps as u32) {
+                Ok(n) => self.messages += n,
+                Err(e) => return Err(scene_error(&self.path, e)),
+            }
         }
         self.steps += 1;
         self.first_t.get_or_insert(t);
@@ -752,6 +836,28 @@ impl Recorder {
             || self.flushed_wall.elapsed() >= FLUSH_INTERVAL
         {
             self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Records an event of the session (input lost, e-stop, …) on `/events` (`foxglove.Log`)
+    /// at trace time `t_s`. Without the 3D topics (a profile that does not load) it is
+    /// dropped.
+    pub fn event(
+        &mut self,
+        t_s: f64,
+        level: EventLevel,
+        source: &str,
+        text: &str,
+    ) -> Result<(), RecordingError> {
+        let log_time = self
+            .start_ns
+            .saturating_add((t_s.max(0.0) * 1e9).round().min(u64::MAX as f64 / 2.0) as u64);
+        if let (Some(scene), Some(writer)) = (self.foxglove.as_mut(), self.writer.as_mut()) {
+            scene
+                .write_event(writer, log_time, self.steps as u32, level, source, text)
+                .map_err(|e| scene_error(&self.path, e))?;
+            self.messages += 1;
         }
         Ok(())
     }
@@ -1807,7 +1913,13 @@ mod tests {
     fn frames_round_trip_with_the_same_summary() {
         let (trace, frames, bytes, stats) = recorded();
         assert_eq!(stats.steps, 3000);
-        assert_eq!(stats.messages, 3000 * 6);
+        // hexcue's six topics and Foxglove's two (`/cwf/tf`, `/cwf/scene`) a step, and an
+        // `/events` message each time the limiter starts or stops acting.
+        let edges = frames
+            .windows(2)
+            .filter(|w| w[0].lanes[0].limiter_active != w[1].lanes[0].limiter_active)
+            .count() as u64;
+        assert_eq!(stats.messages, 3000 * 8 + edges);
         assert_eq!(stats.bytes, bytes.len() as u64);
         assert!((stats.duration_s - 29.99).abs() < 1e-9);
         let dir = tempfile::tempdir().unwrap();
@@ -1815,7 +1927,7 @@ mod tests {
         assert!(rec.finished && rec.stopped.is_none(), "{:?}", rec.notices);
         assert!(rec.notices.is_empty(), "{:?}", rec.notices);
         assert_eq!(rec.algorithms, vec![AlgorithmId::Cwf]);
-        assert_eq!((rec.steps, rec.messages), (3000, 18000));
+        assert_eq!((rec.steps, rec.messages), (3000, 3000 * 8 + edges));
         assert!((rec.last_t_s - 29.99).abs() < 1e-6);
         let back = read_all(&rec);
         assert_eq!(back.len(), frames.len());
@@ -1873,6 +1985,11 @@ mod tests {
         }
         for c in summary.channels.values() {
             let schema = c.schema.as_ref().unwrap();
+            if schema.name.starts_with("foxglove.") {
+                // The 3D topics (src/foxglove): Foxglove's well-known protobuf schemas.
+                assert_eq!(c.message_encoding, "protobuf");
+                continue;
+            }
             assert_eq!(
                 (c.message_encoding.as_str(), schema.encoding.as_str()),
                 ("json", "jsonschema")
@@ -1896,6 +2013,9 @@ mod tests {
             );
             let previous = last.insert(message.channel.topic.clone(), message.log_time);
             assert!(previous.is_none_or(|p| p < message.log_time));
+            if message.channel.message_encoding == "protobuf" {
+                continue;
+            }
             let json: Value = serde_json::from_slice(&message.data).unwrap();
             assert!(json["t"].is_number());
             count += 1;

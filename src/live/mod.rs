@@ -125,7 +125,7 @@ impl LiveStats {
     }
 }
 
-/// A live session: input, engine, safety, outputs and frame sinks.
+/// A live session: input, engine, safety, outputs and frame sinks (the recording, Foxglove).
 pub struct LiveSession {
     engine: Engine,
     held: HeldSampleHandle,
@@ -333,6 +333,9 @@ impl LiveSession {
         }
         for sink in &mut self.frame_sinks {
             sink.record(&frame)?;
+            for event in &self.events {
+                sink.event(event)?;
+            }
         }
         self.last_frame = Some(frame);
         Ok(StepReport {

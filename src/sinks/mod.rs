@@ -13,11 +13,19 @@ use crate::engine::Frame;
 use crate::mca::AlgorithmId;
 use crate::safety::SafetyState;
 
-/// Where recorded frames go (the MCAP recorder implements it).
+/// Where frames go: a recording (the MCAP recorder), a live view (the Foxglove server).
 pub trait FrameSink: Send {
     fn record(&mut self, frame: &Frame) -> anyhow::Result<()>;
     /// Closes the file; returns a line for the user (typically the path and what was written).
     fn finish(self: Box<Self>) -> anyhow::Result<String>;
+    /// The frames start over (the source rewound or sought): the next one does not follow
+    /// the last.
+    fn rewound(&mut self) {}
+    /// An event of a live session (input lost, e-stop, washout, …) at session time `t_s`;
+    /// sinks that have nowhere to put it ignore it.
+    fn event(&mut self, _event: &crate::live::LiveEvent) -> anyhow::Result<()> {
+        Ok(())
+    }
 }
 
 /// The command a live session sends at one step, after the safety stage and the limiter.

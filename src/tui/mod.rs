@@ -38,6 +38,62 @@ pub use theme::Theme;
 
 pub use crate::sinks::FrameSink;
 
+/// A source whose frames also go to sinks attached for the whole session (a live view), as
+/// the source makes them; the player does not know they are there.
+pub struct Teed {
+    source: Box<dyn FrameSource>,
+    sinks: Vec<Box<dyn FrameSink>>,
+}
+
+impl Teed {
+    pub fn new(source: Box<dyn FrameSource>, sinks: Vec<Box<dyn FrameSink>>) -> Self {
+        Teed { source, sinks }
+    }
+}
+
+impl FrameSource for Teed {
+    fn len(&self) -> usize {
+        self.source.len()
+    }
+    fn position(&self) -> usize {
+        self.source.position()
+    }
+    fn next_frame(&mut self) -> Option<Frame> {
+        let frame = self.source.next_frame()?;
+        // A live view that fails must not stop the session: it is dropped.
+        self.sinks.retain_mut(|sink| sink.record(&frame).is_ok());
+        Some(frame)
+    }
+    fn rewind(&mut self) {
+        self.source.rewind();
+        for sink in &mut self.sinks {
+            sink.rewound();
+        }
+    }
+    fn algorithms(&self) -> Vec<AlgorithmId> {
+        self.source.algorithms()
+    }
+    fn rate_hz(&self) -> f64 {
+        self.source.rate_hz()
+    }
+    fn start_t_s(&self) -> f64 {
+        self.source.start_t_s()
+    }
+    fn checkpoint(&self) -> Option<SourceCheckpoint> {
+        self.source.checkpoint()
+    }
+    fn restore(&mut self, checkpoint: &SourceCheckpoint) -> bool {
+        // A seek: the next frame does not follow the last one the sinks saw.
+        let restored = self.source.restore(checkpoint);
+        if restored {
+            for sink in &mut self.sinks {
+                sink.rewound();
+            }
+        }
+        restored
+    }
+}
+
 /// What the console asks a [`SinkFactory`] for when a recording starts.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RecordingRequest {
@@ -260,6 +316,8 @@ pub struct LiveConfig {
     pub speed: usize,
     /// Start with loop on (`--loop`).
     pub looping: bool,
+    /// Sinks fed every frame for the whole session (`--foxglove`), beside any recording.
+    pub sinks: Vec<Box<dyn FrameSink>>,
 }
 
 impl LiveConfig {
@@ -286,6 +344,7 @@ impl LiveConfig {
             start_paused: false,
             speed: player::REAL_TIME,
             looping: false,
+            sinks: Vec::new(),
         }
     }
 }
@@ -330,7 +389,12 @@ pub fn run_live(cfg: LiveConfig, sink_factory: SinkFactory) -> anyhow::Result<Ou
         speed: cfg.speed,
         looping: cfg.looping,
     };
-    run_terminal(info, cfg.profile, Box::new(engine), opts)
+    let source: Box<dyn FrameSource> = if cfg.sinks.is_empty() {
+        Box::new(engine)
+    } else {
+        Box::new(Teed::new(Box::new(engine), cfg.sinks))
+    };
+    run_terminal(info, cfg.profile, source, opts)
 }
 
 /// Runs a review of recorded frames on the real terminal: the live layout, no recording.

@@ -1,0 +1,510 @@
+//! `--foxglove`: a WebSocket client (tungstenite, loopback only) connects to a headless
+//! `play`, sees the channels advertised with Foxglove's schemas and receives messages whose
+//! transforms follow the platform's pose; to a headless `live` session, it also receives the
+//! session's events. Every wait is bounded.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader};
+use std::net::TcpListener;
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use ::foxglove::messages::{FrameTransforms, SceneUpdate};
+use ::foxglove::Decode;
+use common::*;
+use tungstenite::client::IntoClientRequest;
+use tungstenite::stream::MaybeTlsStream;
+use tungstenite::Message;
+
+/// Longest any single wait of these tests may take.
+const PATIENCE: Duration = Duration::from_secs(30);
+
+/// A hexcue process this test started; killed (by its own pid) if the test ends early.
+struct Hexcue {
+    child: Child,
+    stderr: mpsc::Receiver<String>,
+}
+
+impl Hexcue {
+    fn spawn(args: &[&str]) -> Hexcue {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_hexcue"))
+            .args(args)
+            .current_dir(repo())
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("the hexcue binary runs");
+        let (tx, rx) = mpsc::channel();
+        let err = child.stderr.take().unwrap();
+        std::thread::spawn(move || {
+            for line in BufReader::new(err).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        Hexcue { child, stderr: rx }
+    }
+
+    /// The address from "foxglove: serving ws://ADDR …".
+    fn serving(&self) -> String {
+        let until = Instant::now() + PATIENCE;
+        let mut seen = Vec::new();
+        while let Some(left) = until.checked_duration_since(Instant::now()) {
+            let Ok(line) = self.stderr.recv_timeout(left) else {
+                break;
+            };
+            if let Some(rest) = line.strip_prefix("foxglove: serving ws://") {
+                return rest.split_whitespace().next().unwrap().to_string();
+            }
+            seen.push(line);
+        }
+        panic!(
+            "hexcue never said where it serves; stderr:\n{}",
+            seen.join("\n")
+        );
+    }
+
+    /// SIGINT, as Ctrl-C would, then the exit status (bounded).
+    fn interrupt(mut self) -> std::process::ExitStatus {
+        // SAFETY: kill(2) on the pid of the child this test spawned and has not reaped.
+        unsafe { libc::kill(self.child.id() as libc::pid_t, libc::SIGINT) };
+        let until = Instant::now() + PATIENCE;
+        while Instant::now() < until {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return status;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        panic!("hexcue did not stop on SIGINT within {PATIENCE:?}");
+    }
+}
+
+impl Drop for Hexcue {
+    fn drop(&mut self) {
+        if self.child.try_wait().ok().flatten().is_none() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+type Socket = tungstenite::WebSocket<MaybeTlsStream<std::net::TcpStream>>;
+
+fn connect(addr: &str) -> Socket {
+    let mut request = format!("ws://{addr}").into_client_request().unwrap();
+    request
+        .headers_mut()
+        .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
+    let (socket, response) = tungstenite::connect(request).expect("the server accepts a client");
+    assert_eq!(
+        response.headers()["sec-websocket-protocol"],
+        "foxglove.sdk.v1"
+    );
+    if let MaybeTlsStream::Plain(tcp) = socket.get_ref() {
+        tcp.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    }
+    socket
+}
+
+struct Advertised {
+    id: u64,
+    encoding: String,
+    schema_name: String,
+    schema_encoding: String,
+}
+
+/// Reads text messages until the advertised topics include `wanted`.
+fn advertised(socket: &mut Socket, wanted: &[&str]) -> BTreeMap<String, Advertised> {
+    let mut channels = BTreeMap::new();
+    let mut ops = Vec::new();
+    let until = Instant::now() + PATIENCE;
+    while !wanted.iter().all(|t| channels.contains_key(*t)) {
+        assert!(Instant::now() < until, "advertised {:?}", channels.keys());
+        let Message::Text(text) = socket.read().expect("the server talks") else {
+            continue;
+        };
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        ops.push(v["op"].as_str().unwrap_or_default().to_string());
+        if v["op"] == "advertise" {
+            for c in v["channels"].as_array().unwrap() {
+                let s = |k: &str| c[k].as_str().unwrap_or_default().to_string();
+                channels.insert(
+                    s("topic"),
+                    Advertised {
+                        id: c["id"].as_u64().unwrap(),
+                        encoding: s("encoding"),
+                        schema_name: s("schemaName"),
+                        schema_encoding: s("schemaEncoding"),
+                    },
+                );
+            }
+        }
+    }
+    assert_eq!(
+        ops.first().map(String::as_str),
+        Some("serverInfo"),
+        "{ops:?}"
+    );
+    channels
+}
+
+#[test]
+fn a_websocket_client_sees_the_channels_and_receives_messages() {
+    let hexcue = Hexcue::spawn(&[
+        "play",
+        "--headless",
+        "--algorithms",
+        "cwf",
+        "--foxglove",
+        "127.0.0.1:0",
+        "--speed",
+        "2",
+    ]);
+    let addr = hexcue.serving();
+    assert!(addr.starts_with("127.0.0.1:"), "{addr}");
+    let mut socket = connect(&addr);
+    let wanted = [
+        "/aircraft",
+        "/aircraft/perceived",
+        "/cwf/perceived",
+        "/cwf/platform",
+        "/cwf/actuators",
+        "/cwf/controller",
+        "/cwf/tf",
+        "/cwf/scene",
+        "/events",
+    ];
+    let channels = advertised(&mut socket, &wanted);
+    for (topic, schema, encoding) in [
+        ("/cwf/tf", "foxglove.FrameTransforms", "protobuf"),
+        ("/cwf/scene", "foxglove.SceneUpdate", "protobuf"),
+        ("/events", "foxglove.Log", "protobuf"),
+        ("/cwf/platform", "hexcue.Platform", "json"),
+        ("/aircraft", "hexcue.Aircraft", "json"),
+    ] {
+        let c = &channels[topic];
+        assert_eq!(
+            (c.schema_name.as_str(), c.encoding.as_str()),
+            (schema, encoding)
+        );
+        let schema_encoding = if encoding == "json" {
+            "jsonschema"
+        } else {
+            "protobuf"
+        };
+        assert_eq!(c.schema_encoding, schema_encoding, "{topic}");
+    }
+
+    let subscriptions = [(1u32, "/cwf/tf"), (2, "/cwf/platform"), (3, "/cwf/scene")];
+    let subscribe = serde_json::json!({
+        "op": "subscribe",
+        "subscriptions": subscriptions
+            .iter()
+            .map(|(id, topic)| serde_json::json!({"id": id, "channelId": channels[*topic].id}))
+            .collect::<Vec<_>>(),
+    });
+    socket
+        .send(Message::Text(subscribe.to_string().into()))
+        .unwrap();
+
+    // Messages by subscription, keyed by log time, until a transform and a pose share one.
+    let mut tfs: BTreeMap<u64, FrameTransforms> = BTreeMap::new();
+    let mut poses: BTreeMap<u64, Vec<f64>> = BTreeMap::new();
+    let mut scenes = 0;
+    let mut last_time = 0;
+    let until = Instant::now() + PATIENCE;
+    let matched = loop {
+        assert!(
+            Instant::now() < until,
+            "no transform and pose of the same step"
+        );
+        let Message::Binary(data) = socket.read().expect("messages arrive") else {
+            continue;
+        };
+        // Opcode 1: message data (u32 subscription, u64 log time, payload).
+        if data[0] != 1 {
+            continue;
+        }
+        let sub = u32::from_le_bytes(data[1..5].try_into().unwrap());
+        let t = u64::from_le_bytes(data[5..13].try_into().unwrap());
+        let payload = &data[13..];
+        match sub {
+            1 => {
+                assert!(t >= last_time, "log time went back");
+                last_time = t;
+                tfs.insert(t, FrameTransforms::decode(payload).unwrap());
+            }
+            2 => {
+                let v: serde_json::Value = serde_json::from_slice(payload).unwrap();
+                let pose = v["pose"].as_array().unwrap();
+                poses.insert(t, pose.iter().map(|x| x.as_f64().unwrap()).collect());
+            }
+            3 => {
+                let scene = SceneUpdate::decode(payload).unwrap();
+                assert_eq!(scene.entities.len(), 3);
+                assert_eq!(scene.entities[2].lines.len(), 6, "six legs");
+                scenes += 1;
+            }
+            other => panic!("a message for subscription {other}"),
+        }
+        if let Some(t) = tfs.keys().rev().find(|t| poses.contains_key(t)) {
+            if scenes > 0 {
+                break *t;
+            }
+        }
+    };
+    let platform = &tfs[&matched].transforms[1];
+    assert_eq!(platform.parent_frame_id, "cwf/base");
+    assert_eq!(platform.child_frame_id, "cwf/platform");
+    let at = platform.translation.as_ref().unwrap();
+    assert_eq!([at.x, at.y, at.z], poses[&matched][..3]);
+    socket.close(None).ok();
+
+    let status = hexcue.interrupt();
+    assert!(status.success(), "hexcue ended with {status}");
+}
+
+#[test]
+fn an_address_in_use_is_refused_by_name() {
+    let taken = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = taken.local_addr().unwrap().to_string();
+    let out = hexcue(&[
+        "play",
+        "--headless",
+        "--algorithms",
+        "cwf",
+        "--foxglove",
+        &addr,
+    ]);
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(err.contains(&format!("--foxglove {addr}")), "{err}");
+    assert!(stdout(&out).is_empty());
+}
+
+#[test]
+fn a_bad_address_or_speed_is_refused() {
+    let out = hexcue(&["play", "--headless", "--foxglove", "localhost"]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("--foxglove"), "{}", stderr(&out));
+    // --speed takes the console's speeds, which also pace a headless run with --foxglove.
+    for bad in ["0", "3"] {
+        let out = hexcue(&[
+            "play",
+            "--headless",
+            "--foxglove",
+            "127.0.0.1:0",
+            "--speed",
+            bad,
+        ]);
+        assert!(!out.status.success());
+        assert!(
+            stderr(&out).contains("0.25, 0.5, 1, 2, 4, 8, 16, max"),
+            "{}",
+            stderr(&out)
+        );
+    }
+    let out = hexcue(&[
+        "live",
+        "--headless",
+        "--input",
+        "jsbsim://127.0.0.1:0",
+        "--foxglove",
+        "nowhere",
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("--foxglove"), "{}", stderr(&out));
+}
+
+/// The topics of a recording with their schema names.
+fn channels_of(path: &std::path::Path) -> BTreeMap<String, String> {
+    let bytes = std::fs::read(path).unwrap();
+    let summary = mcap::Summary::read(&bytes)
+        .unwrap()
+        .expect("a finished recording");
+    summary
+        .channels
+        .values()
+        .map(|c| {
+            let schema = c.schema.as_ref().map_or(String::new(), |s| s.name.clone());
+            (c.topic.clone(), schema)
+        })
+        .collect()
+}
+
+/// The texts of the `/events` messages (`foxglove.Log`) of a recording.
+fn recorded_events(path: &std::path::Path) -> Vec<String> {
+    let bytes = std::fs::read(path).unwrap();
+    mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(Result::unwrap)
+        .filter(|m| m.channel.topic == "/events")
+        .map(|m| {
+            ::foxglove::messages::Log::decode(&m.data[..])
+                .unwrap()
+                .message
+        })
+        .collect()
+}
+
+/// `hexcue live --headless --foxglove` against a simulator that sends level flight, pauses
+/// long enough for the input to be lost, resumes, and is still sending when --duration ends
+/// the session with an e-stop: a WebSocket client sees the recording's channels advertised,
+/// transforms, and the session's events (input lost, washout, e-stop) on `/events`; the
+/// session's recording has the same channels as a playback's, and the same events.
+#[test]
+fn a_live_session_serves_its_channels_and_events_to_foxglove() {
+    let dir = tempfile::tempdir().unwrap();
+    let in_port = std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let mcap = dir.path().join("live.mcap");
+    let session = Hexcue::spawn(&[
+        "live",
+        "--headless",
+        "--input",
+        &format!("jsbsim://127.0.0.1:{in_port}"),
+        "--algorithms",
+        "cwf",
+        "--drive",
+        "cwf",
+        "--duration",
+        "8",
+        "--record",
+        mcap.to_str().unwrap(),
+        "--foxglove",
+        "127.0.0.1:0",
+    ]);
+    let addr = session.serving();
+    let mut socket = connect(&addr);
+    let wanted = [
+        "/aircraft",
+        "/aircraft/perceived",
+        "/cwf/perceived",
+        "/cwf/platform",
+        "/cwf/actuators",
+        "/cwf/controller",
+        "/cwf/tf",
+        "/cwf/scene",
+        "/events",
+    ];
+    let channels = advertised(&mut socket, &wanted);
+    assert_eq!(channels["/events"].schema_name, "foxglove.Log");
+    let subscribe = serde_json::json!({
+        "op": "subscribe",
+        "subscriptions": [
+            {"id": 1, "channelId": channels["/events"].id},
+            {"id": 2, "channelId": channels["/cwf/tf"].id},
+        ],
+    });
+    socket
+        .send(Message::Text(subscribe.to_string().into()))
+        .unwrap();
+
+    // The simulator: 100 Hz, silent from 4 s to 4.6 s, then on until the session ends.
+    let sending = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let sender = {
+        let sending = sending.clone();
+        std::thread::spawn(move || {
+            let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+            let to = format!("127.0.0.1:{in_port}");
+            let start = Instant::now();
+            let mut k = 0u64;
+            while sending.load(std::sync::atomic::Ordering::Relaxed) && start.elapsed() < PATIENCE {
+                let t = k as f64 * 0.01;
+                if !(4.0..4.6).contains(&t) {
+                    // Level flight with a gentle surge (ft/s², as JSBSim sends).
+                    let line = format!("{t},{},0,-32.17,0,0,0,0,0,0\n", 2.0 * (t * 0.5).sin());
+                    let _ = tx.send_to(line.as_bytes(), &to);
+                }
+                k += 1;
+                let due = start + Duration::from_secs_f64(k as f64 * 0.01);
+                std::thread::sleep(due.saturating_duration_since(Instant::now()));
+            }
+        })
+    };
+
+    let mut events: Vec<String> = Vec::new();
+    let mut transforms = 0;
+    let until = Instant::now() + PATIENCE;
+    while Instant::now() < until
+        && !events
+            .iter()
+            .any(|e| e.starts_with("parked at neutral after"))
+    {
+        // The server stops when the session ends: the socket then fails.
+        let Ok(message) = socket.read() else { break };
+        let Message::Binary(data) = message else {
+            continue;
+        };
+        if data[0] != 1 {
+            continue;
+        }
+        let sub = u32::from_le_bytes(data[1..5].try_into().unwrap());
+        match sub {
+            1 => events.push(
+                ::foxglove::messages::Log::decode(&data[13..])
+                    .unwrap()
+                    .message,
+            ),
+            2 => transforms += 1,
+            other => panic!("a message for subscription {other}"),
+        }
+    }
+    sending.store(false, std::sync::atomic::Ordering::Relaxed);
+    sender.join().unwrap();
+    let status = {
+        let mut h = session;
+        let until = Instant::now() + PATIENCE;
+        loop {
+            if let Some(status) = h.child.try_wait().unwrap() {
+                break status;
+            }
+            assert!(Instant::now() < until, "the session did not end");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    assert!(status.success(), "hexcue live ended with {status}");
+    assert!(transforms > 100, "{transforms} transforms");
+    for start in [
+        "engaging",
+        "running",
+        "input lost",
+        "washout to neutral: input lost",
+        "input back",
+        "e-stop",
+        "parked at neutral after the e-stop",
+    ] {
+        assert!(
+            events.iter().any(|e| e.starts_with(start)),
+            "no `{start}…` on /events: {events:#?}"
+        );
+    }
+
+    // The recording: the channels of a playback's, and the same events as served.
+    let played = dir.path().join("played.mcap");
+    let out = hexcue(&[
+        "play",
+        "--headless",
+        "--algorithms",
+        "cwf",
+        "--record",
+        played.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(channels_of(&mcap), channels_of(&played));
+    let recorded = recorded_events(&mcap);
+    for e in &events {
+        assert!(
+            recorded.contains(e),
+            "`{e}` served but not recorded: {recorded:#?}"
+        );
+    }
+}
