@@ -41,7 +41,9 @@ fn check_summary(json: &serde_json::Value, trace: &str, algorithms: &[&str]) {
     }
 }
 
-/// Every topic of DESIGN §7, read with the mcap crate directly, independently of hexcue's reader.
+/// Every topic of DESIGN §7, read with the mcap crate directly, independently of hexcue's
+/// reader, and the number of messages on hexcue's own (JSON) topics. Foxglove's 3D topics
+/// (docs/foxglove.md) are protobuf with Foxglove's well-known schemas.
 fn recorded_topics(path: &std::path::Path) -> (BTreeSet<String>, usize) {
     let bytes = std::fs::read(path).unwrap();
     let mut topics = BTreeSet::new();
@@ -49,9 +51,14 @@ fn recorded_topics(path: &std::path::Path) -> (BTreeSet<String>, usize) {
     for msg in mcap::MessageStream::new(&bytes).unwrap() {
         let msg = msg.unwrap();
         assert!(msg.log_time > 0, "log time must not be 0");
-        assert_eq!(msg.channel.message_encoding, "json");
+        let schema = msg.channel.schema.as_ref().map_or("", |s| s.name.as_str());
+        if schema.starts_with("foxglove.") {
+            assert_eq!(msg.channel.message_encoding, "protobuf", "{schema}");
+        } else {
+            assert_eq!(msg.channel.message_encoding, "json", "{schema}");
+            count += 1;
+        }
         topics.insert(msg.channel.topic.clone());
-        count += 1;
     }
     (topics, count)
 }
@@ -80,6 +87,8 @@ fn cwf_on_every_shipped_trace_records_and_reviews() {
             "/cwf/platform",
             "/cwf/actuators",
             "/cwf/controller",
+            "/cwf/tf",
+            "/cwf/scene",
         ] {
             assert!(
                 topics.contains(t),
@@ -87,7 +96,7 @@ fn cwf_on_every_shipped_trace_records_and_reviews() {
             );
         }
         let steps = played["steps"].as_u64().unwrap() as usize;
-        assert_eq!(count, steps * 6, "one message per topic per step");
+        assert_eq!(count, steps * 6, "one message per JSON topic per step");
 
         let reviewed_path = dir.path().join(format!("{name}-review.json"));
         let out = hexcue(&[

@@ -13,9 +13,15 @@ use std::sync::OnceLock;
 use common::*;
 
 fn scratch() -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("recordings-corpus");
-    std::fs::create_dir_all(&dir).expect("the scratch directory can be made");
-    dir
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("recordings-corpus");
+        // Emptied once a run: an earlier run's files would be refused as outputs (no --force).
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("the scratch directory can be made");
+        dir
+    })
+    .clone()
 }
 
 /// One real recording (the embedded trace, CWF), made once per test binary.
