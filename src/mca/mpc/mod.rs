@@ -801,12 +801,25 @@ impl Mpc {
         // simulator's perceived motion may not go beyond the threshold the other way, but for
         // a slack σ ≥ 0 that the cost prices heavily: −s·ŷ − σ ≤ th with s the reference's
         // sign. Below the threshold s = 0 and the row cannot bind (the pattern stays fixed).
+        let felt = |r: f64, th: f64| if r.abs() > th { r.signum() } else { 0.0 };
+        let y_now = &self.ref_discrete[0].c * &self.ref_x;
+        let mut carried: Vec<f64> = self
+            .false_cue_channels
+            .iter()
+            .map(|&c| felt(y_now[c], self.thresholds[c]))
+            .collect();
         for i in 0..n {
             let xc = Self::x_col(i);
             for (j, &c) in self.false_cue_channels.iter().enumerate() {
                 let th = self.thresholds[c];
                 let r = self.y_ref.get(i).map_or(0.0, |y| y[c]);
-                let sign = if r.abs() > th { r.signum() } else { 0.0 };
+                let mut sign = felt(r, th);
+                if self.params.false_cue_carry {
+                    if sign != 0.0 {
+                        carried[j] = sign;
+                    }
+                    sign = carried[j];
+                }
                 let col = self.slack_col(i, j);
                 for k in 0..NX {
                     let v = self.perceived_c[(c, k)];
@@ -815,7 +828,7 @@ impl Mpc {
                     }
                 }
                 t.push(row, col, -1.0);
-                b.push(th);
+                b.push(self.params.false_cue_margin * th);
                 t.push(row + 1, col, -1.0);
                 b.push(0.0);
                 row += 2;
@@ -924,6 +937,9 @@ impl Mpc {
             vars.extend((0..NU).map(|k| Var::Input(i * NU + k)));
             vars.extend((0..NX).map(|k| Var::State(i * NX + k)));
         }
+        // The false-cue slacks are decision variables like the inputs: nothing eliminates them.
+        let n_slack = n * self.false_cue_channels.len();
+        vars.extend((0..n_slack).map(|k| Var::Input(n * NU + k)));
         let gain = self.washout_gain;
         let p_at = |mpc: &mut Self, g: f64| {
             mpc.washout_gain = g;
@@ -1019,11 +1035,17 @@ impl Mpc {
                     avg(&mut u, sample, 1.0);
                     for (k, v) in u.iter_mut().enumerate() {
                         let tau = self.params.reference_decay_s[k];
+                        // Surge and sway fade toward what tilt can hold. Heave fades toward
+                        // its own low-passed part: no platform holds it, but predicted to
+                        // vanish, a sustained load factor (a 2 g turn) would be chased anew
+                        // each step until the heave stroke runs out. Rates fade to nothing:
+                        // the canals wash a sustained rate out themselves.
                         let sustained = match k {
                             0 | 1 => reference::sustainable_df_mps2(
                                 self.sustained_df_mps2[k],
                                 self.limits.excursion[4 - k],
                             ),
+                            2 => self.sustained_df_mps2[2],
                             _ => 0.0,
                         };
                         *v = reference::decaying_mean(*v, sustained, tau, t_start, t_start + h);

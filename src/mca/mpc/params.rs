@@ -23,6 +23,10 @@ fn default_true() -> bool {
     true
 }
 
+fn default_false_cue_margin() -> f64 {
+    1.0
+}
+
 fn default_reference_decay_s() -> [f64; 6] {
     [0.3; 6]
 }
@@ -56,6 +60,19 @@ pub struct MpcParams {
     /// (a slack per channel and grid point); 0 leaves the channel without one.
     #[serde(default)]
     pub false_cue_weight: [f64; 6],
+    /// Where the predicted reference fades below the threshold, keep guarding the direction in
+    /// which it was last felt (from the present on), so that the platform is not planned to
+    /// swing back perceptibly while the pilot still feels the aircraft's motion one way: the
+    /// prediction fades faster than the aircraft's motion may, and a felt washback against a
+    /// motion that goes on is a false cue (docs/mpc.md, "False cues").
+    #[serde(default = "default_true")]
+    pub false_cue_carry: bool,
+    /// Where the false-cue price starts, as a fraction of the perception threshold: the
+    /// perceived motion against the reference is priced from this much of the threshold on,
+    /// so that the optimum keeps it below the threshold instead of just at it (where the
+    /// prediction's error makes it cross). 1 prices only what is beyond the threshold.
+    #[serde(default = "default_false_cue_margin")]
+    pub false_cue_margin: f64,
     /// While the aircraft's perceived heave is heavier than the threshold, keep roll and pitch
     /// within the tilt whose loss of vertical gravity, g·(1 − cos), stays below the heave
     /// threshold: a larger tilt is felt as lightness, a false heave cue the linear model
@@ -209,6 +226,15 @@ impl MpcParams {
         positive("mpc.fallback_washout_radps", self.fallback_washout_radps)?;
         positive("mpc.time_limit_ms", self.time_limit_ms)?;
         positive("mpc.cotc_sustained_s", self.cotc_sustained_s)?;
+        if !(0.0..=1.0).contains(&self.false_cue_margin) {
+            return err(
+                "false_cue_margin",
+                format!(
+                    "expected a fraction of the threshold in [0, 1], got {}",
+                    self.false_cue_margin
+                ),
+            );
+        }
         for (i, v) in self.reference_decay_s.iter().enumerate() {
             positive(&format!("mpc.reference_decay_s[{i}]"), *v)?;
         }
