@@ -25,10 +25,10 @@ impl Lcg {
 /// wanders over ±2 m/s².
 fn turbulence_csv(seed: u64) -> String {
     let mut rng = Lcg(seed);
-    let dt = 0.01;
+    let dt = 0.01_f64;
     let mut out = String::from("t,fx,fy,fz,p,q,r,phi,theta,psi\n");
     // Per channel: (corner rad/s, gain), state of two cascaded first-order lags.
-    let spec = [
+    let spec: [(f64, f64); 6] = [
         (2.0, 0.8),
         (3.0, 1.0),
         (1.5, 3.0),

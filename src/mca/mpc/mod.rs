@@ -1143,10 +1143,18 @@ impl Mpc {
         self.update_tilt_bounds();
         let last_bound = self.tilt_bound_rad[self.grid.len() - 1];
         let tilt = terminal_tilt(&self.sustained_df_mps2);
-        self.terminal_tilt_rad = [
-            tilt[0].clamp(-last_bound[0], last_bound[0]),
-            tilt[1].clamp(-last_bound[1], last_bound[1]),
-        ];
+        // Only the heave guard's tighter bound moves COTC's terminal tilt: a sustained cue
+        // beyond the workspace must still make COTC infeasible, which is what hands the
+        // S-MPC to the free MPC.
+        let guarded = |k: usize| {
+            let b = last_bound[k];
+            if b < self.limits.excursion[3 + k] {
+                tilt[k].clamp(-b, b)
+            } else {
+                tilt[k]
+            }
+        };
+        self.terminal_tilt_rad = [guarded(0), guarded(1)];
         let solution = self.solve_qp(self.terminal_tilt_rad);
         let prev_mode = self.mode;
         let (u0, feasible) = match solution {

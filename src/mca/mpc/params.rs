@@ -407,9 +407,14 @@ mod tests {
     #[test]
     fn unknown_keys_are_refused_and_reference_parses() {
         let toml = crate::formats::profile::DEFAULT_PROFILE_TOML;
-        let spoiled = toml.replace("reference = \"hold\"", "reference = \"hold\"\nhorizon = 3");
+        let line = "reference = \"decay\"";
+        assert!(
+            toml.contains(line),
+            "the default profile's reference line moved"
+        );
+        let spoiled = toml.replace(line, "reference = \"decay\"\nhorizon = 3");
         assert!(crate::formats::profile::parse_profile(&spoiled, "t").is_err());
-        let preview = toml.replace("reference = \"hold\"", "reference = \"preview\"");
+        let preview = toml.replace(line, "reference = \"preview\"");
         let p = crate::formats::profile::parse_profile(&preview, "t").unwrap();
         assert_eq!(p.mpc.reference, super::ReferenceMode::Preview);
     }
