@@ -10,6 +10,7 @@ pub mod condensed;
 pub mod model;
 pub mod params;
 pub mod qp;
+pub mod reference;
 pub mod riccati;
 
 use std::time::Instant;
@@ -190,6 +191,13 @@ pub struct Mpc {
     stewart: Stewart,
     limits: DofLimits,
     tilt_rate_max_radps: [f64; 2],
+    /// Perception thresholds of f̂x..ω̂z (m/s², rad/s), the unit of the false-cue slacks.
+    thresholds: [f64; 6],
+    /// Channels that carry a false-cue slack at every grid point (weight > 0).
+    false_cue_channels: Vec<usize>,
+    /// Roll and pitch bounds at the end of each interval (rad): the excursion limit, or
+    /// tighter where the heave tilt guard acts (`update_tilt_bounds`).
+    tilt_bound_rad: Vec<[f64; 2]>,
     leg_lo_m: f64,
     leg_hi_m: f64,
     terminal_weight: Option<DMatrix<f64>>,
@@ -319,6 +327,20 @@ impl Mpc {
             stewart: profile.stewart(),
             limits: profile.limits.si(),
             tilt_rate_max_radps: [thresholds.x, thresholds.y],
+            thresholds: {
+                let f = profile.vestibular.otolith_threshold_mps2;
+                [f[0], f[1], f[2], thresholds.x, thresholds.y, thresholds.z]
+            },
+            tilt_bound_rad: vec![
+                [
+                    profile.limits.si().excursion[3],
+                    profile.limits.si().excursion[4]
+                ];
+                grid.len()
+            ],
+            false_cue_channels: (0..6)
+                .filter(|&c| params.false_cue_weight[c] > 0.0)
+                .collect(),
             leg_lo_m: profile.geometry.leg_min_m + margin,
             leg_hi_m: profile.geometry.leg_max_m - margin,
             terminal_weight: None,
@@ -537,7 +559,13 @@ impl Mpc {
     }
 
     fn n_vars(&self) -> usize {
-        self.n_intervals() * (NU + NX)
+        self.n_intervals() * (NU + NX + self.false_cue_channels.len())
+    }
+
+    /// Column of the false-cue slack of the `j`-th false-cue channel at the end of interval i;
+    /// the slacks follow every input and state.
+    fn slack_col(&self, i: usize, j: usize) -> usize {
+        self.n_intervals() * (NU + NX) + i * self.false_cue_channels.len() + j
     }
 
     /// Column of input u_i (interval i).
@@ -585,6 +613,12 @@ impl Mpc {
                         None => {}
                     }
                 }
+            }
+            for (j, &c) in self.false_cue_channels.iter().enumerate() {
+                let th = self.thresholds[c];
+                let weight = self.params.false_cue_weight[c] / (th * th);
+                let col = self.slack_col(i, j);
+                t.push(col, col, 2.0 * w * weight);
             }
         }
         self.p_trip = t;
@@ -700,7 +734,10 @@ impl Mpc {
             let (xc, uc) = (Self::x_col(i), Self::u_col(i));
             // Pose and translational velocity at the end of the interval.
             for (dof, &s) in POSE_STATE.iter().enumerate() {
-                let e = lim.excursion[dof];
+                let e = match dof {
+                    3 | 4 => self.tilt_bound_rad[i][dof - 3],
+                    _ => lim.excursion[dof],
+                };
                 bound(&mut t, &mut b, &[(xc + s, 1.0)], -e, e);
             }
             for k in 0..3 {
@@ -758,6 +795,43 @@ impl Mpc {
                     let off = d.leg_offset[i][leg];
                     bound(&mut t, &mut b, &e, self.leg_lo_m - off, self.leg_hi_m - off);
                 }
+            }
+        }
+        // False cues: where the predicted reference is felt (beyond the threshold), the
+        // simulator's perceived motion may not go beyond the threshold the other way, but for
+        // a slack σ ≥ 0 that the cost prices heavily: −s·ŷ − σ ≤ th with s the reference's
+        // sign. Below the threshold s = 0 and the row cannot bind (the pattern stays fixed).
+        let felt = |r: f64, th: f64| if r.abs() > th { r.signum() } else { 0.0 };
+        let y_now = &self.ref_discrete[0].c * &self.ref_x;
+        let mut carried: Vec<f64> = self
+            .false_cue_channels
+            .iter()
+            .map(|&c| felt(y_now[c], self.thresholds[c]))
+            .collect();
+        for i in 0..n {
+            let xc = Self::x_col(i);
+            for (j, &c) in self.false_cue_channels.iter().enumerate() {
+                let th = self.thresholds[c];
+                let r = self.y_ref.get(i).map_or(0.0, |y| y[c]);
+                let mut sign = felt(r, th);
+                if self.params.false_cue_carry {
+                    if sign != 0.0 {
+                        carried[j] = sign;
+                    }
+                    sign = carried[j];
+                }
+                let col = self.slack_col(i, j);
+                for k in 0..NX {
+                    let v = self.perceived_c[(c, k)];
+                    if v != 0.0 {
+                        t.push(row, xc + k, -sign * v);
+                    }
+                }
+                t.push(row, col, -1.0);
+                b.push(self.params.false_cue_margin * th);
+                t.push(row + 1, col, -1.0);
+                b.push(0.0);
+                row += 2;
             }
         }
         self.a_trip = t;
@@ -863,6 +937,9 @@ impl Mpc {
             vars.extend((0..NU).map(|k| Var::Input(i * NU + k)));
             vars.extend((0..NX).map(|k| Var::State(i * NX + k)));
         }
+        // The false-cue slacks are decision variables like the inputs: nothing eliminates them.
+        let n_slack = n * self.false_cue_channels.len();
+        vars.extend((0..n_slack).map(|k| Var::Input(n * NU + k)));
         let gain = self.washout_gain;
         let p_at = |mpc: &mut Self, g: f64| {
             mpc.washout_gain = g;
@@ -954,6 +1031,26 @@ impl Mpc {
             };
             match self.params.reference {
                 ReferenceMode::Hold => avg(&mut u, sample, 1.0),
+                ReferenceMode::Decay => {
+                    avg(&mut u, sample, 1.0);
+                    for (k, v) in u.iter_mut().enumerate() {
+                        let tau = self.params.reference_decay_s[k];
+                        // Surge and sway fade toward what tilt can hold. Heave fades toward
+                        // its own low-passed part: no platform holds it, but predicted to
+                        // vanish, a sustained load factor (a 2 g turn) would be chased anew
+                        // each step until the heave stroke runs out. Rates fade to nothing:
+                        // the canals wash a sustained rate out themselves.
+                        let sustained = match k {
+                            0 | 1 => reference::sustainable_df_mps2(
+                                self.sustained_df_mps2[k],
+                                self.limits.excursion[4 - k],
+                            ),
+                            2 => self.sustained_df_mps2[2],
+                            _ => 0.0,
+                        };
+                        *v = reference::decaying_mean(*v, sustained, tau, t_start, t_start + h);
+                    }
+                }
                 ReferenceMode::Preview => {
                     // Mean of the samples in the interval; past the trace's end, the last one.
                     let first = (t_start / dt_s).round() as usize;
@@ -973,6 +1070,36 @@ impl Mpc {
             xr = &d.a * &xr + &d.b * &u;
             self.y_ref[i] = &d.c * &xr;
             t_start += h;
+        }
+    }
+
+    /// Roll and pitch bounds over the horizon. Where the predicted reference is felt heavier
+    /// than the heave threshold, the tilt is kept below acos(1 − th_z/g) (13.7° for 0.28 m/s²):
+    /// beyond it the tilt's loss of vertical gravity is felt as lightness, the opposite of the
+    /// aircraft's heave. The bound relaxes to what the platform can reach from where it is —
+    /// braking its present rate within the angular-acceleration limit, then tilting back at
+    /// the canals' threshold rate, unfelt — so that the guard never makes the QP infeasible.
+    fn update_tilt_bounds(&mut self) {
+        let lim = &self.limits;
+        let th_z = self.thresholds[2];
+        let guard_rad = (1.0 - th_z / crate::G_MPS2).clamp(-1.0, 1.0).acos();
+        let rates = total_rates(self.u_last.as_slice());
+        let angles = [self.x[state::ROLL], self.x[state::PITCH]];
+        let mut t_end = 0.0;
+        for (i, h) in self.grid.iter().enumerate() {
+            t_end += h;
+            let heavier =
+                self.params.heave_tilt_guard && self.y_ref.get(i).is_some_and(|y| y[2] < -th_z);
+            for k in 0..2 {
+                let excursion = lim.excursion[3 + k];
+                self.tilt_bound_rad[i][k] = if heavier {
+                    let brake = rates[k] * rates[k] / (2.0 * lim.acceleration[3 + k]);
+                    let reachable = angles[k].abs() + brake - self.tilt_rate_max_radps[k] * t_end;
+                    finite_or_zero(reachable).max(guard_rad).min(excursion)
+                } else {
+                    excursion
+                };
+            }
         }
     }
 
@@ -1005,14 +1132,29 @@ impl Mpc {
         let perceived_now = (&self.perceived_c * &self.x)
             .fixed_rows::<3>(0)
             .into_owned();
-        self.predict_reference(&input.sample, input.preview, dt_s);
         // COTC carries the *sustained* cue by tilt: the aircraft's Δf low-passed, so that a
         // gust does not move the terminal tilt further than the tilt-rate limit can follow
-        // within the horizon (which would make COTC infeasible at every bump).
+        // within the horizon (which would make COTC infeasible at every bump). The `decay`
+        // reference fades toward the same sustained part.
         let alpha = 1.0 - (-dt_s / self.params.cotc_sustained_s).exp();
         let df = input.sample.delta_f_mps2.map(finite_or_zero);
         self.sustained_df_mps2 += (df - self.sustained_df_mps2) * alpha;
-        self.terminal_tilt_rad = terminal_tilt(&self.sustained_df_mps2);
+        self.predict_reference(&input.sample, input.preview, dt_s);
+        self.update_tilt_bounds();
+        let last_bound = self.tilt_bound_rad[self.grid.len() - 1];
+        let tilt = terminal_tilt(&self.sustained_df_mps2);
+        // Only the heave guard's tighter bound moves COTC's terminal tilt: a sustained cue
+        // beyond the workspace must still make COTC infeasible, which is what hands the
+        // S-MPC to the free MPC.
+        let guarded = |k: usize| {
+            let b = last_bound[k];
+            if b < self.limits.excursion[3 + k] {
+                tilt[k].clamp(-b, b)
+            } else {
+                tilt[k]
+            }
+        };
+        self.terminal_tilt_rad = [guarded(0), guarded(1)];
         let solution = self.solve_qp(self.terminal_tilt_rad);
         let prev_mode = self.mode;
         let (u0, feasible) = match solution {

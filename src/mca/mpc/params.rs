@@ -13,13 +13,33 @@ pub enum ReferenceMode {
     Hold,
     /// The trace's true future (`CueInput::preview`), for offline studies.
     Preview,
+    /// The current sample decaying over the horizon toward what the platform can sustain
+    /// (`reference::decaying_mean`): what a live simulator knows, without predicting each
+    /// sample of an oscillation as a sustained input.
+    Decay,
+}
+
+fn default_true() -> bool {
+    true
+}
+
+fn default_false_cue_margin() -> f64 {
+    1.0
+}
+
+fn default_reference_decay_s() -> [f64; 6] {
+    [0.3; 6]
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MpcParams {
-    /// Reference over the horizon: `hold` or `preview`.
+    /// Reference over the horizon: `hold`, `decay` or `preview`.
     pub reference: ReferenceMode,
+    /// Time constants of the `decay` reference per channel (Δf x, y, z, p, q, r): how fast
+    /// the current sample's unsustainable part is predicted to fade (s).
+    #[serde(default = "default_reference_decay_s")]
+    pub reference_decay_s: [f64; 6],
     /// Length of the first, fine prediction intervals (s).
     pub fine_step_s: f64,
     /// Number of fine intervals.
@@ -34,6 +54,31 @@ pub struct MpcParams {
     pub specific_force_weight: [f64; 3],
     /// Weight on the perceived angular-velocity error ω̂ − ω̂_ref per axis, per (rad/s)².
     pub angular_velocity_weight: [f64; 3],
+    /// Weight of a false cue per channel (f̂x, f̂y, f̂z, ω̂x, ω̂y, ω̂z): the square of how far,
+    /// in perception thresholds, the simulator's perceived motion at a grid point goes to the
+    /// opposite side of a reference that is itself above the threshold. A soft constraint
+    /// (a slack per channel and grid point); 0 leaves the channel without one.
+    #[serde(default)]
+    pub false_cue_weight: [f64; 6],
+    /// Where the predicted reference fades below the threshold, keep guarding the direction in
+    /// which it was last felt (from the present on), so that the platform is not planned to
+    /// swing back perceptibly while the pilot still feels the aircraft's motion one way: the
+    /// prediction fades faster than the aircraft's motion may, and a felt washback against a
+    /// motion that goes on is a false cue (docs/mpc.md, "False cues").
+    #[serde(default = "default_true")]
+    pub false_cue_carry: bool,
+    /// Where the false-cue price starts, as a fraction of the perception threshold: the
+    /// perceived motion against the reference is priced from this much of the threshold on,
+    /// so that the optimum keeps it below the threshold instead of just at it (where the
+    /// prediction's error makes it cross). 1 prices only what is beyond the threshold.
+    #[serde(default = "default_false_cue_margin")]
+    pub false_cue_margin: f64,
+    /// While the aircraft's perceived heave is heavier than the threshold, keep roll and pitch
+    /// within the tilt whose loss of vertical gravity, g·(1 − cos), stays below the heave
+    /// threshold: a larger tilt is felt as lightness, a false heave cue the linear model
+    /// cannot see (docs/mpc.md, "False cues").
+    #[serde(default = "default_true")]
+    pub heave_tilt_guard: bool,
     /// Input weight S on the platform acceleration per axis, per (m/s²)².
     pub acceleration_weight: [f64; 3],
     /// Input weight S on the tilt-channel roll and pitch rates, per (rad/s)².
@@ -151,6 +196,7 @@ impl MpcParams {
         };
         non_negative("specific_force_weight", &self.specific_force_weight)?;
         non_negative("angular_velocity_weight", &self.angular_velocity_weight)?;
+        non_negative("false_cue_weight", &self.false_cue_weight)?;
         non_negative("acceleration_weight", &self.acceleration_weight)?;
         non_negative("tilt_rate_weight", &self.tilt_rate_weight)?;
         non_negative("rotation_rate_weight", &self.rotation_rate_weight)?;
@@ -180,6 +226,18 @@ impl MpcParams {
         positive("mpc.fallback_washout_radps", self.fallback_washout_radps)?;
         positive("mpc.time_limit_ms", self.time_limit_ms)?;
         positive("mpc.cotc_sustained_s", self.cotc_sustained_s)?;
+        if !(0.0..=1.0).contains(&self.false_cue_margin) {
+            return err(
+                "false_cue_margin",
+                format!(
+                    "expected a fraction of the threshold in [0, 1], got {}",
+                    self.false_cue_margin
+                ),
+            );
+        }
+        for (i, v) in self.reference_decay_s.iter().enumerate() {
+            positive(&format!("mpc.reference_decay_s[{i}]"), *v)?;
+        }
         if self.max_iterations == 0 {
             return err("max_iterations", "expected at least 1".into());
         }
@@ -349,9 +407,14 @@ mod tests {
     #[test]
     fn unknown_keys_are_refused_and_reference_parses() {
         let toml = crate::formats::profile::DEFAULT_PROFILE_TOML;
-        let spoiled = toml.replace("reference = \"hold\"", "reference = \"hold\"\nhorizon = 3");
+        let line = "reference = \"decay\"";
+        assert!(
+            toml.contains(line),
+            "the default profile's reference line moved"
+        );
+        let spoiled = toml.replace(line, "reference = \"decay\"\nhorizon = 3");
         assert!(crate::formats::profile::parse_profile(&spoiled, "t").is_err());
-        let preview = toml.replace("reference = \"hold\"", "reference = \"preview\"");
+        let preview = toml.replace(line, "reference = \"preview\"");
         let p = crate::formats::profile::parse_profile(&preview, "t").unwrap();
         assert_eq!(p.mpc.reference, super::ReferenceMode::Preview);
     }

@@ -71,7 +71,10 @@ fn qp_is_small_and_the_horizon_long_enough() {
     let p = profile();
     let mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
     let (nv, neq, nin) = mpc.qp_size();
-    assert_eq!((nv, neq), (6 * (NU + NX), 6 * NX));
+    // Inputs and states per interval, and a false-cue slack per guarded channel and interval.
+    let guarded = p.mpc.false_cue_weight.iter().filter(|w| **w > 0.0).count();
+    assert!(guarded > 0, "the default profile guards against false cues");
+    assert_eq!((nv, neq), (6 * (NU + NX + guarded), 6 * NX));
     assert!(nin > 0);
     assert!(mpc.horizon_s() >= 1.5);
     let cotc = Mpc::new(&p.mpc, &p, Terminal::Cotc).unwrap();
@@ -82,6 +85,9 @@ fn qp_is_small_and_the_horizon_long_enough() {
 fn first_move_equals_the_dense_kkt_optimum_when_no_constraint_is_active() {
     let mut p = profile();
     p.mpc.tolerance = 1e-9;
+    // The false-cue slacks rest on their bound σ ≥ 0 at any optimum without a false cue: an
+    // active row by construction. This test is about the tracking cost, so without them.
+    p.mpc.false_cue_weight = [0.0; 6];
     let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
     // A gentle motion, so that every limit stays far away, and a state away from rest.
     let input = |t: f64| sample([0.3 * (0.5 * t).sin(), 0.2, 0.1], [0.02, -0.01, 0.03]);
@@ -379,6 +385,11 @@ fn leg_constraints_hold_a_diagonal_excursion_within_the_margin() {
     p.mpc.washout_position_weight = [0.01; 3];
     p.mpc.washout_velocity_weight = [0.0; 3];
     p.mpc.specific_force_weight = [10.0, 10.0, 1.0];
+    // A sustained push into the corner, predicted as sustained: what this test is about is
+    // that the leg rows hold the plan back. (The `decay` reference predicts the push to fade
+    // and chases it until the low-passed part catches up: one step of the push ended
+    // infeasible, and the fallback then relies on the limiter; docs/mpc.md, "False cues".)
+    p.mpc.reference = super::ReferenceMode::Hold;
     let dt = p.dt_s();
     let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
     let stewart = p.stewart();
