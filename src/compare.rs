@@ -334,7 +334,7 @@ impl<'a> Verdict<'a> {
             if m.rae >= 1.0 {
                 out.push(format!(
                     "{}'s cue is no closer to the aircraft's motion than a platform at rest \
-                     (RAE {:.2})",
+                     (RAE {:.3})",
                     label(k),
                     m.rae
                 ));
@@ -370,21 +370,29 @@ impl<'a> Verdict<'a> {
             let all: Vec<String> = self.algorithms.iter().map(seconds).collect();
             return format!("no clear best ({})", all.join(", "));
         }
-        let mut cell = self
+        // Level at the top: the names, then one time when they show the same.
+        let names: Vec<String> = self
             .unbeaten
             .iter()
             .map(|&i| {
                 let (k, m) = &self.algorithms[i];
                 format!(
-                    "**{}**{}{} {:.1} s",
+                    "**{}**{}{}",
                     label(k),
                     if m.rae >= 1.0 { "†" } else { "" },
-                    if m.pc < 0.0 { "‡" } else { "" },
-                    m.false_cue_s
+                    if m.pc < 0.0 { "‡" } else { "" }
                 )
             })
-            .collect::<Vec<_>>()
-            .join(" = ");
+            .collect();
+        let mut times: Vec<String> = self
+            .unbeaten
+            .iter()
+            .map(|&i| format!("{:.1}", self.algorithms[i].1.false_cue_s))
+            .collect();
+        if times.iter().all(|t| *t == times[0]) {
+            times.truncate(1);
+        }
+        let mut cell = format!("{} {} s", names.join(" = "), times.join(" / "));
         let wrong_way: Vec<String> = self
             .algorithms
             .iter()
@@ -618,18 +626,15 @@ pub fn pilot_table(results: &[TraceResult]) -> String {
     let mut cases = 0;
     for r in results {
         let s = &r.summary;
+        let mut worse_here = Vec::new();
         let cells: Vec<String> = CHANNELS
             .iter()
             .map(|ch| {
                 let v = verdict(s, ch);
                 cases += 1;
-                for (k, _) in v.worse_than_cwf() {
-                    worse.push(format!(
-                        "{} on {} ({})",
-                        label(k),
-                        s.trace,
-                        channel_name(ch)
-                    ));
+                let mpcs: Vec<&str> = v.worse_than_cwf().iter().map(|(k, _)| label(k)).collect();
+                if !mpcs.is_empty() {
+                    worse_here.push(format!("{} ({})", channel_name(ch), mpcs.join(", ")));
                 }
                 v.pilot_cell()
             })
@@ -641,6 +646,9 @@ pub fn pilot_table(results: &[TraceResult]) -> String {
             flight_s(s),
             cells.join(" | ")
         );
+        if !worse_here.is_empty() {
+            worse.push(format!("{}: {}", s.trace, worse_here.join(", ")));
+        }
     }
     let _ = writeln!(
         out,
@@ -665,7 +673,7 @@ pub fn pilot_table(results: &[TraceResult]) -> String {
                 "\nAn MPC is worse than the CWF on {} of {} trace-channels: {}.",
                 count_cases_with_worse(results),
                 cases,
-                worse.join(", ")
+                worse.join("; ")
             );
         }
     }
@@ -1294,7 +1302,7 @@ mod tests {
         let v = verdict(&r.summary, "fy");
         assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc"]));
         assert_eq!(v.best_label(), "S-MPC = MPC");
-        assert_eq!(v.pilot_cell(), "**S-MPC** 0.0 s = **MPC** 0.0 s");
+        assert_eq!(v.pilot_cell(), "**S-MPC** = **MPC** 0.0 s");
         // RAE level, PC 0.20 lower: the MPC loses on PC.
         set(&mut r, "mpc", "fy", 0.51, 0.70, 0.0);
         let v = verdict(&r.summary, "fy");
@@ -1335,7 +1343,7 @@ mod tests {
             vec![
                 "S-MPC's cue runs against the aircraft's motion (PC −0.20)",
                 "S-MPC's cue is no closer to the aircraft's motion than a platform at rest \
-                 (RAE 1.20)"
+                 (RAE 1.200)"
             ]
         );
         assert_eq!(v.pilot_cell(), "**S-MPC**†‡ 0.0 s");
@@ -1381,7 +1389,12 @@ mod tests {
         );
         assert!(pilot < rule && rule < trace, "{md}");
         assert!(md.contains("| t (90 s) | **S-MPC** 0.0 s |"), "{md}");
-        assert!(md.contains("MPC on t (heave f̂z)"), "{md}");
+        assert!(
+            md.contains(
+                "An MPC is worse than the CWF on 1 of 6 trace-channels: t: heave f̂z (MPC)."
+            ),
+            "{md}"
+        );
         // The paper's ordering statement stays.
         assert!(md.contains("| t | holds |"), "{md}");
     }
