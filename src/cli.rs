@@ -533,9 +533,10 @@ pub fn format_table(s: &Summary) -> String {
     out.push('\n');
     for (name, alg) in &s.algorithms {
         out.push_str(&format!(
-            "{:<6} limiter {:.2} % of steps ({}), max leg usage {:.3}, min margin {:.3} m, leg violations {}, \
+            "{:<6} score {:.3}, limiter {:.2} % of steps ({}), max leg usage {:.3}, min margin {:.3} m, leg violations {}, \
              step median {:.1} µs p99 {:.1} µs max {:.1} µs\n",
             name,
+            alg.score,
             100.0 * alg.limiter_fraction,
             alg.limiter_steps,
             alg.max_leg_usage,

@@ -73,7 +73,8 @@ pub fn render_markdown(
          Each algorithm is judged against the perceived aircraft motion (the vestibular model \
          driven by the trace), on the simulator's true motion at the pilot's head after the \
          workspace limiter. RAE = Σ|x − y| / Σ|x| and NAAD = mean|x − y| / range(x): lower is \
-         better. PC: Pearson correlation, higher is better. Step times are wall-clock per step \
+         better. PC: Pearson correlation, higher is better. Score: the cueing score of \
+         docs/tuning.md (threshold-aware error, false cues, limiter and legs), lower is better. Step times are wall-clock per step \
          on this machine (2 cores), the algorithm and its limiter, with the lanes stepped on \
          two threads. The solvers' wall-clock limit is lifted for this offline report so that \
          it does not depend on the machine's load: a QP counts as not solved in time when it \
@@ -114,10 +115,10 @@ pub fn render_markdown(
         }
         let _ = writeln!(out);
         let pc: Vec<String> = CHANNELS.iter().map(|c| format!("PC {c}")).collect();
-        let _ = writeln!(out, "| algorithm | {} | limiter | peak leg usage | switches | step median µs | step p99 µs |", pc.join(" | "));
+        let _ = writeln!(out, "| algorithm | {} | limiter | peak leg usage | switches | score | step median µs | step p99 µs |", pc.join(" | "));
         let _ = writeln!(
             out,
-            "|---|{}---:|---:|---:|---:|---:|",
+            "|---|{}---:|---:|---:|---:|---:|---:|",
             "---:|".repeat(pc.len())
         );
         for (k, a) in ordered(s) {
@@ -127,12 +128,13 @@ pub fn render_markdown(
                 .collect();
             let _ = writeln!(
                 out,
-                "| {} | {} | {:.2} % | {:.3} | {} | {:.0} | {:.0} |",
+                "| {} | {} | {:.2} % | {:.3} | {} | {:.3} | {:.0} | {:.0} |",
                 label(k),
                 pcs.join(" | "),
                 100.0 * a.limiter_fraction,
                 a.max_leg_usage,
                 a.switches,
+                a.score,
                 a.step_time_us.median,
                 a.step_time_us.p99
             );
@@ -368,6 +370,8 @@ mod tests {
             leg_violations: 0,
             switches,
             max_dof_usage: BTreeMap::new(),
+            score: 1.0,
+            score_terms: Default::default(),
         }
     }
 

@@ -16,6 +16,7 @@ pub mod omct;
 pub mod plot;
 pub mod profile;
 pub mod qp;
+pub mod score;
 pub mod summary;
 pub mod trace;
 pub mod tui;
