@@ -53,6 +53,9 @@ pub enum Command {
     /// Run the Objective Motion Cueing Test (ICAO 9625) on the algorithms: a table, JSON and
     /// one Bode plot per test.
     Omct(OmctArgs),
+    /// Tune one algorithm's keys against the cueing score on a set of traces (CMA-ES) and
+    /// write the tuned profile (docs/tuning.md).
+    Tune(crate::tune::TuneArgs),
 }
 
 #[derive(Args, Debug)]
@@ -676,6 +679,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Compare(args) => run_compare(&args),
         Command::Plot(args) => run_plot(&args),
         Command::Omct(args) => run_omct(&args),
+        Command::Tune(args) => crate::tune::run(&args),
         Command::Recover {
             input,
             output,

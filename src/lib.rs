@@ -20,6 +20,7 @@ pub mod score;
 pub mod summary;
 pub mod trace;
 pub mod tui;
+pub mod tune;
 
 /// Standard gravity (m/s²).
 pub const G_MPS2: f64 = 9.80665;
