@@ -236,3 +236,31 @@ fn ctrl_c_keeps_the_best_profile_found_so_far() {
     ]);
     assert!(check.status.success(), "{}", stderr(&check));
 }
+
+#[test]
+fn the_shipped_tuned_profile_is_valid_and_says_how_it_was_made() {
+    let path = repo().join("profiles/full-flight-tuned.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        text.starts_with("# Made by `bash scripts/tune-comparison.sh"),
+        "{text}"
+    );
+    for alg in ["cwf", "mpc", "smpc"] {
+        let line = format!("# tuned: `hexcue tune --algorithm {alg} ");
+        assert!(text.contains(&line), "no {alg} pass in the header");
+    }
+    let run = hexcue(&[
+        "play".as_ref(),
+        "--headless".as_ref(),
+        "--algorithms".as_ref(),
+        "cwf".as_ref(),
+        "--profile".as_ref(),
+        path.as_os_str(),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(
+        stdout(&run).contains("profile full-flight-tuned"),
+        "{}",
+        stdout(&run)
+    );
+}

@@ -682,6 +682,18 @@ mod tests {
     }
 
     #[test]
+    fn an_infeasible_base_is_never_the_result() {
+        // The engine's test manoeuvre steps its body rates, which asks for an infinite
+        // angular acceleration: the limiter acts on the base, and on any CWF tuning.
+        let mut t = crate::engine::tests::manoeuvre();
+        t.samples.truncate(1200);
+        let ev = evaluator(vec![Arc::new(t)]);
+        let r = tune(&ev, 20, 1, &Quiet).unwrap();
+        assert!(!r.base.feasible(), "{:?}", r.base.outcomes);
+        assert!(r.best.as_ref().is_none_or(Candidate::feasible));
+    }
+
+    #[test]
     fn a_stop_before_the_start_scores_nothing() {
         let ev = evaluator(vec![short_manoeuvre()]);
         ev.stop.store(true, Ordering::Relaxed);
