@@ -3,7 +3,7 @@
 //! choice is argued in docs/tuning.md).
 //!
 //! Each candidate is the base profile's TOML with the tuned keys replaced, read back by the
-//! same loader as any profile, run on every trace (in parallel, with rayon) and scored as
+//! same loader as any profile, run on every trace (a generation's candidates in parallel, with rayon) and scored as
 //! the mean of its per-trace scores. A candidate that puts a leg outside its stroke or makes
 //! the limiter act on more than [`LIMITER_TOLERANCE`] of a trace's steps is infeasible: it
 //! is penalised for the search and never kept as the result.
@@ -175,6 +175,19 @@ impl Evaluator {
         Ok(Some(out))
     }
 
+    /// [`Evaluator::run`] on this thread: the search already runs a generation's
+    /// candidates in parallel.
+    fn run_sequential(&self, profile: &Profile) -> Result<Option<Vec<TraceOutcome>>> {
+        let mut out = Vec::with_capacity(self.traces.len());
+        for trace in &self.traces {
+            match self.run_trace(profile, trace)? {
+                Some(o) => out.push(o),
+                None => return Ok(None),
+            }
+        }
+        Ok(Some(out))
+    }
+
     fn run_trace(&self, profile: &Profile, trace: &Arc<Trace>) -> Result<Option<TraceOutcome>> {
         let mut engine = Engine::new(profile, trace.clone(), &[self.algorithm])?;
         let mut summary = SummaryBuilder::new(profile, &trace.name);
@@ -200,7 +213,7 @@ impl Evaluator {
     fn candidate(&self, z: &[f64]) -> Option<Candidate> {
         let values: Vec<f64> = self.keys.iter().zip(z).map(|(k, z)| k.decode(*z)).collect();
         let profile = self.profile(&values).ok()?;
-        let outcomes = self.run(&profile).ok()??;
+        let outcomes = self.run_sequential(&profile).ok()??;
         Some(Candidate { values, outcomes })
     }
 }
