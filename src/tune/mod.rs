@@ -412,11 +412,21 @@ fn add_header(text: &str, line: &str) -> String {
 
 /// `hexcue tune`.
 pub fn run(args: &TuneArgs) -> Result<()> {
-    let algorithm = crate::cli::parse_algorithms(std::slice::from_ref(&args.algorithm))
-        .map_err(|e| anyhow!("--algorithm: {e}"))?;
-    let [algorithm] = algorithm[..] else {
-        bail!("--algorithm: expected one of cwf, mpc, smpc");
-    };
+    let wanted = args
+        .algorithm
+        .trim()
+        .to_ascii_lowercase()
+        .replace(['-', '_'], "");
+    let algorithm = AlgorithmId::ALL
+        .iter()
+        .copied()
+        .find(|a| a.key() == wanted)
+        .ok_or_else(|| {
+            anyhow!(
+                "--algorithm: unknown algorithm `{}`; expected one of cwf, mpc, smpc",
+                args.algorithm
+            )
+        })?;
     let (profile, text, source) = match &args.profile {
         Some(path) => {
             let (p, t) = crate::formats::profile::load_profile(path)?;
