@@ -59,6 +59,9 @@ pub enum Command {
     /// Sit between a running simulator and a motion platform: the algorithms side by side on
     /// the live flight, one of them driving the platform (docs/live.md).
     Live(LiveArgs),
+    /// Tune one algorithm's keys against the cueing score on a set of traces (CMA-ES) and
+    /// write the tuned profile (docs/tuning.md).
+    Tune(crate::tune::TuneArgs),
 }
 
 #[derive(Args, Debug, Clone)]
@@ -861,9 +864,10 @@ pub fn format_table(s: &Summary) -> String {
     out.push('\n');
     for (name, alg) in &s.algorithms {
         out.push_str(&format!(
-            "{:<6} limiter {:.2} % of steps ({}), max leg usage {:.3}, min margin {:.3} m, leg violations {}, \
+            "{:<6} score {:.3}, limiter {:.2} % of steps ({}), max leg usage {:.3}, min margin {:.3} m, leg violations {}, \
              step median {:.1} µs p99 {:.1} µs max {:.1} µs\n",
             name,
+            alg.score,
             100.0 * alg.limiter_fraction,
             alg.limiter_steps,
             alg.max_leg_usage,
@@ -1043,6 +1047,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 || crate::console::run_live_session(&args),
             )
         }
+        Command::Tune(args) => crate::tune::run(&args),
         Command::Recover {
             input,
             output,

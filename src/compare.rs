@@ -433,7 +433,8 @@ pub fn render_markdown(
          workspace limiter, on all six channels: surge f̂x, sway f̂y, heave f̂z (specific force) \
          and roll ω̂x, pitch ω̂y, yaw ω̂z (angular velocity). RAE = Σ|x − y| / Σ|x| and \
          NAAD = mean|x − y| / range(x): lower is better; a platform at rest has RAE 1. PC: \
-         Pearson correlation, higher is better. False cues: the time during which the \
+         Pearson correlation, higher is better. Score: the cueing score of docs/tuning.md \
+         (threshold-aware error, false cues, limiter and legs), lower is better. False cues: the time during which the \
          simulator's perceived motion has the opposite sign of the aircraft's while both \
          exceed the perception thresholds (motion felt in the wrong direction). Step times are \
          wall-clock per step on this machine (2 cores), the algorithm and its limiter, with the \
@@ -513,17 +514,18 @@ pub fn render_markdown(
         let _ = writeln!(out);
         let _ = writeln!(
             out,
-            "| algorithm | limiter | peak leg usage | switches | step median µs | step p99 µs |"
+            "| algorithm | limiter | peak leg usage | switches | score | step median µs | step p99 µs |"
         );
-        let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|");
+        let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|");
         for (k, a) in ordered(s) {
             let _ = writeln!(
                 out,
-                "| {} | {:.2} % | {:.3} | {} | {:.0} | {:.0} |",
+                "| {} | {:.2} % | {:.3} | {} | {:.3} | {:.0} | {:.0} |",
                 label(k),
                 100.0 * a.limiter_fraction,
                 a.max_leg_usage,
                 a.switches,
+                a.score,
                 a.step_time_us.median,
                 a.step_time_us.p99
             );
@@ -984,7 +986,56 @@ fn discussion(results: &[TraceResult], profile: &crate::profile::Profile) -> Str
         }
         let _ = writeln!(out, "{}.", facts.join(", "));
     }
+    out.push_str(&where_the_cwf_does_better(results));
     out.push_str(&why(results, profile));
+    out
+}
+
+/// Per trace, the channels on which the CWF's RAE is lower than an MPC's, and which
+/// algorithm has the lowest score: a tuned CWF can beat an MPC, and the report says where.
+fn where_the_cwf_does_better(results: &[TraceResult]) -> String {
+    let mut out = String::from(
+        "\nWhere the CWF does better than an MPC (a lower RAE on a channel), and which algorithm \
+         has the lowest score:\n\n",
+    );
+    for r in results {
+        let a = &r.summary.algorithms;
+        let cwf = &a["cwf"];
+        let parts: Vec<String> = ["smpc", "mpc"]
+            .iter()
+            .filter_map(|k| {
+                let channels: Vec<&str> = CHANNELS
+                    .iter()
+                    .copied()
+                    .filter(|c| metric(cwf, c, |m| m.rae) < metric(&a[*k], c, |m| m.rae))
+                    .collect();
+                (!channels.is_empty())
+                    .then(|| format!("than the {}'s on {}", label(k), channels.join(", ")))
+            })
+            .collect();
+        let ranked = ordered(&r.summary);
+        let lowest = ranked
+            .iter()
+            .min_by(|x, y| x.1.score.total_cmp(&y.1.score))
+            .map_or("none", |(k, _)| label(k));
+        let scores: Vec<String> = ranked
+            .iter()
+            .map(|(_, s)| format!("{:.3}", s.score))
+            .collect();
+        let labels: Vec<&str> = ranked.iter().map(|(k, _)| label(k)).collect();
+        let _ = writeln!(
+            out,
+            "- **{}**: {}; lowest score: {lowest} ({} for {}).",
+            r.summary.trace,
+            if parts.is_empty() {
+                "the CWF's RAE is not lower than either MPC's on any channel".to_string()
+            } else {
+                format!("the CWF's RAE is lower {}", parts.join(", and "))
+            },
+            scores.join(" / "),
+            labels.join(" / ")
+        );
+    }
     out
 }
 
@@ -1124,6 +1175,8 @@ mod tests {
             leg_violations: 0,
             switches,
             max_dof_usage: BTreeMap::new(),
+            score: 1.0,
+            score_terms: Default::default(),
         }
     }
 
@@ -1160,6 +1213,25 @@ mod tests {
         assert!(md.contains("| t | **does not hold** |"), "{md}");
         assert!(
             md.contains("on fx, RAE is 0.300 (S-MPC), 0.280 (MPC), 0.320 (CWF)"),
+            "{md}"
+        );
+    }
+
+    #[test]
+    fn where_the_cwf_does_better_is_said() {
+        let md = render_markdown(&[result(0.2, 0.28, 0.32)], &full_flight(), "hexcue compare");
+        assert!(
+            md.contains("- **t**: the CWF's RAE is not lower than either MPC's on any channel"),
+            "{md}"
+        );
+        let mut r = result(0.2, 0.28, 0.25);
+        r.summary.algorithms.get_mut("cwf").unwrap().score = 0.5;
+        let md = render_markdown(&[r], &full_flight(), "hexcue compare");
+        assert!(
+            md.contains(
+                "- **t**: the CWF's RAE is lower than the MPC's on fx; lowest score: CWF \
+                 (1.000 / 1.000 / 0.500 for S-MPC / MPC / CWF)."
+            ),
             "{md}"
         );
     }

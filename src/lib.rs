@@ -20,12 +20,14 @@ pub mod plot;
 pub mod profile;
 pub mod qp;
 pub mod safety;
+pub mod score;
 pub mod sinks;
 pub mod source;
 pub mod sources;
 pub mod summary;
 pub mod trace;
 pub mod tui;
+pub mod tune;
 
 /// Standard gravity (m/s²).
 pub const G_MPS2: f64 = 9.80665;

@@ -44,6 +44,9 @@ pub struct Profile {
     /// The switchable MPC's supervisor, mixer and weight regulator; its two MPCs use `[mpc]`,
     /// COTC with the overrides of `[smpc.cotc]`.
     pub smpc: crate::mca::switching::SwitchingParams,
+    /// Weights of the cueing score (absent: the defaults of `crate::score`).
+    #[serde(default)]
+    pub score: crate::score::ScoreWeights,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -308,6 +311,7 @@ impl Profile {
         self.mpc.validate()?;
         self.smpc.validate("smpc")?;
         self.smpc.cotc.validate(&self.mpc)?;
+        self.score.validate()?;
         if self.mpc.fine_step_s < self.dt_s() - 1e-12 {
             return err(
                 "mpc.fine_step_s",

@@ -11,6 +11,7 @@ use crate::mca::AlgorithmId;
 use crate::metrics::{ChannelAccumulator, ChannelMetrics, StepTimes, TimeHistogram, CHANNELS};
 use crate::model::stewart::Stewart;
 use crate::profile::Profile;
+use crate::score::{ScoreAccumulator, ScoreTerms, ScoreWeights};
 
 /// Lags searched for the equivalent delay (s).
 pub const MAX_LAG_S: f64 = 1.0;
@@ -102,6 +103,13 @@ pub struct AlgorithmSummary {
     pub switches: u64,
     /// Largest |excursion| of each DoF as a fraction of its limit: x, y, z, roll, pitch, yaw.
     pub max_dof_usage: BTreeMap<String, f64>,
+    /// The cueing score, lower is better (`crate::score`, weights from the profile's
+    /// `[score]`).
+    #[serde(default)]
+    pub score: f64,
+    /// The score's weighted terms, which add up to it.
+    #[serde(default)]
+    pub score_terms: ScoreTerms,
 }
 
 /// DoF names in pose order.
@@ -118,6 +126,7 @@ struct AlgorithmAccumulator {
     leg_violations: u64,
     switches: u64,
     max_dof_usage: [f64; 6],
+    score: ScoreAccumulator,
 }
 
 /// Accumulates frames into a [`Summary`] in constant memory. Cloned, it is a checkpoint of
@@ -135,6 +144,7 @@ pub struct SummaryBuilder {
     /// The `[input]` limits: specific force (m/s²) and angular velocity (rad/s).
     input_limits: (f64, f64),
     input_clipped: [u64; 6],
+    score_weights: ScoreWeights,
 }
 
 impl SummaryBuilder {
@@ -162,6 +172,7 @@ impl SummaryBuilder {
                 profile.input.angular_velocity_limit_dps.to_radians(),
             ),
             input_clipped: [0; 6],
+            score_weights: profile.score.clone(),
         }
     }
 
@@ -179,6 +190,7 @@ impl SummaryBuilder {
         for lane in &frame.lanes {
             let (thresholds, dt) = (self.thresholds, 1.0 / self.rate_hz);
             let max_lag = (MAX_LAG_S * self.rate_hz).round() as usize;
+            let weights = &self.score_weights;
             let acc = self
                 .algorithms
                 .entry(lane.id)
@@ -195,6 +207,7 @@ impl SummaryBuilder {
                     leg_violations: 0,
                     switches: 0,
                     max_dof_usage: [0.0; 6],
+                    score: ScoreAccumulator::new(weights, thresholds),
                 });
             let perceived = lane.perceived.channels();
             for (c, ch) in acc.channels.iter_mut().enumerate() {
@@ -203,9 +216,10 @@ impl SummaryBuilder {
             acc.times.push(lane.step_time_us);
             acc.steps += 1;
             acc.limiter_steps += u64::from(lane.limiter_active);
-            acc.max_leg_usage = acc
-                .max_leg_usage
-                .max(self.stewart.usage(&lane.legs.length_m).max());
+            let leg_usage = self.stewart.usage(&lane.legs.length_m).max();
+            acc.max_leg_usage = acc.max_leg_usage.max(leg_usage);
+            acc.score
+                .push(&reference, &perceived, lane.limiter_active, leg_usage);
             let margin = lane.legs.margin_m.min();
             acc.min_leg_margin_m = acc.min_leg_margin_m.min(margin);
             acc.leg_violations += u64::from(margin < 0.0);
@@ -226,6 +240,7 @@ impl SummaryBuilder {
                     .zip(&acc.channels)
                     .map(|(name, ch)| (name.to_string(), ch.finish()))
                     .collect();
+                let (score, score_terms) = acc.score.finish();
                 let summary = AlgorithmSummary {
                     metrics,
                     step_time_us: acc.times.summary(),
@@ -248,6 +263,8 @@ impl SummaryBuilder {
                         .zip(acc.max_dof_usage)
                         .map(|(d, u)| (d.to_string(), u))
                         .collect(),
+                    score,
+                    score_terms,
                 };
                 (id.key().to_string(), summary)
             })

@@ -227,4 +227,42 @@ mod tests {
             .to_string();
         assert!(err.starts_with("bad.toml: `geometry.leg_min_m`"), "{err}");
     }
+
+    #[test]
+    fn score_section_refuses_unknown_keys_and_names_bad_weights() {
+        let text = with(
+            "limiter_weight = 10.0",
+            "limiter_weight = 10.0\nlimiter_wieght = 3.0",
+        );
+        match parse_profile(&text, "x.toml") {
+            Err(ProfileLoadError::Syntax { message, line, .. }) => {
+                assert!(message.contains("limiter_wieght"), "{message}");
+                let expected = text
+                    .lines()
+                    .position(|l| l.starts_with("limiter_wieght"))
+                    .unwrap()
+                    + 1;
+                assert_eq!(line, expected);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(
+            invalid_key(&with("limiter_weight = 10.0", "limiter_weight = -1.0")),
+            "score.limiter_weight"
+        );
+        // A profile without `[score]` scores with the defaults, which the shipped one states.
+        let start = DEFAULT_PROFILE_TOML.find("[score]").unwrap();
+        let end = start
+            + DEFAULT_PROFILE_TOML[start..]
+                .find("\n[vestibular]")
+                .unwrap();
+        let without = format!(
+            "{}{}",
+            &DEFAULT_PROFILE_TOML[..start],
+            &DEFAULT_PROFILE_TOML[end..]
+        );
+        let p = parse_profile(&without, "x.toml").unwrap();
+        assert_eq!(p.score, crate::score::ScoreWeights::default());
+        assert_eq!(default_profile().score, p.score);
+    }
 }

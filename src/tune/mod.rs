@@ -1,0 +1,732 @@
+//! `hexcue tune`: derivative-free optimisation of one algorithm's tuning keys against the
+//! cueing score (`crate::score`) on a set of traces, with CMA-ES (the `cmaes` crate; the
+//! choice is argued in docs/tuning.md).
+//!
+//! Each candidate is the base profile's TOML with the tuned keys replaced, read back by the
+//! same loader as any profile, run on every trace (a generation's candidates in parallel, with rayon) and scored as
+//! the mean of its per-trace scores. A candidate that puts a leg outside its stroke or makes
+//! the limiter act on more than [`LIMITER_TOLERANCE`] of a trace's steps is infeasible: it
+//! is penalised for the search and never kept as the result.
+
+pub mod keys;
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+
+use anyhow::{anyhow, bail, Context, Result};
+use clap::Args;
+use rayon::prelude::*;
+use toml_edit::DocumentMut;
+
+use crate::engine::Engine;
+use crate::formats::profile::{
+    default_profile, parse_profile, DEFAULT_PROFILE_SOURCE, DEFAULT_PROFILE_TOML,
+};
+use crate::formats::trace::load_trace;
+use crate::mca::AlgorithmId;
+use crate::profile::Profile;
+use crate::summary::SummaryBuilder;
+use crate::trace::Trace;
+
+pub use keys::{tunable_keys, TunableKey};
+
+/// Largest share of a trace's steps at which the limiter may act in a kept candidate: 0.1 %
+/// (5 steps of a 50 s trace at 100 Hz), a tenth of DESIGN §9's 1 % target for the MPCs.
+/// Rare single-step touches at a leg's margin are tolerated; a candidate that leans on the
+/// limiter is not.
+pub const LIMITER_TOLERANCE: f64 = 0.001;
+/// Added to an infeasible candidate's score, plus 1000 per share of steps limited or in
+/// violation, so that the search is led back toward the feasible region.
+const INFEASIBLE_PENALTY: f64 = 100.0;
+/// The score of a candidate the profile loader refuses.
+const INVALID_SCORE: f64 = 1e6;
+/// Step size of the search, in coordinates where each key's bounds span 0 to 1.
+const INITIAL_STEP: f64 = 0.2;
+
+#[derive(Args, Debug, Clone)]
+pub struct TuneArgs {
+    /// The algorithm to tune: cwf, mpc or smpc (its keys: docs/tuning.md).
+    #[arg(long, value_name = "ALG")]
+    pub algorithm: String,
+    /// Traces to tune on: folders (every *.csv in them) or CSV files, comma-separated.
+    #[arg(long, value_name = "DIR|FILE", value_delimiter = ',', required = true)]
+    pub traces: Vec<PathBuf>,
+    /// Base profile (TOML), whose other keys and comments the result keeps. Default: the
+    /// embedded profiles/full-flight.toml.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+    /// Candidates to score, the base included. Default: 200 for cwf, 50 for mpc and smpc.
+    #[arg(long, value_name = "N")]
+    pub budget: Option<usize>,
+    /// Seed of the search: the same seed, traces and base give the same result.
+    #[arg(long, value_name = "S", default_value_t = 1)]
+    pub seed: u64,
+    /// Where to write the tuned profile (refused if it exists, unless --force).
+    #[arg(long, value_name = "TUNED.toml")]
+    pub out: PathBuf,
+    /// Overwrite the --out file if it exists.
+    #[arg(long)]
+    pub force: bool,
+}
+
+/// How one candidate did on one trace.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TraceOutcome {
+    pub score: f64,
+    pub limiter_fraction: f64,
+    pub leg_violations: u64,
+}
+
+impl TraceOutcome {
+    pub fn feasible(&self) -> bool {
+        self.leg_violations == 0 && self.limiter_fraction <= LIMITER_TOLERANCE
+    }
+}
+
+/// A scored candidate: its key values (in table order) and per-trace outcomes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Candidate {
+    pub values: Vec<f64>,
+    pub outcomes: Vec<TraceOutcome>,
+}
+
+impl Candidate {
+    pub fn mean_score(&self) -> f64 {
+        self.outcomes.iter().map(|o| o.score).sum::<f64>() / self.outcomes.len().max(1) as f64
+    }
+
+    pub fn feasible(&self) -> bool {
+        self.outcomes.iter().all(TraceOutcome::feasible)
+    }
+
+    /// The objective the search minimises: the mean score, plus the penalty when infeasible.
+    fn objective(&self) -> f64 {
+        if self.feasible() {
+            return self.mean_score();
+        }
+        let excess: f64 = self
+            .outcomes
+            .iter()
+            .map(|o| (o.limiter_fraction - LIMITER_TOLERANCE).max(0.0) + o.leg_violations as f64)
+            .sum();
+        self.mean_score() + INFEASIBLE_PENALTY + 1000.0 * excess
+    }
+
+    /// Lower score first; equal scores ordered by their values so that the result does not
+    /// depend on the order in which parallel evaluations finish.
+    fn better_than(&self, other: &Candidate) -> bool {
+        let (a, b) = (self.mean_score(), other.mean_score());
+        a < b
+            || (a == b
+                && self
+                    .values
+                    .iter()
+                    .zip(&other.values)
+                    .find(|(x, y)| x != y)
+                    .is_some_and(|(x, y)| x < y))
+    }
+}
+
+/// Scores candidates of one algorithm on a set of traces.
+pub struct Evaluator {
+    pub algorithm: AlgorithmId,
+    pub keys: &'static [TunableKey],
+    pub base: DocumentMut,
+    pub traces: Vec<Arc<Trace>>,
+    /// Set to abandon the evaluations under way (Ctrl-C).
+    pub stop: Arc<AtomicBool>,
+}
+
+impl Evaluator {
+    /// The base document with `values` in the tuned keys, as TOML text.
+    pub fn document(&self, values: &[f64]) -> Result<String> {
+        let mut doc = self.base.clone();
+        for (k, v) in self.keys.iter().zip(values) {
+            k.set(&mut doc, *v)?;
+        }
+        Ok(doc.to_string())
+    }
+
+    /// The profile for `values`, read by the loader of every profile.
+    pub fn profile(&self, values: &[f64]) -> Result<Profile> {
+        let text = self.document(values)?;
+        let mut profile = parse_profile(&text, "candidate")?;
+        // As in `compare`: offline, "solved in time" means within the iteration cap, so
+        // that a score does not depend on what else the machine is doing.
+        profile.mpc.time_limit_ms = f64::INFINITY;
+        Ok(profile)
+    }
+
+    /// Runs one profile on every trace, in parallel; `None` once stopped.
+    pub fn run(&self, profile: &Profile) -> Result<Option<Vec<TraceOutcome>>> {
+        let outcomes: Vec<Result<Option<TraceOutcome>>> = self
+            .traces
+            .par_iter()
+            .map(|trace| self.run_trace(profile, trace))
+            .collect();
+        let mut out = Vec::with_capacity(outcomes.len());
+        for o in outcomes {
+            match o? {
+                Some(o) => out.push(o),
+                None => return Ok(None),
+            }
+        }
+        Ok(Some(out))
+    }
+
+    /// [`Evaluator::run`] on this thread: the search already runs a generation's
+    /// candidates in parallel.
+    fn run_sequential(&self, profile: &Profile) -> Result<Option<Vec<TraceOutcome>>> {
+        let mut out = Vec::with_capacity(self.traces.len());
+        for trace in &self.traces {
+            match self.run_trace(profile, trace)? {
+                Some(o) => out.push(o),
+                None => return Ok(None),
+            }
+        }
+        Ok(Some(out))
+    }
+
+    fn run_trace(&self, profile: &Profile, trace: &Arc<Trace>) -> Result<Option<TraceOutcome>> {
+        let mut engine = Engine::new(profile, trace.clone(), &[self.algorithm])?;
+        let mut summary = SummaryBuilder::new(profile, &trace.name);
+        while let Some(frame) = engine.step() {
+            summary.push(&frame);
+            if frame.k % 128 == 0 && self.stop.load(Ordering::Relaxed) {
+                return Ok(None);
+            }
+        }
+        let s = summary.finish();
+        let a = s
+            .algorithms
+            .get(self.algorithm.key())
+            .ok_or_else(|| anyhow!("{}: no summary of {}", trace.name, self.algorithm))?;
+        Ok(Some(TraceOutcome {
+            score: a.score,
+            limiter_fraction: a.limiter_fraction,
+            leg_violations: a.leg_violations,
+        }))
+    }
+
+    /// Scores the candidate at search coordinates `z`: `None` when stopped or refused.
+    fn candidate(&self, z: &[f64]) -> Option<Candidate> {
+        let values: Vec<f64> = self.keys.iter().zip(z).map(|(k, z)| k.decode(*z)).collect();
+        let profile = self.profile(&values).ok()?;
+        let outcomes = self.run_sequential(&profile).ok()??;
+        Some(Candidate { values, outcomes })
+    }
+}
+
+/// What a tune found.
+pub struct TuneResult {
+    pub base: Candidate,
+    /// The best feasible candidate (the base if nothing beat it); `None` if none was.
+    pub best: Option<Candidate>,
+    pub evaluations: usize,
+    pub interrupted: bool,
+}
+
+/// Progress of a tune: candidates scored and the best feasible mean score so far.
+pub trait Progress: Sync {
+    fn scored(&self, evaluations: usize, best: Option<f64>);
+    /// A generation of the search is complete.
+    fn generation(&self, _generation: usize, _evaluations: usize, _best: Option<f64>) {}
+}
+
+/// The search: the base first, then CMA-ES generations while the budget allows.
+pub fn tune(
+    evaluator: &Evaluator,
+    budget: usize,
+    seed: u64,
+    progress: &dyn Progress,
+) -> Result<TuneResult> {
+    let keys = evaluator.keys;
+    let base_values: Vec<f64> = keys
+        .iter()
+        .map(|k| k.get(&evaluator.base))
+        .collect::<Result<_>>()?;
+    let base_profile = evaluator
+        .profile(&base_values)
+        .context("the base profile")?;
+    let Some(base_outcomes) = evaluator.run(&base_profile)? else {
+        bail!("interrupted before the base profile was scored; nothing written");
+    };
+    let base = Candidate {
+        values: base_values.clone(),
+        outcomes: base_outcomes,
+    };
+    let best: Mutex<Option<Candidate>> = Mutex::new(base.feasible().then(|| base.clone()));
+    let evaluations = AtomicUsize::new(1);
+    let best_score = |b: &Option<Candidate>| b.as_ref().map(Candidate::mean_score);
+    progress.scored(1, best_score(&best.lock().expect("not poisoned")));
+
+    let n = keys.len();
+    let default_lambda = 4 + (3.0 * (n as f64).ln()).floor() as usize;
+    // At least three generations within the budget.
+    let lambda = default_lambda.min((budget.saturating_sub(1) / 3).max(4));
+    let mean: Vec<f64> = keys
+        .iter()
+        .zip(&base_values)
+        .map(|(k, v)| k.encode(*v).clamp(0.0, 1.0))
+        .collect();
+    let objective = |z: &cmaes::DVector<f64>| -> f64 {
+        let z = z.as_slice();
+        let out_of_box: f64 = z.iter().map(|v| (v - v.clamp(0.0, 1.0)).powi(2)).sum();
+        let Some(c) = evaluator.candidate(z) else {
+            // Refused by the loader, or stopped: the generation is not used when stopped.
+            return INVALID_SCORE;
+        };
+        let score = c.objective() + 10.0 * out_of_box;
+        let count = evaluations.fetch_add(1, Ordering::SeqCst) + 1;
+        let mut guard = best.lock().expect("not poisoned");
+        if c.feasible() && guard.as_ref().is_none_or(|b| c.better_than(b)) {
+            *guard = Some(c);
+        }
+        progress.scored(count, best_score(&guard));
+        score
+    };
+    let mut interrupted = evaluator.stop.load(Ordering::Relaxed);
+    if budget > lambda && !interrupted {
+        let mut cmaes = cmaes::CMAESOptions::new(mean, INITIAL_STEP)
+            .population_size(lambda)
+            .seed(seed)
+            .build(objective)
+            .map_err(|e| anyhow!("CMA-ES refused its options: {e:?}"))?;
+        while cmaes.function_evals() + lambda < budget {
+            let done = cmaes.next_parallel();
+            if evaluator.stop.load(Ordering::Relaxed) {
+                interrupted = true;
+                break;
+            }
+            progress.generation(
+                cmaes.generation(),
+                evaluations.load(Ordering::SeqCst),
+                best_score(&best.lock().expect("not poisoned")),
+            );
+            if done.is_some() {
+                break;
+            }
+        }
+    }
+    let evaluations = evaluations.load(Ordering::SeqCst);
+    Ok(TuneResult {
+        base,
+        best: best.into_inner().expect("not poisoned"),
+        evaluations,
+        interrupted,
+    })
+}
+
+/// Traces from folders (their *.csv, sorted) and files, checked before any work.
+pub fn load_traces(paths: &[PathBuf], rate_hz: f64) -> Result<Vec<Arc<Trace>>> {
+    let mut files = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            let mut in_dir: Vec<PathBuf> = std::fs::read_dir(p)
+                .with_context(|| format!("{}: cannot list the traces folder", p.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| f.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")))
+                .collect();
+            in_dir.sort();
+            if in_dir.is_empty() {
+                bail!("{}: --traces: no trace (*.csv) in this folder", p.display());
+            }
+            files.extend(in_dir);
+        } else {
+            files.push(p.clone());
+        }
+    }
+    if files.is_empty() {
+        bail!("--traces: expected at least one trace");
+    }
+    files
+        .iter()
+        .map(|f| Ok(Arc::new(load_trace(f, rate_hz)?.trace)))
+        .collect()
+}
+
+struct Bar {
+    bar: indicatif::ProgressBar,
+    start: Mutex<Option<f64>>,
+}
+
+impl Progress for Bar {
+    fn scored(&self, evaluations: usize, best: Option<f64>) {
+        let mut start = self.start.lock().expect("not poisoned");
+        if start.is_none() {
+            *start = best;
+        }
+        self.bar.set_position(evaluations as u64);
+        self.bar.set_message(match (best, *start) {
+            (Some(b), Some(s)) => format!("best score {b:.4} (base {s:.4})"),
+            (Some(b), None) => format!("best score {b:.4} (base infeasible)"),
+            _ => "no feasible candidate yet".to_string(),
+        });
+    }
+
+    fn generation(&self, generation: usize, evaluations: usize, best: Option<f64>) {
+        // Where the bar is not drawn (stderr not a terminal: logs, scripts, tests), a line
+        // per generation says how far the search is.
+        if self.bar.is_hidden() {
+            eprintln!(
+                "generation {generation}: {evaluations} candidates, best score {}",
+                best.map_or("none yet".to_string(), |b| format!("{b:.4}"))
+            );
+        }
+    }
+}
+
+/// The command line that reproduces a tune, for the profile's header.
+fn command_line(args: &TuneArgs, algorithm: AlgorithmId, budget: usize) -> String {
+    let traces: Vec<String> = args
+        .traces
+        .iter()
+        .map(|t| t.display().to_string())
+        .collect();
+    format!(
+        "hexcue tune --algorithm {algorithm} --traces {}{} --budget {budget} --seed {} --out {}",
+        traces.join(","),
+        args.profile
+            .as_ref()
+            .map(|p| format!(" --profile {}", p.display()))
+            .unwrap_or_default(),
+        args.seed,
+        args.out.display()
+    )
+}
+
+/// Puts `line` after the `# tuned:` lines already at the top of a profile (or first), so
+/// that a profile tuned in several passes lists its commands in order.
+fn add_header(text: &str, line: &str) -> String {
+    let mut lines: Vec<&str> = text.lines().collect();
+    let at = lines
+        .iter()
+        .take_while(|l| l.starts_with("# tuned:"))
+        .count();
+    lines.insert(at, line);
+    let mut out = lines.join("\n");
+    out.push('\n');
+    out
+}
+
+/// `hexcue tune`.
+pub fn run(args: &TuneArgs) -> Result<()> {
+    let wanted = args
+        .algorithm
+        .trim()
+        .to_ascii_lowercase()
+        .replace(['-', '_'], "");
+    let algorithm = AlgorithmId::ALL
+        .iter()
+        .copied()
+        .find(|a| a.key() == wanted)
+        .ok_or_else(|| {
+            anyhow!(
+                "--algorithm: unknown algorithm `{}`; expected one of cwf, mpc, smpc",
+                args.algorithm
+            )
+        })?;
+    let (profile, text, source) = match &args.profile {
+        Some(path) => {
+            let (p, t) = crate::formats::profile::load_profile(path)?;
+            (p, t, path.display().to_string())
+        }
+        None => (
+            default_profile(),
+            DEFAULT_PROFILE_TOML.to_string(),
+            DEFAULT_PROFILE_SOURCE.to_string(),
+        ),
+    };
+    if let Some(p) = &args.profile {
+        if p == &args.out || (args.out.exists() && same_file(p, &args.out)) {
+            bail!(
+                "{}: --out is the base profile; write the tuned profile elsewhere",
+                args.out.display()
+            );
+        }
+    }
+    crate::cli::check_output(&args.out, args.force, "--out")?;
+    let budget = args.budget.unwrap_or(match algorithm {
+        AlgorithmId::Cwf => 200,
+        _ => 50,
+    });
+    if budget == 0 {
+        bail!("--budget: expected at least 1 candidate");
+    }
+    let base: DocumentMut = text
+        .parse()
+        .with_context(|| format!("{source}: cannot be edited as TOML"))?;
+    let keys = tunable_keys(algorithm);
+    keys::check_table(keys, &base).with_context(|| source.clone())?;
+    let traces = load_traces(&args.traces, profile.rate_hz)?;
+    for t in &traces {
+        for notice in &t.notices {
+            eprintln!("note: {}: {notice}", t.name);
+        }
+    }
+
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, stop.clone())
+            .context("cannot install the signal handlers")?;
+    }
+    let evaluator = Evaluator {
+        algorithm,
+        keys,
+        base,
+        traces,
+        stop: stop.clone(),
+    };
+    eprintln!(
+        "tuning {} ({} keys) on {} traces, budget {budget} candidates, seed {}",
+        algorithm.label(),
+        keys.len(),
+        evaluator.traces.len(),
+        args.seed
+    );
+    let bar = indicatif::ProgressBar::new(budget as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} tune {prefix} [{bar:30}] {pos}/{len} candidates ({elapsed}, {eta} left) {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    bar.set_prefix(algorithm.key());
+    let progress = Bar {
+        bar,
+        start: Mutex::new(None),
+    };
+    let started = std::time::Instant::now();
+    let result = tune(&evaluator, budget, args.seed, &progress)?;
+    progress.bar.finish_and_clear();
+    let wall = started.elapsed().as_secs_f64();
+
+    let Some(best) = &result.best else {
+        bail!(
+            "no candidate kept every leg in its stroke and the limiter within {} % of the \
+             steps on every trace; nothing written",
+            100.0 * LIMITER_TOLERANCE
+        );
+    };
+    let header = format!(
+        "# tuned: `{}` (hexcue {}): {} mean score {:.4} -> {:.4} on {}",
+        command_line(args, algorithm, budget),
+        env!("CARGO_PKG_VERSION"),
+        algorithm.label(),
+        result.base.mean_score(),
+        best.mean_score(),
+        evaluator
+            .traces
+            .iter()
+            .map(|t| t.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let tuned = add_header(&evaluator.document(&best.values)?, &header);
+    // The same loader and validation as any profile, then scored again from that text.
+    let shown = args.out.display().to_string();
+    let mut written = parse_profile(&tuned, &shown)?;
+    written.mpc.time_limit_ms = f64::INFINITY;
+    std::fs::write(&args.out, &tuned)
+        .with_context(|| format!("{shown}: cannot write the tuned profile"))?;
+    let after = evaluator.run(&written)?;
+
+    let mut out = String::new();
+    out.push_str(&format!(
+        "{} tuned in {:.1} s: {} candidates{}; wrote {shown}\n\n",
+        algorithm.label(),
+        wall,
+        result.evaluations,
+        if result.interrupted {
+            " (interrupted: the best found so far)"
+        } else {
+            ""
+        }
+    ));
+    out.push_str(&format!(
+        "{:<24} {:>10} {:>10}\n",
+        "trace", "before", "after"
+    ));
+    let after_scores: Vec<Option<f64>> = match &after {
+        Some(a) => a.iter().map(|o| Some(o.score)).collect(),
+        None => vec![None; evaluator.traces.len()],
+    };
+    for ((t, b), a) in evaluator
+        .traces
+        .iter()
+        .zip(&result.base.outcomes)
+        .zip(&after_scores)
+    {
+        out.push_str(&format!(
+            "{:<24} {:>10.4} {:>10}\n",
+            t.name,
+            b.score,
+            a.map_or("-".into(), |a| format!("{a:.4}"))
+        ));
+    }
+    out.push_str(&format!(
+        "{:<24} {:>10.4} {:>10.4}\n\n",
+        "mean",
+        result.base.mean_score(),
+        best.mean_score()
+    ));
+    out.push_str(&format!("{:<40} {:>10} {:>10}\n", "key", "base", "tuned"));
+    for ((k, b), v) in keys.iter().zip(&result.base.values).zip(&best.values) {
+        out.push_str(&format!("{:<40} {:>10} {:>10}\n", k.name(), b, v));
+    }
+    print!("{out}");
+    if result.interrupted {
+        bail!(
+            "interrupted by a signal after {} of {budget} candidates; {shown} holds the best \
+             profile found so far",
+            result.evaluations
+        );
+    }
+    Ok(())
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::profile::tests::full_flight;
+
+    struct Quiet;
+    impl Progress for Quiet {
+        fn scored(&self, _: usize, _: Option<f64>) {}
+    }
+
+    fn evaluator(traces: Vec<Arc<Trace>>) -> Evaluator {
+        Evaluator {
+            algorithm: AlgorithmId::Cwf,
+            keys: keys::CWF_KEYS,
+            base: DEFAULT_PROFILE_TOML.parse().unwrap(),
+            traces,
+            stop: Arc::new(AtomicBool::new(false)),
+        }
+    }
+
+    /// 12 s at 100 Hz: a surge pulse and a turn entry (sway and yaw rate), gentle enough for
+    /// the base CWF to stay clear of the limiter.
+    fn short_manoeuvre() -> Arc<Trace> {
+        use nalgebra::Vector3;
+        let samples = (0..1200)
+            .map(|k| {
+                let t = k as f64 * 0.01;
+                // Pulses with 0.5 s smooth edges: a step in a body rate would ask the
+                // platform for an infinite angular acceleration, which the limiter cuts.
+                let edge = |x: f64| {
+                    let x = (x / 0.5).clamp(0.0, 1.0);
+                    x * x * (3.0 - 2.0 * x)
+                };
+                let on = |a: f64, b: f64| edge(t - a) - edge(t - b);
+                crate::trace::AircraftSample {
+                    t_s: t,
+                    specific_force_mps2: Vector3::new(
+                        1.5 * on(1.0, 4.0),
+                        0.8 * on(6.0, 11.0),
+                        -crate::G_MPS2,
+                    ),
+                    angular_velocity_radps: Vector3::new(
+                        0.1 * on(5.0, 6.0),
+                        0.0,
+                        0.05 * on(6.0, 11.0),
+                    ),
+                    attitude_rad: Vector3::zeros(),
+                }
+            })
+            .collect();
+        Arc::new(Trace {
+            name: "short".into(),
+            rate_hz: 100.0,
+            samples,
+            info: None,
+            notices: vec![],
+        })
+    }
+
+    #[test]
+    fn the_base_scores_as_its_summary_and_the_search_never_worsens_it() {
+        let ev = evaluator(vec![short_manoeuvre()]);
+        let r = tune(&ev, 20, 3, &Quiet).unwrap();
+        let p = full_flight();
+        let mut engine = Engine::new(&p, short_manoeuvre(), &[AlgorithmId::Cwf]).unwrap();
+        let mut s = SummaryBuilder::new(&p, "m");
+        while let Some(f) = engine.step() {
+            s.push(&f);
+        }
+        assert_eq!(r.base.mean_score(), s.finish().algorithms["cwf"].score);
+        let best = r.best.unwrap_or_else(|| panic!("{:?}", r.base.outcomes));
+        assert!(best.feasible() && best.mean_score() <= r.base.mean_score());
+        assert!(
+            r.evaluations <= 20 && r.evaluations > 1,
+            "{}",
+            r.evaluations
+        );
+    }
+
+    #[test]
+    fn infeasible_candidates_are_penalised_and_never_kept() {
+        let c = Candidate {
+            values: vec![1.0],
+            outcomes: vec![TraceOutcome {
+                score: 0.1,
+                limiter_fraction: 0.01,
+                leg_violations: 0,
+            }],
+        };
+        assert!(!c.feasible());
+        assert!(c.objective() > INFEASIBLE_PENALTY);
+        let ok = Candidate {
+            values: vec![2.0],
+            outcomes: vec![TraceOutcome {
+                score: 5.0,
+                limiter_fraction: LIMITER_TOLERANCE,
+                leg_violations: 0,
+            }],
+        };
+        assert!(ok.feasible() && ok.objective() == 5.0);
+        let violating = Candidate {
+            outcomes: vec![TraceOutcome {
+                leg_violations: 1,
+                limiter_fraction: 0.0,
+                score: 0.0,
+            }],
+            ..ok.clone()
+        };
+        assert!(!violating.feasible());
+    }
+
+    #[test]
+    fn an_infeasible_base_is_never_the_result() {
+        // The engine's test manoeuvre steps its body rates, which asks for an infinite
+        // angular acceleration: the limiter acts on the base, and on any CWF tuning.
+        let mut t = crate::engine::tests::manoeuvre();
+        t.samples.truncate(1200);
+        let ev = evaluator(vec![Arc::new(t)]);
+        let r = tune(&ev, 20, 1, &Quiet).unwrap();
+        assert!(!r.base.feasible(), "{:?}", r.base.outcomes);
+        assert!(r.best.as_ref().is_none_or(Candidate::feasible));
+    }
+
+    #[test]
+    fn a_stop_before_the_start_scores_nothing() {
+        let ev = evaluator(vec![short_manoeuvre()]);
+        ev.stop.store(true, Ordering::Relaxed);
+        assert!(tune(&ev, 20, 1, &Quiet).is_err());
+    }
+
+    #[test]
+    fn headers_accumulate_in_order() {
+        let t = add_header("name = \"x\"\n", "# tuned: a");
+        let t = add_header(&t, "# tuned: b");
+        assert_eq!(t, "# tuned: a\n# tuned: b\nname = \"x\"\n");
+    }
+}

@@ -1,0 +1,266 @@
+//! `hexcue tune` through the binary: a short CWF tune lowers the score of a synthetic
+//! trace, writes a profile that the loader accepts, is reproducible with --seed, and keeps
+//! the best profile found when interrupted by Ctrl-C.
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use common::{hexcue, repo, stderr, stdout};
+
+/// A synthetic flight at 100 Hz, `seconds` long: a surge pulse, a coordinated turn entry
+/// (sway and yaw rate), a pitch doublet and a heave bump, repeated every 30 s.
+fn synthetic_trace(dir: &Path, seconds: usize) -> PathBuf {
+    let mut csv = String::from("t,fx,fy,fz,p,q,r\n");
+    for k in 0..seconds * 100 {
+        let t = k as f64 * 0.01;
+        let c = t % 30.0;
+        // Pulses with 0.5 s smooth edges, as a flight model gives: a step in a body rate would
+        // ask the platform for an infinite angular acceleration, which the limiter cuts.
+        let edge = |x: f64| {
+            let x = (x / 0.5).clamp(0.0, 1.0);
+            x * x * (3.0 - 2.0 * x)
+        };
+        let on = |a: f64, b: f64| edge(c - a) - edge(c - b);
+        let fx = 2.0 * on(2.0, 6.0) - 1.0 * on(6.0, 8.0);
+        let fy = 1.2 * on(10.0, 18.0);
+        let fz = -9.80665 - 2.5 * on(22.0, 23.0);
+        let p = 0.15 * on(9.0, 10.0) - 0.15 * on(18.0, 19.0);
+        let q = 0.08 * (on(14.0, 15.0) - on(15.0, 16.0));
+        let r = 0.05 * on(10.0, 18.0);
+        csv.push_str(&format!("{t:.2},{fx},{fy},{fz},{p},{q},{r}\n"));
+    }
+    let path = dir.join(format!("synthetic-{seconds}s.csv"));
+    std::fs::write(&path, csv).unwrap();
+    path
+}
+
+fn tune_args<'a>(
+    trace: &'a Path,
+    out: &'a Path,
+    budget: &'a str,
+    seed: &'a str,
+) -> Vec<&'a std::ffi::OsStr> {
+    vec![
+        "tune".as_ref(),
+        "--algorithm".as_ref(),
+        "cwf".as_ref(),
+        "--traces".as_ref(),
+        trace.as_os_str(),
+        "--budget".as_ref(),
+        budget.as_ref(),
+        "--seed".as_ref(),
+        seed.as_ref(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]
+}
+
+/// The "mean" row of the before/after table.
+fn mean_scores(text: &str) -> (f64, f64) {
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("mean "))
+        .unwrap_or_else(|| panic!("no mean row in:\n{text}"));
+    let v: Vec<f64> = line
+        .split_whitespace()
+        .skip(1)
+        .map(|w| w.parse().unwrap())
+        .collect();
+    (v[0], v[1])
+}
+
+#[test]
+fn a_short_cwf_tune_lowers_the_score_and_writes_a_valid_profile() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = synthetic_trace(dir.path(), 30);
+    let out = dir.path().join("tuned.toml");
+    let run = hexcue(&tune_args(&trace, &out, "30", "7"));
+    assert!(run.status.success(), "{}", stderr(&run));
+    let (before, after) = mean_scores(&stdout(&run));
+    assert!(after < before, "{before} -> {after}");
+    // The tuned profile: the base's comments kept, the command in its header, and it loads
+    // and runs like any profile, with the score that the tune printed.
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        text.starts_with("# tuned: `hexcue tune --algorithm cwf"),
+        "{text}"
+    );
+    assert!(text.contains("# Tilt coordination: 2nd-order low-pass"));
+    assert!(!text.contains("specific_force_scale = [0.6, 0.6, 0.4]"));
+    let summary = dir.path().join("s.json");
+    let play = hexcue(&[
+        "play".as_ref(),
+        "--headless".as_ref(),
+        "--algorithms".as_ref(),
+        "cwf".as_ref(),
+        "--profile".as_ref(),
+        out.as_os_str(),
+        "--trace".as_ref(),
+        trace.as_os_str(),
+        "--summary".as_ref(),
+        summary.as_os_str(),
+    ]);
+    assert!(play.status.success(), "{}", stderr(&play));
+    let json = common::read_json(&summary);
+    let score = json["algorithms"]["cwf"]["score"].as_f64().unwrap();
+    assert!((score - after).abs() < 5e-5, "{score} vs {after}");
+    assert_eq!(json["algorithms"]["cwf"]["leg_violations"], 0);
+}
+
+#[test]
+fn the_same_seed_gives_the_same_profile() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = synthetic_trace(dir.path(), 20);
+    let out = dir.path().join("tuned.toml");
+    let first = hexcue(&tune_args(&trace, &out, "25", "11"));
+    assert!(first.status.success(), "{}", stderr(&first));
+    let a = std::fs::read_to_string(&out).unwrap();
+    let mut args = tune_args(&trace, &out, "25", "11");
+    args.push("--force".as_ref());
+    let again = hexcue(&args);
+    assert!(again.status.success(), "{}", stderr(&again));
+    assert_eq!(a, std::fs::read_to_string(&out).unwrap());
+    // The same table, but for the wall time in the first line.
+    let table = |o: &std::process::Output| stdout(o).lines().skip(1).collect::<Vec<_>>().join("\n");
+    assert_eq!(table(&first), table(&again));
+    // Another seed searches elsewhere.
+    let mut args = tune_args(&trace, &out, "25", "12");
+    args.push("--force".as_ref());
+    let other = hexcue(&args);
+    assert!(other.status.success(), "{}", stderr(&other));
+    assert_ne!(a, std::fs::read_to_string(&out).unwrap());
+}
+
+#[test]
+fn inputs_are_checked_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = synthetic_trace(dir.path(), 5);
+    let out = dir.path().join("exists.toml");
+    std::fs::write(&out, "keep me").unwrap();
+    let run = hexcue(&tune_args(&trace, &out, "10", "1"));
+    assert!(!run.status.success());
+    assert!(stderr(&run).contains("--force"), "{}", stderr(&run));
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "keep me");
+    // A bad trace is named, before any candidate.
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "t,fx\n0,1\n").unwrap();
+    let fresh = dir.path().join("fresh.toml");
+    let run = hexcue(&tune_args(&bad, &fresh, "10", "1"));
+    assert!(!run.status.success());
+    assert!(stderr(&run).contains("bad.csv"), "{}", stderr(&run));
+    assert!(!fresh.exists());
+    // An unknown algorithm.
+    let mut args = tune_args(&trace, &fresh, "10", "1");
+    args[2] = "lqr".as_ref();
+    let run = hexcue(&args);
+    assert!(!run.status.success());
+    assert!(stderr(&run).contains("lqr"), "{}", stderr(&run));
+}
+
+#[test]
+fn ctrl_c_keeps_the_best_profile_found_so_far() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = synthetic_trace(dir.path(), 60);
+    let out = dir.path().join("interrupted.toml");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_hexcue"))
+        .args(tune_args(&trace, &out, "100000", "3"))
+        .current_dir(repo())
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (tx, rx) = mpsc::channel();
+    let err = child.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut all = String::new();
+        for line in BufReader::new(err).lines().map_while(Result::ok) {
+            let _ = tx.send(line.clone());
+            all.push_str(&line);
+            all.push('\n');
+        }
+        all
+    });
+    // Once a generation is done, there is a best candidate to keep.
+    loop {
+        match rx.recv_timeout(Duration::from_secs(300)) {
+            Ok(line) if line.starts_with("generation 2:") => break,
+            Ok(_) => {}
+            Err(e) => {
+                let _ = child.kill();
+                panic!("no second generation reported: {e}");
+            }
+        }
+    }
+    // SAFETY: kill(2) on the pid of a child we own and have not reaped.
+    let rc = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
+    assert_eq!(rc, 0);
+    // A guard against a hang, not a timing assertion.
+    let started = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if started.elapsed() > Duration::from_secs(300) {
+            let _ = child.kill();
+            panic!("hexcue tune did not stop after SIGINT");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let err = reader.join().unwrap();
+    assert!(
+        !status.success(),
+        "an interrupted tune is not a finished one"
+    );
+    assert!(err.contains("interrupted by a signal"), "{err}");
+    assert!(err.contains("holds the best profile found so far"), "{err}");
+    let mut text = String::new();
+    std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut text).unwrap();
+    let (before, after) = mean_scores(&text);
+    assert!(after <= before);
+    // The profile written is complete and valid.
+    let check = hexcue(&[
+        "play".as_ref(),
+        "--headless".as_ref(),
+        "--algorithms".as_ref(),
+        "cwf".as_ref(),
+        "--profile".as_ref(),
+        out.as_os_str(),
+        "--trace".as_ref(),
+        trace.as_os_str(),
+    ]);
+    assert!(check.status.success(), "{}", stderr(&check));
+}
+
+#[test]
+fn the_shipped_tuned_profile_is_valid_and_says_how_it_was_made() {
+    let path = repo().join("profiles/full-flight-tuned.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        text.starts_with("# Made by `bash scripts/tune-comparison.sh"),
+        "{text}"
+    );
+    for alg in ["cwf", "mpc", "smpc"] {
+        let line = format!("# tuned: `hexcue tune --algorithm {alg} ");
+        assert!(text.contains(&line), "no {alg} pass in the header");
+    }
+    let run = hexcue(&[
+        "play".as_ref(),
+        "--headless".as_ref(),
+        "--algorithms".as_ref(),
+        "cwf".as_ref(),
+        "--profile".as_ref(),
+        path.as_os_str(),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(
+        stdout(&run).contains("profile full-flight-tuned"),
+        "{}",
+        stdout(&run)
+    );
+}
