@@ -47,8 +47,8 @@ fn turbulence_csv(seed: u64) -> String {
             // Unit-variance drive scaled so that the output's spread is about `g`.
             s1[c] += a * (g * rng.next() * (2.0 / (w * dt)).sqrt() - s1[c]);
             s2[c] += a * (s1[c] - s2[c]);
-            v[c] = s2[c];
         }
+        v.copy_from_slice(&s2);
         // The roll gust moves the head sideways with it (eye above the roll axis).
         let fy = v[1] + 1.2 * v[3];
         phi += v[3] * dt;
