@@ -267,8 +267,12 @@ mod tests {
         // Tied elements are set together.
         let xy = key("mpc.specific_force_weight", XY, 0.1, 10.0, LOG);
         xy.set(&mut doc, 3.0).unwrap();
+        let heave = parse_profile(DEFAULT_PROFILE_TOML, "base")
+            .unwrap()
+            .mpc
+            .specific_force_weight[2];
         let p = parse_profile(&doc.to_string(), "tuned").unwrap();
-        assert_eq!(p.mpc.specific_force_weight, [3.0, 3.0, 0.5]);
+        assert_eq!(p.mpc.specific_force_weight, [3.0, 3.0, heave]);
     }
 
     #[test]
