@@ -304,6 +304,7 @@ impl Mpc {
             .collect();
         let thresholds = profile.vestibular.canal_threshold_radps();
         let margin = profile.limiter.leg_margin_m;
+        let limits = profile.limits.si();
         let mut mpc = Mpc {
             params: params.clone(),
             terminal,
@@ -325,19 +326,13 @@ impl Mpc {
             perceived_c: model.perceived_rows(),
             model,
             stewart: profile.stewart(),
-            limits: profile.limits.si(),
+            limits,
             tilt_rate_max_radps: [thresholds.x, thresholds.y],
             thresholds: {
                 let f = profile.vestibular.otolith_threshold_mps2;
                 [f[0], f[1], f[2], thresholds.x, thresholds.y, thresholds.z]
             },
-            tilt_bound_rad: vec![
-                [
-                    profile.limits.si().excursion[3],
-                    profile.limits.si().excursion[4]
-                ];
-                grid.len()
-            ],
+            tilt_bound_rad: vec![[limits.excursion[3], limits.excursion[4]]; grid.len()],
             false_cue_channels: (0..6)
                 .filter(|&c| params.false_cue_weight[c] > 0.0)
                 .collect(),
@@ -797,10 +792,12 @@ impl Mpc {
                 }
             }
         }
-        // False cues: where the predicted reference is felt (beyond the threshold), the
-        // simulator's perceived motion may not go beyond the threshold the other way, but for
-        // a slack σ ≥ 0 that the cost prices heavily: −s·ŷ − σ ≤ th with s the reference's
-        // sign. Below the threshold s = 0 and the row cannot bind (the pattern stays fixed).
+        // False cues: the simulator's perceived motion may not go beyond false_cue_margin·th
+        // against the direction s in which the reference is felt, but for a slack σ ≥ 0 that
+        // the cost prices heavily: −s·ŷ − σ ≤ margin·th. With false_cue_carry, s is the last
+        // felt direction (from the present on) where the prediction has faded below the
+        // threshold; where nothing is felt s = 0 and the row cannot bind. The pattern stays
+        // fixed either way: only the values change.
         let felt = |r: f64, th: f64| if r.abs() > th { r.signum() } else { 0.0 };
         let y_now = &self.ref_discrete[0].c * &self.ref_x;
         let mut carried: Vec<f64> = self
