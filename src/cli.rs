@@ -984,21 +984,33 @@ fn headless_or_console(
     print_stdout(&format_table(&summary))
 }
 
+/// A session's --record and --summary (the summary only when headless), checked before
+/// anything runs: a long run, or a live flight, must not end in a refusal.
+fn check_session_outputs(
+    record: Option<&Path>,
+    summary: Option<&Path>,
+    headless: bool,
+    force: bool,
+) -> Result<()> {
+    check_distinct(record, summary, "--record and --summary")?;
+    if let Some(path) = record {
+        check_output(path, force, "--record")?;
+    }
+    if let (Some(path), true) = (summary, headless) {
+        check_output(path, force, "--summary")?;
+    }
+    Ok(())
+}
+
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command.unwrap_or(Command::Play(cli.play)) {
         Command::Play(args) => {
-            // Outputs are checked before anything runs: a long run must not end in a refusal.
-            check_distinct(
+            check_session_outputs(
                 args.record.as_deref(),
                 args.summary.as_deref(),
-                "--record and --summary",
+                args.headless,
+                args.force,
             )?;
-            if let Some(path) = &args.record {
-                check_output(path, args.force, "--record")?;
-            }
-            if let (Some(path), true) = (&args.summary, args.headless) {
-                check_output(path, args.force, "--summary")?;
-            }
             headless_or_console(
                 args.headless,
                 args.summary.as_deref(),
@@ -1029,17 +1041,12 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Plot(args) => run_plot(&args),
         Command::Omct(args) => run_omct(&args),
         Command::Live(args) => {
-            check_distinct(
+            check_session_outputs(
                 args.record.as_deref(),
                 args.summary.as_deref(),
-                "--record and --summary",
+                args.headless,
+                args.force,
             )?;
-            if let Some(path) = &args.record {
-                check_output(path, args.force, "--record")?;
-            }
-            if let (Some(path), true) = (&args.summary, args.headless) {
-                check_output(path, args.force, "--summary")?;
-            }
             headless_or_console(
                 args.headless,
                 args.summary.as_deref(),
