@@ -71,3 +71,16 @@ pub fn open_output(url: &str) -> Result<Box<dyn CommandSink>> {
         other => bail!("--output {url}: unknown scheme `{other}`; expected udp:// or moog://"),
     })
 }
+
+/// A non-blocking UDP socket on an ephemeral port of the peer's address family, for the
+/// command outputs: a step must never wait on the network.
+pub(crate) fn sender_socket(peer: std::net::SocketAddr) -> std::io::Result<std::net::UdpSocket> {
+    let any: std::net::SocketAddr = if peer.is_ipv4() {
+        (std::net::Ipv4Addr::UNSPECIFIED, 0).into()
+    } else {
+        (std::net::Ipv6Addr::UNSPECIFIED, 0).into()
+    };
+    let socket = std::net::UdpSocket::bind(any)?;
+    socket.set_nonblocking(true)?;
+    Ok(socket)
+}

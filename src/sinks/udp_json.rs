@@ -42,13 +42,7 @@ pub struct UdpJson {
 
 impl UdpJson {
     pub fn open(peer: SocketAddr) -> std::io::Result<Self> {
-        let any: SocketAddr = if peer.is_ipv4() {
-            "0.0.0.0:0".parse().expect("a valid address")
-        } else {
-            "[::]:0".parse().expect("a valid address")
-        };
-        let socket = UdpSocket::bind(any)?;
-        socket.set_nonblocking(true)?;
+        let socket = super::sender_socket(peer)?;
         Ok(UdpJson {
             socket,
             peer,
