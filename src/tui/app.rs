@@ -242,6 +242,11 @@ where
             dirty = false;
         }
         if app.should_quit() {
+            // The frame limiter may have held back the last change; the screen
+            // left behind at exit (and any test of it) shows the state quit from.
+            if dirty {
+                terminal.draw(|f| app.render(f))?;
+            }
             session.send(Command::Quit);
             return Ok(());
         }
