@@ -202,22 +202,9 @@ pub struct Mpc {
     leg_hi_m: f64,
     terminal_weight: Option<DMatrix<f64>>,
     washout_gain: f64,
-    // Running state.
-    x: DVector<f64>,
-    u_last: DVector<f64>,
-    /// The input of the trace step before `u_last`'s, for the lever-arm jump between them.
-    u_before: DVector<f64>,
-    ref_x: DVector<f64>,
-    started: bool,
-    /// Low-passed aircraft Δf whose tilt is COTC's terminal condition (m/s²).
-    sustained_df_mps2: Vector3<f64>,
-    /// Roll and pitch COTC's last QP ended at (rad).
-    terminal_tilt_rad: [f64; 2],
-    last_command: PlatformCommand,
-    plan: Plan,
-    report: SolverReport,
-    mode: Mode,
-    time_in_mode_s: f64,
+    /// What changes from step to step: all that a snapshot for seeking keeps, with the
+    /// washout gain.
+    run: Running,
     // The QP.
     solver: Option<DefaultSolver<f64>>,
     p_pattern: CscPattern,
@@ -340,23 +327,25 @@ impl Mpc {
             leg_hi_m: profile.geometry.leg_max_m - margin,
             terminal_weight: None,
             washout_gain: 1.0,
-            x: DVector::zeros(NX),
-            u_last: DVector::zeros(NU),
-            u_before: DVector::zeros(NU),
-            ref_x: DVector::zeros(15),
-            started: false,
-            sustained_df_mps2: Vector3::zeros(),
-            terminal_tilt_rad: [0.0; 2],
-            last_command: PlatformCommand::default(),
-            plan: Plan::default(),
-            report: SolverReport {
-                name: terminal.name().to_string(),
-                status: "unsolved".into(),
-                iterations: 0,
-                solve_time_us: 0.0,
+            run: Running {
+                x: DVector::zeros(NX),
+                u_last: DVector::zeros(NU),
+                u_before: DVector::zeros(NU),
+                ref_x: DVector::zeros(15),
+                started: false,
+                sustained_df_mps2: Vector3::zeros(),
+                terminal_tilt_rad: [0.0; 2],
+                last_command: PlatformCommand::default(),
+                plan: Plan::default(),
+                report: SolverReport {
+                    name: terminal.name().to_string(),
+                    status: "unsolved".into(),
+                    iterations: 0,
+                    solve_time_us: 0.0,
+                },
+                mode: Mode::Mpc,
+                time_in_mode_s: 0.0,
             },
-            mode: Mode::Mpc,
-            time_in_mode_s: 0.0,
             solver: None,
             p_pattern: CscPattern::new(0, 0, &Triplets::default()),
             a_pattern: CscPattern::new(0, 0, &Triplets::default()),
@@ -370,7 +359,7 @@ impl Mpc {
             condensed: None,
             grid,
         };
-        mpc.mode = mpc.solved_mode();
+        mpc.run.mode = mpc.solved_mode();
         if terminal == Terminal::Cotc {
             let (last, qx, r) = mpc.terminal_riccati_data();
             mpc.terminal_weight = Some(riccati::solve_dare(&last.a, &last.b, &qx, &r)?);
@@ -404,15 +393,15 @@ impl Mpc {
     }
 
     pub fn plan(&self) -> &Plan {
-        &self.plan
+        &self.run.plan
     }
 
     pub fn report(&self) -> &SolverReport {
-        &self.report
+        &self.run.report
     }
 
     pub fn mode(&self) -> Mode {
-        self.mode
+        self.run.mode
     }
 
     pub fn set_reference_mode(&mut self, mode: ReferenceMode) {
@@ -443,7 +432,7 @@ impl Mpc {
                 return;
             }
             self.solver = None;
-            self.report.status = "update_error".into();
+            self.run.report.status = "update_error".into();
         }
     }
 
@@ -799,7 +788,7 @@ impl Mpc {
         // threshold; where nothing is felt s = 0 and the row cannot bind. The pattern stays
         // fixed either way: only the values change.
         let felt = |r: f64, th: f64| if r.abs() > th { r.signum() } else { 0.0 };
-        let y_now = &self.ref_discrete[0].c * &self.ref_x;
+        let y_now = &self.ref_discrete[0].c * &self.run.ref_x;
         let mut carried: Vec<f64> = self
             .false_cue_channels
             .iter()
@@ -855,13 +844,13 @@ impl Mpc {
         // current pose underestimates it further along); around the current pose when there
         // is no fresh plan.
         // The plan may be another controller's (`follow`), on another grid: it is read by time.
-        let fresh = self.plan.elapsed_s < 1e-12 && !self.plan.poses.is_empty();
+        let fresh = self.run.plan.elapsed_s < 1e-12 && !self.run.plan.poses.is_empty();
         let (mut leg_offset, mut leg_jacobian) = (Vec::new(), Vec::new());
         let mut t_end = 0.0;
         for i in 0..self.grid.len() {
             // The plan was made one step ago.
             t_end += self.grid[i];
-            let p = match self.plan.pose_at(t_end + self.trace_model.dt_s) {
+            let p = match self.run.plan.pose_at(t_end + self.trace_model.dt_s) {
                 Some(p) if fresh && p.iter().all(|v| v.is_finite()) => p,
                 _ => pose0,
             };
@@ -968,12 +957,12 @@ impl Mpc {
     /// advances it one trace step: the MPC always predicts from where the platform really is
     /// (after the limiter, or the S-MPC's mixer).
     fn sync_and_advance(&mut self, applied: &PlatformCommand, dt_s: f64) {
-        if self.started && applied.is_finite() {
-            let x = &mut self.x;
+        if self.run.started && applied.is_finite() {
+            let x = &mut self.run.x;
             for k in 0..3 {
                 x[state::POS + k] = applied.pose[k];
                 x[state::VEL + k] = applied.velocity[k];
-                self.u_last[input::ACCEL_X + k] = applied.acceleration[k];
+                self.run.u_last[input::ACCEL_X + k] = applied.acceleration[k];
             }
             // Keep this controller's split of roll and pitch into tilt and rotation, shrunk
             // with the total when something upstream scaled it toward neutral.
@@ -990,30 +979,30 @@ impl Mpc {
                     x[tilt] *= (new_total / old_total).clamp(0.0, 1.0);
                 }
                 x[total] = new_total;
-                let tilt_rate = self.u_last[input::TILT_ROLL_RATE + j];
-                self.u_last[input::ROT_ROLL_RATE + j] = applied.velocity[3 + j] - tilt_rate;
+                let tilt_rate = self.run.u_last[input::TILT_ROLL_RATE + j];
+                self.run.u_last[input::ROT_ROLL_RATE + j] = applied.velocity[3 + j] - tilt_rate;
             }
             x[state::YAW] = applied.pose[5];
-            self.u_last[input::ROT_YAW_RATE] = applied.velocity[5];
+            self.run.u_last[input::ROT_YAW_RATE] = applied.velocity[5];
         }
-        if self.started {
+        if self.run.started {
             if (dt_s - self.trace_model.dt_s).abs() > 1e-12 {
                 self.trace_model = self.model.discretise(dt_s);
                 self.trace_e = &self.trace_model.a * &self.lever_jump;
             }
-            let jump = &self.u_last - &self.u_before;
-            self.x = &self.trace_model.a * &self.x
-                + &self.trace_model.b * &self.u_last
+            let jump = &self.run.u_last - &self.run.u_before;
+            self.run.x = &self.trace_model.a * &self.run.x
+                + &self.trace_model.b * &self.run.u_last
                 + &self.trace_e * jump;
         }
-        self.u_before.copy_from(&self.u_last);
-        self.started = true;
+        self.run.u_before.copy_from(&self.run.u_last);
+        self.run.started = true;
     }
 
     /// The aircraft's perceived motion over the horizon, from its perception state now.
     fn predict_reference(&mut self, sample: &CueSample, preview: &[CueSample], dt_s: f64) {
         let n = self.n_intervals();
-        let mut xr = self.ref_x.clone();
+        let mut xr = self.run.ref_x.clone();
         let mut u = DVector::zeros(6);
         let mut t_start = 0.0;
         self.y_ref.resize(n, DVector::zeros(6));
@@ -1039,10 +1028,10 @@ impl Mpc {
                         // the canals wash a sustained rate out themselves.
                         let sustained = match k {
                             0 | 1 => reference::sustainable_df_mps2(
-                                self.sustained_df_mps2[k],
+                                self.run.sustained_df_mps2[k],
                                 self.limits.excursion[4 - k],
                             ),
-                            2 => self.sustained_df_mps2[2],
+                            2 => self.run.sustained_df_mps2[2],
                             _ => 0.0,
                         };
                         *v = reference::decaying_mean(*v, sustained, tau, t_start, t_start + h);
@@ -1080,8 +1069,8 @@ impl Mpc {
         let lim = &self.limits;
         let th_z = self.thresholds[2];
         let guard_rad = (1.0 - th_z / crate::G_MPS2).clamp(-1.0, 1.0).acos();
-        let rates = total_rates(self.u_last.as_slice());
-        let angles = [self.x[state::ROLL], self.x[state::PITCH]];
+        let rates = total_rates(self.run.u_last.as_slice());
+        let angles = [self.run.x[state::ROLL], self.run.x[state::PITCH]];
         let mut t_end = 0.0;
         for (i, h) in self.grid.iter().enumerate() {
             t_end += h;
@@ -1112,7 +1101,7 @@ impl Mpc {
             finite_or_zero(sample.angular_velocity_radps.y),
             finite_or_zero(sample.angular_velocity_radps.z),
         ]);
-        self.ref_x = &self.ref_trace.a * &self.ref_x + &self.ref_trace.b * &u;
+        self.run.ref_x = &self.ref_trace.a * &self.run.ref_x + &self.ref_trace.b * &u;
     }
 
     /// One MPC step: the QP solved from the applied state, or the fallback.
@@ -1123,10 +1112,10 @@ impl Mpc {
             self.dt_s
         };
         self.sync_and_advance(input.applied, dt_s);
-        let f_ref_now = (&self.ref_discrete[0].c * &self.ref_x)
+        let f_ref_now = (&self.ref_discrete[0].c * &self.run.ref_x)
             .fixed_rows::<3>(0)
             .into_owned();
-        let perceived_now = (&self.perceived_c * &self.x)
+        let perceived_now = (&self.perceived_c * &self.run.x)
             .fixed_rows::<3>(0)
             .into_owned();
         // COTC carries the *sustained* cue by tilt: the aircraft's Δf low-passed, so that a
@@ -1135,11 +1124,11 @@ impl Mpc {
         // reference fades toward the same sustained part.
         let alpha = 1.0 - (-dt_s / self.params.cotc_sustained_s).exp();
         let df = input.sample.delta_f_mps2.map(finite_or_zero);
-        self.sustained_df_mps2 += (df - self.sustained_df_mps2) * alpha;
+        self.run.sustained_df_mps2 += (df - self.run.sustained_df_mps2) * alpha;
         self.predict_reference(&input.sample, input.preview, dt_s);
         self.update_tilt_bounds();
         let last_bound = self.tilt_bound_rad[self.grid.len() - 1];
-        let tilt = terminal_tilt(&self.sustained_df_mps2);
+        let tilt = terminal_tilt(&self.run.sustained_df_mps2);
         // Only the heave guard's tighter bound moves COTC's terminal tilt: a sustained cue
         // beyond the workspace must still make COTC infeasible, which is what hands the
         // S-MPC to the free MPC.
@@ -1151,32 +1140,32 @@ impl Mpc {
                 tilt[k]
             }
         };
-        self.terminal_tilt_rad = [guarded(0), guarded(1)];
-        let solution = self.solve_qp(self.terminal_tilt_rad);
-        let prev_mode = self.mode;
+        self.run.terminal_tilt_rad = [guarded(0), guarded(1)];
+        let solution = self.solve_qp(self.run.terminal_tilt_rad);
+        let prev_mode = self.run.mode;
         let (u0, feasible) = match solution {
             Some(u0) => (u0, true),
             None => (self.fallback_input(dt_s), false),
         };
-        self.mode = if feasible {
+        self.run.mode = if feasible {
             self.solved_mode()
         } else {
             Mode::Fallback
         };
-        if self.mode == prev_mode {
-            self.time_in_mode_s += dt_s;
+        if self.run.mode == prev_mode {
+            self.run.time_in_mode_s += dt_s;
         } else {
-            self.time_in_mode_s = 0.0;
+            self.run.time_in_mode_s = 0.0;
         }
         let command = self.command_for(&u0, dt_s);
-        self.u_last = u0;
-        self.last_command = command;
+        self.run.u_last = u0;
+        self.run.last_command = command;
         self.advance_reference(&input.sample, dt_s);
         MpcOutcome {
             command,
-            report: self.report.clone(),
+            report: self.run.report.clone(),
             feasible,
-            mode: self.mode,
+            mode: self.run.mode,
             perceived_f_mps2: perceived_now,
             reference_f_mps2: f_ref_now,
         }
@@ -1184,14 +1173,14 @@ impl Mpc {
 
     /// Writes this step's values into the solver and solves; the first move when solved.
     fn solve_qp(&mut self, terminal_tilt_rad: [f64; 2]) -> Option<DVector<f64>> {
-        if !self.x.iter().all(|v| v.is_finite()) {
-            self.report.status = "non_finite_state".into();
-            self.report.iterations = 0;
-            self.report.solve_time_us = 0.0;
+        if !self.run.x.iter().all(|v| v.is_finite()) {
+            self.run.report.status = "non_finite_state".into();
+            self.run.report.iterations = 0;
+            self.run.report.solve_time_us = 0.0;
             return None;
         }
-        let x0 = self.x.clone();
-        let u_prev = self.u_last.clone();
+        let x0 = self.run.x.clone();
+        let u_prev = self.run.u_last.clone();
         let data = self.step_data(&x0, &u_prev, terminal_tilt_rad);
         self.assemble_a(&data);
         self.assemble_q(&u_prev);
@@ -1211,13 +1200,13 @@ impl Mpc {
             };
             let status = c.solve(&self.p_trip, &self.q, &self.a_trip, &self.b, &settings);
             active_set_us = started.elapsed().as_secs_f64() * 1e6;
-            self.report.solve_time_us = active_set_us;
-            self.report.iterations = c.iterations();
-            self.report.status = status.word().into();
+            self.run.report.solve_time_us = active_set_us;
+            self.run.report.iterations = c.iterations();
+            self.run.report.status = status.word().into();
             match status {
                 QpStatus::Solved => {
                     let z = c.z();
-                    Self::fill_plan(&mut self.plan, &self.grid, &self.x, z);
+                    Self::fill_plan(&mut self.run.plan, &self.grid, &self.run.x, z);
                     return Some(DVector::from_row_slice(&z[0..NU]));
                 }
                 QpStatus::Infeasible => return None,
@@ -1225,9 +1214,9 @@ impl Mpc {
             }
         }
         let Some(solver) = self.solver.as_mut() else {
-            self.report.status = "setup_error".into();
-            self.report.iterations = 0;
-            self.report.solve_time_us = 0.0;
+            self.run.report.status = "setup_error".into();
+            self.run.report.iterations = 0;
+            self.run.report.solve_time_us = 0.0;
             return None;
         };
         if !self.a_pattern.fill(&self.a_trip, &mut self.nz)
@@ -1235,9 +1224,9 @@ impl Mpc {
             || solver.update_b(&self.b).is_err()
             || solver.update_q(&self.q).is_err()
         {
-            self.report.status = "update_error".into();
-            self.report.iterations = 0;
-            self.report.solve_time_us = 0.0;
+            self.run.report.status = "update_error".into();
+            self.run.report.iterations = 0;
+            self.run.report.solve_time_us = 0.0;
             return None;
         }
         // Clarabel checks its time limit against the sum of its timers, some of which
@@ -1247,14 +1236,14 @@ impl Mpc {
         solver.timers = Some(clarabel::timers::Timers::default());
         let started = Instant::now();
         solver.solve();
-        self.report.solve_time_us = active_set_us + started.elapsed().as_secs_f64() * 1e6;
+        self.run.report.solve_time_us = active_set_us + started.elapsed().as_secs_f64() * 1e6;
         let sol = &solver.solution;
-        self.report.status = match (&sol.status, self.condensed.is_some()) {
+        self.run.report.status = match (&sol.status, self.condensed.is_some()) {
             // Clarabel solved what the active set could not: docs/recordings.md.
             (SolverStatus::Solved, true) => "solved_clarabel".into(),
             (s, _) => status_word(s).into(),
         };
-        self.report.iterations = sol.iterations;
+        self.run.report.iterations = sol.iterations;
         let ok = matches!(
             sol.status,
             SolverStatus::Solved | SolverStatus::AlmostSolved
@@ -1262,7 +1251,7 @@ impl Mpc {
         if !ok {
             return None;
         }
-        Self::fill_plan(&mut self.plan, &self.grid, &self.x, &sol.x);
+        Self::fill_plan(&mut self.run.plan, &self.grid, &self.run.x, &sol.x);
         Some(DVector::from_row_slice(&sol.x[0..NU]))
     }
 
@@ -1288,20 +1277,20 @@ impl Mpc {
     /// After a failed solve: the previous plan, one step further on, then a return to neutral
     /// slow enough that the rotation stays below the canals' thresholds.
     fn fallback_input(&mut self, dt_s: f64) -> DVector<f64> {
-        self.plan.elapsed_s += dt_s;
-        let mut u = match self.plan.input_at(self.plan.elapsed_s) {
+        self.run.plan.elapsed_s += dt_s;
+        let mut u = match self.run.plan.input_at(self.run.plan.elapsed_s) {
             Some(u) => DVector::from_row_slice(&u),
             None => {
                 let w = self.params.fallback_washout_radps;
                 let mut u = DVector::zeros(NU);
                 for k in 0..3 {
                     u[input::ACCEL_X + k] =
-                        -w * w * self.x[state::POS + k] - 2.0 * w * self.x[state::VEL + k];
+                        -w * w * self.run.x[state::POS + k] - 2.0 * w * self.run.x[state::VEL + k];
                 }
                 // Roll and pitch return through the tilt channel, yaw through rotation.
-                u[input::TILT_ROLL_RATE] = -w * self.x[state::ROLL];
-                u[input::TILT_PITCH_RATE] = -w * self.x[state::PITCH];
-                u[input::ROT_YAW_RATE] = -w * self.x[state::YAW];
+                u[input::TILT_ROLL_RATE] = -w * self.run.x[state::ROLL];
+                u[input::TILT_PITCH_RATE] = -w * self.run.x[state::PITCH];
+                u[input::ROT_YAW_RATE] = -w * self.run.x[state::YAW];
                 u
             }
         };
@@ -1316,7 +1305,7 @@ impl Mpc {
             u[input::TILT_ROLL_RATE + k] =
                 finite_or_zero(u[input::TILT_ROLL_RATE + k]).clamp(-w, w);
         }
-        let prev_rates = total_rates(self.u_last.as_slice());
+        let prev_rates = total_rates(self.run.u_last.as_slice());
         for k in 0..3 {
             u[input::ROT_ROLL_RATE + k] = finite_or_zero(u[input::ROT_ROLL_RATE + k]);
         }
@@ -1332,14 +1321,14 @@ impl Mpc {
 
     fn command_for(&self, u0: &DVector<f64>, dt_s: f64) -> PlatformCommand {
         let rates = total_rates(u0.as_slice());
-        let prev_rates = total_rates(self.u_last.as_slice());
+        let prev_rates = total_rates(self.run.u_last.as_slice());
         let mut cmd = PlatformCommand {
-            pose: pose_of(&self.x),
+            pose: pose_of(&self.run.x),
             velocity: Vector6::zeros(),
             acceleration: Vector6::zeros(),
         };
         for k in 0..3 {
-            cmd.velocity[k] = self.x[state::VEL + k];
+            cmd.velocity[k] = self.run.x[state::VEL + k];
             cmd.velocity[3 + k] = rates[k];
             cmd.acceleration[k] = u0[input::ACCEL_X + k];
             cmd.acceleration[3 + k] = (rates[k] - prev_rates[k]) / dt_s;
@@ -1355,7 +1344,7 @@ impl Mpc {
     /// Back to rest at neutral; the solver's structure is kept.
     /// Roll and pitch the last QP's COTC terminal condition asked for (rad).
     pub fn terminal_tilt_rad(&self) -> [f64; 2] {
-        self.terminal_tilt_rad
+        self.run.terminal_tilt_rad
     }
 
     /// Standby: takes over `leader`'s running state (the platform motion it commanded, its
@@ -1363,39 +1352,39 @@ impl Mpc {
     /// instead of solving. A controller kept in standby this way can be woken at any step and
     /// solve from the motion actually commanded; its report says `standby`.
     pub fn follow(&mut self, leader: &Mpc) {
-        debug_assert_eq!(self.x.len(), leader.x.len());
-        self.x.copy_from(&leader.x);
-        self.u_last.copy_from(&leader.u_last);
-        self.u_before.copy_from(&leader.u_before);
-        self.ref_x.copy_from(&leader.ref_x);
-        self.started = leader.started;
-        self.sustained_df_mps2 = leader.sustained_df_mps2;
-        self.terminal_tilt_rad = leader.terminal_tilt_rad;
-        self.last_command = leader.last_command;
-        self.plan.clone_from(&leader.plan);
-        self.report.status = "standby".into();
-        self.report.iterations = 0;
-        self.report.solve_time_us = 0.0;
+        debug_assert_eq!(self.run.x.len(), leader.run.x.len());
+        self.run.x.copy_from(&leader.run.x);
+        self.run.u_last.copy_from(&leader.run.u_last);
+        self.run.u_before.copy_from(&leader.run.u_before);
+        self.run.ref_x.copy_from(&leader.run.ref_x);
+        self.run.started = leader.run.started;
+        self.run.sustained_df_mps2 = leader.run.sustained_df_mps2;
+        self.run.terminal_tilt_rad = leader.run.terminal_tilt_rad;
+        self.run.last_command = leader.run.last_command;
+        self.run.plan.clone_from(&leader.run.plan);
+        self.run.report.status = "standby".into();
+        self.run.report.iterations = 0;
+        self.run.report.solve_time_us = 0.0;
     }
 
     pub fn reset_state(&mut self) {
         if let Some(c) = self.condensed.as_mut() {
             c.clear_warm_start();
         }
-        self.sustained_df_mps2 = Vector3::zeros();
-        self.terminal_tilt_rad = [0.0; 2];
-        self.x.fill(0.0);
-        self.u_last.fill(0.0);
-        self.u_before.fill(0.0);
-        self.ref_x.fill(0.0);
-        self.started = false;
-        self.last_command = PlatformCommand::default();
-        self.plan = Plan::default();
-        self.mode = self.solved_mode();
-        self.time_in_mode_s = 0.0;
-        self.report.status = "unsolved".into();
-        self.report.iterations = 0;
-        self.report.solve_time_us = 0.0;
+        self.run.sustained_df_mps2 = Vector3::zeros();
+        self.run.terminal_tilt_rad = [0.0; 2];
+        self.run.x.fill(0.0);
+        self.run.u_last.fill(0.0);
+        self.run.u_before.fill(0.0);
+        self.run.ref_x.fill(0.0);
+        self.run.started = false;
+        self.run.last_command = PlatformCommand::default();
+        self.run.plan = Plan::default();
+        self.run.mode = self.solved_mode();
+        self.run.time_in_mode_s = 0.0;
+        self.run.report.status = "unsolved".into();
+        self.run.report.iterations = 0;
+        self.run.report.solve_time_us = 0.0;
     }
 
     /// The running state (what [`Mpc::reset_state`] resets, and the washout gain), for
@@ -1403,35 +1392,13 @@ impl Mpc {
     /// the values it uses.
     pub fn running_state(&self) -> MpcRunningState {
         MpcRunningState {
-            x: self.x.clone(),
-            u_last: self.u_last.clone(),
-            u_before: self.u_before.clone(),
-            ref_x: self.ref_x.clone(),
-            started: self.started,
-            sustained_df_mps2: self.sustained_df_mps2,
-            terminal_tilt_rad: self.terminal_tilt_rad,
-            last_command: self.last_command,
-            plan: self.plan.clone(),
-            report: self.report.clone(),
-            mode: self.mode,
-            time_in_mode_s: self.time_in_mode_s,
+            run: self.run.clone(),
             washout_gain: self.washout_gain,
         }
     }
 
     pub fn restore_running_state(&mut self, s: &MpcRunningState) {
-        self.x.clone_from(&s.x);
-        self.u_last.clone_from(&s.u_last);
-        self.u_before.clone_from(&s.u_before);
-        self.ref_x.clone_from(&s.ref_x);
-        self.started = s.started;
-        self.sustained_df_mps2 = s.sustained_df_mps2;
-        self.terminal_tilt_rad = s.terminal_tilt_rad;
-        self.last_command = s.last_command;
-        self.plan.clone_from(&s.plan);
-        self.report.clone_from(&s.report);
-        self.mode = s.mode;
-        self.time_in_mode_s = s.time_in_mode_s;
+        self.run.clone_from(&s.run);
         // Through the setter, which also writes the scaled weights into the solver.
         self.set_washout_gain(s.washout_gain);
     }
@@ -1440,19 +1407,27 @@ impl Mpc {
 /// [`Mpc::running_state`]: everything that changes from step to step.
 #[derive(Clone, Debug)]
 pub struct MpcRunningState {
+    run: Running,
+    washout_gain: f64,
+}
+
+#[derive(Clone, Debug)]
+struct Running {
     x: DVector<f64>,
     u_last: DVector<f64>,
+    /// The input of the trace step before `u_last`'s, for the lever-arm jump between them.
     u_before: DVector<f64>,
     ref_x: DVector<f64>,
     started: bool,
+    /// Low-passed aircraft Δf whose tilt is COTC's terminal condition (m/s²).
     sustained_df_mps2: Vector3<f64>,
+    /// Roll and pitch COTC's last QP ended at (rad).
     terminal_tilt_rad: [f64; 2],
     last_command: PlatformCommand,
     plan: Plan,
     report: SolverReport,
     mode: Mode,
     time_in_mode_s: f64,
-    washout_gain: f64,
 }
 
 impl MotionCueing for Mpc {
@@ -1466,12 +1441,12 @@ impl MotionCueing for Mpc {
 
     fn state(&self) -> AlgorithmState {
         AlgorithmState {
-            mode: self.mode,
+            mode: self.run.mode,
             blend: None,
-            time_in_mode_s: self.time_in_mode_s,
+            time_in_mode_s: self.run.time_in_mode_s,
             switch_count: 0,
             last_switch_reason: None,
-            solvers: vec![self.report.clone()],
+            solvers: vec![self.run.report.clone()],
         }
     }
 

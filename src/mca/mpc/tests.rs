@@ -42,7 +42,7 @@ fn run(mpc: &mut Mpc, n: usize, input: impl Fn(f64) -> CueSample) -> Vec<MpcOutc
 
 /// z of the last solved QP, from whichever solver solved it.
 fn last_solution(mpc: &Mpc) -> Vec<f64> {
-    match mpc.report.status.as_str() {
+    match mpc.report().status.as_str() {
         "solved" => mpc.condensed.as_ref().unwrap().z().to_vec(),
         _ => mpc.solver.as_ref().unwrap().solution.x.clone(),
     }
