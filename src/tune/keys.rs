@@ -232,6 +232,16 @@ pub fn round_significant(v: f64, digits: i32) -> f64 {
     (v * scale).round() / scale
 }
 
+/// Splits a table into the keys the base states and those it leaves to the loader's
+/// default. The second are not tuned: the keys a loadable profile may omit are #11's
+/// false-cue keys, and a base that omits them (compact.toml: `hold`, no false-cue slacks)
+/// does not use them, so that moving them would either do nothing or switch on a guard the
+/// base left off.
+pub fn stated_keys(keys: &[TunableKey], doc: &DocumentMut) -> (Vec<TunableKey>, Vec<TunableKey>) {
+    keys.iter()
+        .partition(|k| lookup(doc.as_item(), k.path).is_some())
+}
+
 /// Checks a table before a run: bounds that make sense and keys present in the base.
 pub fn check_table(keys: &[TunableKey], doc: &DocumentMut) -> Result<()> {
     for k in keys {
@@ -311,6 +321,26 @@ mod tests {
         assert!((k.encode(0.6) - 0.5).abs() < 1e-12);
         assert_eq!(round_significant(0.123456, 4), 0.1235);
         assert_eq!(round_significant(1234.56, 4), 1235.0);
+    }
+
+    #[test]
+    fn a_key_the_base_does_not_state_is_left_out() {
+        let full: DocumentMut = DEFAULT_PROFILE_TOML.parse().unwrap();
+        let (stated, absent) = stated_keys(MPC_KEYS, &full);
+        assert_eq!(stated.len(), MPC_KEYS.len());
+        assert!(absent.is_empty());
+        let compact: DocumentMut = include_str!("../../profiles/compact.toml").parse().unwrap();
+        let (stated, absent) = stated_keys(MPC_KEYS, &compact);
+        let absent: Vec<&str> = absent.iter().map(|k| k.path).collect();
+        assert!(absent.contains(&"mpc.false_cue_weight"), "{absent:?}");
+        assert!(
+            absent
+                .iter()
+                .all(|p| p.starts_with("mpc.false_cue") || *p == "mpc.reference_decay_s"),
+            "{absent:?}"
+        );
+        check_table(&stated, &compact).unwrap();
+        assert!(stated.iter().any(|k| k.path == "mpc.specific_force_weight"));
     }
 
     #[test]
