@@ -46,6 +46,7 @@ const Y: &[usize] = &[1];
 const Z: &[usize] = &[2];
 const XY: &[usize] = &[0, 1];
 const XYZ: &[usize] = &[0, 1, 2];
+const PQR: &[usize] = &[3, 4, 5];
 
 /// The classical washout: gains, filter frequencies and damping. The tilt-rate and tilt
 /// limits stay fixed: they keep the tilt below the canals' threshold (a safety of
@@ -69,8 +70,12 @@ pub const CWF_KEYS: &[TunableKey] = &[
 ];
 
 /// The MPC's cost weights (DESIGN §5: Q, S, R and washout), surge and sway tuned as one
-/// and the rotations as one, so that a budget of 50 candidates can move them all. The
-/// prediction grid and the solver settings stay fixed: they set the cost of a step.
+/// and the rotations as one, so that a budget of 50 candidates can move them all; then the
+/// false-cue terms of #11 (docs/mpc.md, "False cues"): the `decay` reference's time
+/// constants, the false-cue slacks' price and the margin from which they are priced. The
+/// prediction grid and the solver settings stay fixed: they set the cost of a step. The
+/// switches (`reference`, `false_cue_carry`, `heave_tilt_guard`) are not real-valued and stay
+/// as the base has them.
 pub const MPC_KEYS: &[TunableKey] = &[
     key("mpc.specific_force_weight", XY, 0.1, 10.0, LOG),
     key("mpc.specific_force_weight", Z, 0.05, 5.0, LOG),
@@ -83,7 +88,25 @@ pub const MPC_KEYS: &[TunableKey] = &[
     key("mpc.washout_position_weight", Z, 0.1, 10.0, LOG),
     key("mpc.washout_velocity_weight", XYZ, 0.02, 2.0, LOG),
     key("mpc.washout_tilt_weight", XY, 1e-3, 0.1, LOG),
-    key("mpc.washout_rotation_weight", XYZ, 0.1, 10.0, LOG),
+    // Yaw apart from roll and pitch: #11 ships 1, 1, 5 (a yaw rotation washed out faster);
+    // tied, the search would start from yaw at 1, not at the base.
+    key("mpc.washout_rotation_weight", XY, 0.1, 10.0, LOG),
+    key("mpc.washout_rotation_weight", Z, 0.5, 50.0, LOG),
+    // The price of a false cue per squared threshold, against Q's 0.1–10 per squared
+    // (m/s²) or 1–100 per squared (rad/s): a decade either side of the shipped 10. Log scale
+    // cannot reach 0 (an unguarded channel): switching a guard off is a design choice.
+    key("mpc.false_cue_weight", XY, 1.0, 100.0, LOG),
+    key("mpc.false_cue_weight", Z, 1.0, 100.0, LOG),
+    key("mpc.false_cue_weight", PQR, 1.0, 100.0, LOG),
+    // How fast the predicted input fades toward its sustained part: from one fine interval
+    // (0.1 s) to beyond the free MPC's 1.5 s horizon, where `decay` nears `hold`; #11 tried
+    // 0.1 and 1 s by hand around the shipped 0.3 s.
+    key("mpc.reference_decay_s", XYZ, 0.1, 2.0, LOG),
+    key("mpc.reference_decay_s", PQR, 0.1, 2.0, LOG),
+    // The share of the threshold from which a false cue is priced. 1 prices exactly what the
+    // score counts (perceived beyond the threshold); below, a safety margin (#11 ships 0.5).
+    // Below 0.2 the MPC would pay for counter-motion far under what a pilot perceives.
+    key("mpc.false_cue_margin", &[], 0.2, 1.0, LIN),
 ];
 
 /// The S-MPC's own keys: supervisor, mixer, weight regulator and COTC's heave washout. Its
@@ -209,6 +232,16 @@ pub fn round_significant(v: f64, digits: i32) -> f64 {
     (v * scale).round() / scale
 }
 
+/// Splits a table into the keys the base states and those it leaves to the loader's
+/// default. The second are not tuned: the keys a loadable profile may omit are #11's
+/// false-cue keys, and a base that omits them (compact.toml: `hold`, no false-cue slacks)
+/// does not use them, so that moving them would either do nothing or switch on a guard the
+/// base left off.
+pub fn stated_keys(keys: &[TunableKey], doc: &DocumentMut) -> (Vec<TunableKey>, Vec<TunableKey>) {
+    keys.iter()
+        .partition(|k| lookup(doc.as_item(), k.path).is_some())
+}
+
 /// Checks a table before a run: bounds that make sense and keys present in the base.
 pub fn check_table(keys: &[TunableKey], doc: &DocumentMut) -> Result<()> {
     for k in keys {
@@ -288,6 +321,26 @@ mod tests {
         assert!((k.encode(0.6) - 0.5).abs() < 1e-12);
         assert_eq!(round_significant(0.123456, 4), 0.1235);
         assert_eq!(round_significant(1234.56, 4), 1235.0);
+    }
+
+    #[test]
+    fn a_key_the_base_does_not_state_is_left_out() {
+        let full: DocumentMut = DEFAULT_PROFILE_TOML.parse().unwrap();
+        let (stated, absent) = stated_keys(MPC_KEYS, &full);
+        assert_eq!(stated.len(), MPC_KEYS.len());
+        assert!(absent.is_empty());
+        let compact: DocumentMut = include_str!("../../profiles/compact.toml").parse().unwrap();
+        let (stated, absent) = stated_keys(MPC_KEYS, &compact);
+        let absent: Vec<&str> = absent.iter().map(|k| k.path).collect();
+        assert!(absent.contains(&"mpc.false_cue_weight"), "{absent:?}");
+        assert!(
+            absent
+                .iter()
+                .all(|p| p.starts_with("mpc.false_cue") || *p == "mpc.reference_decay_s"),
+            "{absent:?}"
+        );
+        check_table(&stated, &compact).unwrap();
+        assert!(stated.iter().any(|k| k.path == "mpc.specific_force_weight"));
     }
 
     #[test]

@@ -131,7 +131,7 @@ impl Candidate {
 /// Scores candidates of one algorithm on a set of traces.
 pub struct Evaluator {
     pub algorithm: AlgorithmId,
-    pub keys: &'static [TunableKey],
+    pub keys: Vec<TunableKey>,
     pub base: DocumentMut,
     pub traces: Vec<Arc<Trace>>,
     /// Set to abandon the evaluations under way (Ctrl-C).
@@ -241,7 +241,7 @@ pub fn tune(
     seed: u64,
     progress: &dyn Progress,
 ) -> Result<TuneResult> {
-    let keys = evaluator.keys;
+    let keys = &evaluator.keys;
     let base_values: Vec<f64> = keys
         .iter()
         .map(|k| k.get(&evaluator.base))
@@ -457,8 +457,14 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     let base: DocumentMut = text
         .parse()
         .with_context(|| format!("{source}: cannot be edited as TOML"))?;
-    let keys = tunable_keys(algorithm);
-    keys::check_table(keys, &base).with_context(|| source.clone())?;
+    let (keys, absent) = keys::stated_keys(tunable_keys(algorithm), &base);
+    for k in &absent {
+        eprintln!(
+            "note: {source}: `{}` is not stated, so it is not tuned (the loader's default holds)",
+            k.name()
+        );
+    }
+    keys::check_table(&keys, &base).with_context(|| source.clone())?;
     let traces = load_traces(&args.traces, profile.rate_hz)?;
     for t in &traces {
         for notice in &t.notices {
@@ -473,7 +479,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     }
     let evaluator = Evaluator {
         algorithm,
-        keys,
+        keys: keys.clone(),
         base,
         traces,
         stop: stop.clone(),
@@ -606,7 +612,7 @@ mod tests {
     fn evaluator(traces: Vec<Arc<Trace>>) -> Evaluator {
         Evaluator {
             algorithm: AlgorithmId::Cwf,
-            keys: keys::CWF_KEYS,
+            keys: keys::CWF_KEYS.to_vec(),
             base: DEFAULT_PROFILE_TOML.parse().unwrap(),
             traces,
             stop: Arc::new(AtomicBool::new(false)),
