@@ -1958,7 +1958,10 @@ mod tests {
         assert_eq!(m["trace_sha256"], sha256_hex(&trace_csv(trace)));
         assert_eq!(m["trace_sha256"].len(), 64);
         assert_eq!(rec.profile_toml, DEFAULT_PROFILE_TOML);
-        assert_eq!(rec.profile.as_ref().unwrap(), &full_flight());
+        assert_eq!(
+            rec.profile.as_ref().unwrap(),
+            &crate::formats::profile::default_profile()
+        );
         assert_eq!(rec.trace_csv, trace_csv(trace));
         assert_eq!(
             rec.trace_sidecar.as_deref(),
