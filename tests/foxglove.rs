@@ -22,6 +22,19 @@ use tungstenite::Message;
 /// Longest any single wait of these tests may take.
 const PATIENCE: Duration = Duration::from_secs(30);
 
+/// What a session of the CWF alone serves: the recorded topics and the Foxglove ones.
+const CWF_CHANNELS: &[&str] = &[
+    "/aircraft",
+    "/aircraft/perceived",
+    "/cwf/perceived",
+    "/cwf/platform",
+    "/cwf/actuators",
+    "/cwf/controller",
+    "/cwf/tf",
+    "/cwf/scene",
+    "/events",
+];
+
 /// A hexcue process this test started; killed (by its own pid) if the test ends early.
 struct Hexcue {
     child: Child,
@@ -168,18 +181,7 @@ fn a_websocket_client_sees_the_channels_and_receives_messages() {
     let addr = hexcue.serving();
     assert!(addr.starts_with("127.0.0.1:"), "{addr}");
     let mut socket = connect(&addr);
-    let wanted = [
-        "/aircraft",
-        "/aircraft/perceived",
-        "/cwf/perceived",
-        "/cwf/platform",
-        "/cwf/actuators",
-        "/cwf/controller",
-        "/cwf/tf",
-        "/cwf/scene",
-        "/events",
-    ];
-    let channels = advertised(&mut socket, &wanted);
+    let channels = advertised(&mut socket, CWF_CHANNELS);
     for (topic, schema, encoding) in [
         ("/cwf/tf", "foxglove.FrameTransforms", "protobuf"),
         ("/cwf/scene", "foxglove.SceneUpdate", "protobuf"),
@@ -384,18 +386,7 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
     ]);
     let addr = session.serving();
     let mut socket = connect(&addr);
-    let wanted = [
-        "/aircraft",
-        "/aircraft/perceived",
-        "/cwf/perceived",
-        "/cwf/platform",
-        "/cwf/actuators",
-        "/cwf/controller",
-        "/cwf/tf",
-        "/cwf/scene",
-        "/events",
-    ];
-    let channels = advertised(&mut socket, &wanted);
+    let channels = advertised(&mut socket, CWF_CHANNELS);
     assert_eq!(channels["/events"].schema_name, "foxglove.Log");
     let subscribe = serde_json::json!({
         "op": "subscribe",

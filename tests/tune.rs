@@ -4,9 +4,10 @@
 
 mod common;
 
+use std::ffi::OsStr;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Command, Output, Stdio};
 use std::sync::mpsc;
 use std::time::Duration;
 
@@ -61,6 +62,17 @@ fn tune_args<'a>(
 }
 
 /// The "mean" row of the before/after table.
+/// `hexcue play --headless` of the CWF on a profile: what a tuned profile must pass.
+fn play_cwf(profile: &Path, more: &[&OsStr]) -> Output {
+    let mut args: Vec<&OsStr> = ["play", "--headless", "--algorithms", "cwf", "--profile"]
+        .iter()
+        .map(OsStr::new)
+        .collect();
+    args.push(profile.as_os_str());
+    args.extend_from_slice(more);
+    hexcue(&args)
+}
+
 fn mean_scores(text: &str) -> (f64, f64) {
     let line = text
         .lines()
@@ -93,18 +105,15 @@ fn a_short_cwf_tune_lowers_the_score_and_writes_a_valid_profile() {
     assert!(text.contains("# Tilt coordination: 2nd-order low-pass"));
     assert!(!text.contains("specific_force_scale = [0.6, 0.6, 0.4]"));
     let summary = dir.path().join("s.json");
-    let play = hexcue(&[
-        "play".as_ref(),
-        "--headless".as_ref(),
-        "--algorithms".as_ref(),
-        "cwf".as_ref(),
-        "--profile".as_ref(),
-        out.as_os_str(),
-        "--trace".as_ref(),
-        trace.as_os_str(),
-        "--summary".as_ref(),
-        summary.as_os_str(),
-    ]);
+    let play = play_cwf(
+        &out,
+        &[
+            "--trace".as_ref(),
+            trace.as_os_str(),
+            "--summary".as_ref(),
+            summary.as_os_str(),
+        ],
+    );
     assert!(play.status.success(), "{}", stderr(&play));
     let json = common::read_json(&summary);
     let score = json["algorithms"]["cwf"]["score"].as_f64().unwrap();
@@ -224,16 +233,7 @@ fn ctrl_c_keeps_the_best_profile_found_so_far() {
     let (before, after) = mean_scores(&text);
     assert!(after <= before);
     // The profile written is complete and valid.
-    let check = hexcue(&[
-        "play".as_ref(),
-        "--headless".as_ref(),
-        "--algorithms".as_ref(),
-        "cwf".as_ref(),
-        "--profile".as_ref(),
-        out.as_os_str(),
-        "--trace".as_ref(),
-        trace.as_os_str(),
-    ]);
+    let check = play_cwf(&out, &["--trace".as_ref(), trace.as_os_str()]);
     assert!(check.status.success(), "{}", stderr(&check));
 }
 
@@ -249,14 +249,7 @@ fn the_shipped_tuned_profile_is_valid_and_says_how_it_was_made() {
         let line = format!("# tuned: `hexcue tune --algorithm {alg} ");
         assert!(text.contains(&line), "no {alg} pass in the header");
     }
-    let run = hexcue(&[
-        "play".as_ref(),
-        "--headless".as_ref(),
-        "--algorithms".as_ref(),
-        "cwf".as_ref(),
-        "--profile".as_ref(),
-        path.as_os_str(),
-    ]);
+    let run = play_cwf(&path, &[]);
     assert!(run.status.success(), "{}", stderr(&run));
     assert!(
         stdout(&run).contains("profile full-flight-tuned"),
