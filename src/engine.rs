@@ -587,9 +587,7 @@ pub(crate) mod tests {
 
     #[test]
     fn a_restored_snapshot_replays_identically_for_every_algorithm() {
-        let mut profile = full_flight();
-        // The solvers' wall-clock limit would make a loaded test machine's runs differ.
-        profile.mpc.time_limit_ms = f64::INFINITY;
+        let profile = full_flight();
         let trace = Arc::new(manoeuvre());
         // Through the surge pulse (2–6 s), where every algorithm is busy.
         let mut engine = Engine::new(&profile, trace, AlgorithmId::ALL).unwrap();
@@ -620,8 +618,7 @@ pub(crate) mod tests {
 
     #[test]
     fn a_streamed_trace_file_restores_a_snapshot_and_a_live_stream_refuses() {
-        let mut profile = full_flight();
-        profile.mpc.time_limit_ms = f64::INFINITY;
+        let profile = full_flight();
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("manoeuvre.csv");
         let mut csv = String::from("t,fx,fy,fz,p,q,r\n");

@@ -22,18 +22,11 @@ use tungstenite::Message;
 /// Longest any single wait of these tests may take.
 const PATIENCE: Duration = Duration::from_secs(30);
 
-/// What a session of the CWF alone serves: the recorded topics and the Foxglove ones.
-const CWF_CHANNELS: &[&str] = &[
-    "/aircraft",
-    "/aircraft/perceived",
-    "/cwf/perceived",
-    "/cwf/platform",
-    "/cwf/actuators",
-    "/cwf/controller",
-    "/cwf/tf",
-    "/cwf/scene",
-    "/events",
-];
+/// What a session of the CWF alone serves: its topics, and `/events`, advertised from the
+/// start.
+fn cwf_channels() -> Vec<&'static str> {
+    CWF_TOPICS.iter().copied().chain(["/events"]).collect()
+}
 
 /// A hexcue process this test started; killed (by its own pid) if the test ends early.
 struct Hexcue {
@@ -181,7 +174,7 @@ fn a_websocket_client_sees_the_channels_and_receives_messages() {
     let addr = hexcue.serving();
     assert!(addr.starts_with("127.0.0.1:"), "{addr}");
     let mut socket = connect(&addr);
-    let channels = advertised(&mut socket, CWF_CHANNELS);
+    let channels = advertised(&mut socket, &cwf_channels());
     for (topic, schema, encoding) in [
         ("/cwf/tf", "foxglove.FrameTransforms", "protobuf"),
         ("/cwf/scene", "foxglove.SceneUpdate", "protobuf"),
@@ -386,7 +379,7 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
     ]);
     let addr = session.serving();
     let mut socket = connect(&addr);
-    let channels = advertised(&mut socket, CWF_CHANNELS);
+    let channels = advertised(&mut socket, &cwf_channels());
     assert_eq!(channels["/events"].schema_name, "foxglove.Log");
     let subscribe = serde_json::json!({
         "op": "subscribe",

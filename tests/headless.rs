@@ -80,16 +80,7 @@ fn cwf_on_every_shipped_trace_records_and_reviews() {
         check_summary(&played, &name, &["cwf"]);
 
         let (topics, count) = recorded_topics(&mcap);
-        for t in [
-            "/aircraft",
-            "/aircraft/perceived",
-            "/cwf/perceived",
-            "/cwf/platform",
-            "/cwf/actuators",
-            "/cwf/controller",
-            "/cwf/tf",
-            "/cwf/scene",
-        ] {
+        for &t in CWF_TOPICS {
             assert!(
                 topics.contains(t),
                 "{name}: topic {t} missing from {topics:?}"

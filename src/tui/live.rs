@@ -453,9 +453,7 @@ mod tests {
     /// Two seconds of the manoeuvre's surge pulse through all three algorithms, as the clock
     /// thread would have published them, with the timings fixed so the screen is repeatable.
     fn live_app(state: SafetyState, stopping: bool) -> App {
-        let mut profile = full_flight();
-        // Solved within the iteration cap, not a wall-clock limit: the same on any machine.
-        profile.mpc.time_limit_ms = f64::INFINITY;
+        let profile = full_flight();
         let mut engine = Engine::new(&profile, Arc::new(manoeuvre()), AlgorithmId::ALL).unwrap();
         let url = "jsbsim://127.0.0.1:5138";
         let mut model = LiveViewModel::new(

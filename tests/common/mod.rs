@@ -74,3 +74,16 @@ pub fn play_recorded(
     }
     hexcue(&args)
 }
+
+/// The topics a session of the CWF alone writes at every step: the recorded JSON topics and
+/// the Foxglove ones (`/events` only comes with an event).
+pub const CWF_TOPICS: &[&str] = &[
+    "/aircraft",
+    "/aircraft/perceived",
+    "/cwf/perceived",
+    "/cwf/platform",
+    "/cwf/actuators",
+    "/cwf/controller",
+    "/cwf/tf",
+    "/cwf/scene",
+];

@@ -1,14 +1,6 @@
 use super::*;
 use crate::profile::tests::full_flight;
 
-/// The default profile with a solver time limit that a loaded machine and a debug build
-/// cannot hit: these tests are about the answers, the benchmark is about the time.
-fn profile() -> Profile {
-    let mut p = full_flight();
-    p.mpc.time_limit_ms = 10_000.0;
-    p
-}
-
 fn step(mpc: &mut Mpc, k: usize, sample: CueSample, applied: &PlatformCommand) -> MpcOutcome {
     let input = CueInput {
         k,
@@ -68,7 +60,7 @@ fn dense_a(mpc: &Mpc) -> DMatrix<f64> {
 
 #[test]
 fn qp_is_small_and_the_horizon_long_enough() {
-    let p = profile();
+    let p = full_flight();
     let mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
     let (nv, neq, nin) = mpc.qp_size();
     // Inputs and states per interval, and a false-cue slack per guarded channel and interval.
@@ -83,7 +75,7 @@ fn qp_is_small_and_the_horizon_long_enough() {
 
 #[test]
 fn first_move_equals_the_dense_kkt_optimum_when_no_constraint_is_active() {
-    let mut p = profile();
+    let mut p = full_flight();
     p.mpc.tolerance = 1e-9;
     // The false-cue slacks rest on their bound σ ≥ 0 at any optimum without a false cue: an
     // active row by construction. This test is about the tracking cost, so without them.
@@ -133,7 +125,7 @@ fn first_move_equals_the_dense_kkt_optimum_when_no_constraint_is_active() {
 
 #[test]
 fn riccati_terminal_weight_satisfies_its_equation() {
-    let p = profile();
+    let p = full_flight();
     // COTC's shipped tuning leaves surge and sway position unweighted: the Riccati weight is
     // then the cost-to-go of the rest and must still satisfy its equation.
     let residual = |mpc: &Mpc| {
@@ -162,7 +154,7 @@ fn riccati_terminal_weight_satisfies_its_equation() {
 
 #[test]
 fn cotc_meets_its_terminal_equalities() {
-    let p = profile();
+    let p = full_flight();
     // With the [mpc] tuning and with COTC's own (longer horizon, no surge / sway washout).
     for params in [p.mpc.clone(), p.cotc_params()] {
         cotc_meets_its_terminal_equalities_with(&p, &params);
@@ -208,7 +200,7 @@ fn cotc_meets_its_terminal_equalities_with(p: &crate::profile::Profile, params: 
 
 #[test]
 fn cotc_on_a_sustained_6_mps2_surge_is_infeasible() {
-    let p = profile();
+    let p = full_flight();
     let surge = sample([6.0, 0.0, 0.0], [0.0; 3]);
     for terminal in [Terminal::Cotc, Terminal::Free] {
         let mut mpc = Mpc::new(&p.mpc, &p, terminal).unwrap();
@@ -233,7 +225,7 @@ fn cotc_on_a_sustained_6_mps2_surge_is_infeasible() {
 /// the debug build quick; the benchmark runs the same kind of input at 100 Hz.
 #[test]
 fn closed_loop_keeps_legs_in_stroke_without_clipping() {
-    let mut p = profile();
+    let mut p = full_flight();
     p.rate_hz = 10.0;
     let dt = p.dt_s();
     let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
@@ -297,7 +289,7 @@ fn closed_loop_keeps_legs_in_stroke_without_clipping() {
 
 #[test]
 fn preview_sees_a_step_before_it_comes() {
-    let mut p = profile();
+    let mut p = full_flight();
     p.mpc.reference = ReferenceMode::Preview;
     let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
     let future: Vec<CueSample> = (0..300)
@@ -325,7 +317,7 @@ fn preview_sees_a_step_before_it_comes() {
 
 #[test]
 fn non_finite_input_never_yields_nan() {
-    let p = profile();
+    let p = full_flight();
     let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
     let bad = sample(
         [f64::NAN, f64::INFINITY, 0.0],
@@ -343,7 +335,7 @@ fn non_finite_input_never_yields_nan() {
 
 #[test]
 fn failed_solve_follows_the_plan_then_washes_out() {
-    let p = profile();
+    let p = full_flight();
     // A time limit no solve can meet turns every step after the first into a failure.
     let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
     let outs = run(&mut mpc, 5, |_| sample([2.0, 0.0, 0.0], [0.0; 3]));
@@ -379,7 +371,7 @@ fn failed_solve_follows_the_plan_then_washes_out() {
 /// here the leg constraints, not the per-DoF boxes, must hold the platform back.
 #[test]
 fn leg_constraints_hold_a_diagonal_excursion_within_the_margin() {
-    let mut p = profile();
+    let mut p = full_flight();
     p.rate_hz = 10.0;
     // Little washout and strong tracking push the platform toward the corner.
     p.mpc.washout_position_weight = [0.01; 3];
@@ -450,7 +442,7 @@ fn compact_rig_builds_and_solves() {
 
 #[test]
 fn washout_gain_is_written_in_place_and_pulls_toward_neutral() {
-    let p = profile();
+    let p = full_flight();
     let surge = |_| sample([2.0, 0.0, 0.0], [0.0; 3]);
     let mut nominal = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
     let mut strong = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
@@ -487,7 +479,7 @@ fn washout_gain_is_written_in_place_and_pulls_toward_neutral() {
 fn own_perception_matches_the_head_through_the_lever_arm() {
     use crate::model::stewart::head_motion;
     use crate::model::vestibular::Vestibular;
-    let p = profile();
+    let p = full_flight();
     assert!(p.eye_point().z < -1.0, "the test needs a lever arm");
     let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
     let mut vest = Vestibular::new(&p.vestibular, 0.01);
@@ -538,7 +530,7 @@ fn clarabel_reference(mpc: &mut Mpc) -> (SolverStatus, Vec<f64>, f64) {
 fn condensed_hessian_and_rows_are_the_sparse_qp_s() {
     // H(gain) = Tᵀ P(gain) T for the affine update and for a full condensation; the sparse
     // objective at z = T u + z̄ is the condensed one plus a constant.
-    let p = profile();
+    let p = full_flight();
     for terminal in [Terminal::Free, Terminal::Cotc] {
         let params = if terminal == Terminal::Cotc {
             p.cotc_params()
@@ -598,7 +590,7 @@ fn n_dyn(mpc: &Mpc) -> usize {
 fn active_set_and_clarabel_agree_on_every_qp_of_the_stall_and_landing() {
     use crate::engine::cue_sample;
     use crate::formats::trace::load_trace;
-    let mut p = profile();
+    let mut p = full_flight();
     // Clarabel as the reference: far tighter than the shipped 1e-5 (at 1e-9 its first move
     // was off by 1.1e-5 at one step of the stall; at 1e-11 by 1.4e-6 at worst).
     p.mpc.tolerance = 1e-11;
@@ -708,7 +700,7 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
 #[test]
 fn an_unlimited_time_budget_is_no_limit_not_a_panic() {
     // `compare` runs without a time limit (∞): found as a panic in Duration::from_secs_f64.
-    let mut p = profile();
+    let mut p = full_flight();
     p.mpc.time_limit_ms = f64::INFINITY;
     let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
     let outs = run(&mut mpc, 5, |_| sample([1.0, 0.0, 0.0], [0.0; 3]));
