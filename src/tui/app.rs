@@ -235,18 +235,15 @@ where
             dirty = true;
         }
         let since = last_draw.map(|t| now.saturating_duration_since(t));
-        if dirty && since.is_none_or(|s| s >= FRAME_INTERVAL) {
+        // On quitting, the frame limiter does not hold back the last change: the screen left
+        // behind at exit (and any test of it) shows the state quit from.
+        if dirty && (app.should_quit() || since.is_none_or(|s| s >= FRAME_INTERVAL)) {
             terminal.draw(|f| app.render(f))?;
             notice_shown = app.notice(now).is_some();
             last_draw = Some(now);
             dirty = false;
         }
         if app.should_quit() {
-            // The frame limiter may have held back the last change; the screen
-            // left behind at exit (and any test of it) shows the state quit from.
-            if dirty {
-                terminal.draw(|f| app.render(f))?;
-            }
             session.send(Command::Quit);
             return Ok(());
         }
