@@ -1,10 +1,11 @@
 //! FlightGear's generic protocol in binary mode with `integrations/flightgear/hexcue.xml`: one
 //! 44-byte datagram a frame, big-endian, 4 bytes a field: time (f32, s), freeze flag (i32),
 //! specific force at the pilot x, y, z (f32, ft/s², body axes x forward, y right, z down),
-//! body rates p, q, r (f32, deg/s), roll, pitch, heading (f32, deg).
+//! body rates p, q, r (f32, rad/s), roll, pitch, heading (f32, deg).
 //!
-//! Converted at the edge: ft/s² × 0.3048 → m/s², deg → rad. Not yet checked against a
-//! running FlightGear (docs/live.md says what is unverified).
+//! Converted at the edge: ft/s² × 0.3048 → m/s², attitude deg → rad. The body rates are
+//! already rad/s: `/orientation/p-body` is FlightGear's `get_P_body()`, the FDM's body rate in
+//! rad/s (docs/live.md cites the source).
 
 use super::live::{Decoded, Decoder};
 use crate::trace::AircraftSample;
@@ -21,13 +22,13 @@ pub fn encode(
     t_s: f32,
     paused: bool,
     f_fps2: [f32; 3],
-    pqr_dps: [f32; 3],
+    pqr_radps: [f32; 3],
     att_deg: [f32; 3],
 ) -> Vec<u8> {
     let mut b = Vec::with_capacity(FRAME_BYTES);
     b.extend(t_s.to_be_bytes());
     b.extend(i32::from(paused).to_be_bytes());
-    for v in f_fps2.iter().chain(&pqr_dps).chain(&att_deg) {
+    for v in f_fps2.iter().chain(&pqr_radps).chain(&att_deg) {
         b.extend(v.to_be_bytes());
     }
     b
@@ -49,7 +50,7 @@ impl Decoder for FlightGear {
             sample: AircraftSample {
                 t_s: f(0),
                 specific_force_mps2: nalgebra::Vector3::new(f(2), f(3), f(4)) * FT_TO_M,
-                angular_velocity_radps: nalgebra::Vector3::new(f(5), f(6), f(7)) * deg,
+                angular_velocity_radps: nalgebra::Vector3::new(f(5), f(6), f(7)),
                 attitude_rad: nalgebra::Vector3::new(f(8), f(9), f(10)) * deg,
             },
             paused,
@@ -67,7 +68,7 @@ mod tests {
             12.5,
             true,
             [1.0, -2.0, -32.174],
-            [90.0, 0.0, -45.0],
+            [1.5, 0.0, -0.75],
             [10.0, -5.0, 270.0],
         );
         assert_eq!(b.len(), FRAME_BYTES);
@@ -78,7 +79,8 @@ mod tests {
         assert_eq!(sample.t_s, 12.5);
         assert!((sample.specific_force_mps2.z + 9.8066).abs() < 1e-3);
         assert!((sample.specific_force_mps2.y + 0.6096).abs() < 1e-6);
-        assert!((sample.angular_velocity_radps.x - std::f64::consts::FRAC_PI_2).abs() < 1e-6);
+        assert!((sample.angular_velocity_radps.x - 1.5).abs() < 1e-6);
+        assert!((sample.angular_velocity_radps.z + 0.75).abs() < 1e-6);
         assert!((sample.attitude_rad.z - 1.5 * std::f64::consts::PI).abs() < 1e-6);
     }
 
