@@ -652,7 +652,11 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
         crate::safety::SafetyParams::default(),
     )?;
     for url in &args.output {
-        session.add_output(crate::sinks::open_output(url)?);
+        session.add_output(crate::sinks::open_output(
+            url,
+            &profile.moog,
+            session.period(),
+        )?);
     }
     if let Some(path) = &args.record {
         session.add_frame_sink(Box::new(LiveRecording::create(
@@ -693,9 +697,10 @@ pub fn run_live_headless(args: &LiveArgs) -> Result<Summary> {
     let duration = args.duration.map(std::time::Duration::from_secs_f64);
     crate::live::run(
         &mut session,
-        |_| {
+        |s| {
             let over = duration.is_some_and(|d| started.elapsed() >= d);
-            if over || stop.load(Ordering::Relaxed) {
+            // A platform fault ends a headless session: nobody is there to see the header.
+            if over || stop.load(Ordering::Relaxed) || s.platform_fault().is_some() {
                 Control::Stop
             } else {
                 Control::Continue
@@ -909,6 +914,9 @@ pub fn format_table(s: &Summary) -> String {
         if let Some(w) = &l.unit_warning {
             out.push_str(&format!("live: warning: {w}\n"));
         }
+        if let Some(f) = &l.platform_fault {
+            out.push_str(&format!("live: error: platform fault: {f}\n"));
+        }
     }
     out
 }
@@ -1047,12 +1055,22 @@ pub fn run(cli: Cli) -> Result<()> {
                 args.headless,
                 args.force,
             )?;
+            let mut platform_fault = None;
             headless_or_console(
                 args.headless,
                 args.summary.as_deref(),
-                || run_live_headless(&args),
+                || {
+                    let summary = run_live_headless(&args)?;
+                    platform_fault = summary.live.as_ref().and_then(|l| l.platform_fault.clone());
+                    Ok(summary)
+                },
                 || crate::console::run_live_session(&args),
-            )
+            )?;
+            // After the summary is written and printed: the run is on record, and it failed.
+            match platform_fault {
+                Some(fault) => bail!("platform fault: {fault}"),
+                None => Ok(()),
+            }
         }
         Command::Tune(args) => crate::tune::run(&args),
         Command::Recover {

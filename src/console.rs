@@ -188,5 +188,13 @@ pub fn run_live_session(args: &crate::cli::LiveArgs) -> Result<()> {
         eprintln!("{line}");
     }
     eprint!("{}", crate::cli::format_table(&outcome.summary));
+    if let Some(fault) = outcome
+        .summary
+        .live
+        .as_ref()
+        .and_then(|l| l.platform_fault.as_ref())
+    {
+        anyhow::bail!("platform fault: {fault}");
+    }
     exit_for_signal(outcome.signal)
 }

@@ -47,6 +47,38 @@ pub struct Profile {
     /// Weights of the cueing score (absent: the defaults of `crate::score`).
     #[serde(default)]
     pub score: crate::score::ScoreWeights,
+    /// The Moog 6DOF2000E output (`--output moog://`): neutral offset and timeouts (absent:
+    /// the defaults of [`MoogParams`]).
+    #[serde(default)]
+    pub moog: MoogParams,
+}
+
+/// How a live session drives a Moog 6DOF2000E (docs/live.md, *Moog*).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MoogParams {
+    /// Heave the base needs at hexcue's neutral, in Moog's frame (z down, m): 0 for base
+    /// software whose heave is zero at neutral (Rev E16), −0.2286 for Rev E11, whose heave is
+    /// zero at the settled position.
+    pub neutral_heave_m: f64,
+    /// A base that has not answered for this long is a fault (s).
+    pub reply_timeout_s: f64,
+    /// A base not ENGAGED this long after START is a fault (s).
+    pub engage_timeout_s: f64,
+    /// On the way out, how long PARK may take to settle the base (s).
+    pub park_timeout_s: f64,
+}
+
+impl Default for MoogParams {
+    fn default() -> Self {
+        MoogParams {
+            neutral_heave_m: 0.0,
+            reply_timeout_s: 0.5,
+            // A third-party driver measured 11 s to engage and waits 20 s (docs/live.md).
+            engage_timeout_s: 20.0,
+            park_timeout_s: 20.0,
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -312,6 +344,19 @@ impl Profile {
         self.smpc.validate("smpc")?;
         self.smpc.cotc.validate(&self.mpc)?;
         self.score.validate()?;
+        let m = &self.moog;
+        if !(m.neutral_heave_m.is_finite() && m.neutral_heave_m.abs() <= 1.0) {
+            return err(
+                "moog.neutral_heave_m",
+                format!(
+                    "{} m: expected a finite offset within 1 m (−0.2286 for base software Rev E11)",
+                    m.neutral_heave_m
+                ),
+            );
+        }
+        positive("moog.reply_timeout_s", m.reply_timeout_s)?;
+        positive("moog.engage_timeout_s", m.engage_timeout_s)?;
+        positive("moog.park_timeout_s", m.park_timeout_s)?;
         if self.mpc.fine_step_s < self.dt_s() - 1e-12 {
             return err(
                 "mpc.fine_step_s",

@@ -4,7 +4,9 @@
 //!
 //! parked → engaging (the cue fades in) → running → washout (input lost or the simulator
 //! paused) → parked, and from any state an e-stop → estop (the same return to neutral) →
-//! parked, latched. The workspace limiter still follows every command it produces.
+//! parked, latched. The fade-in waits for the platform to be ready (a Moog base engaged);
+//! a platform fault → fault from any state: the pose is held, latched. The workspace
+//! limiter still follows every command it produces.
 
 use nalgebra::Vector6;
 use serde::Serialize;
@@ -44,6 +46,19 @@ pub enum SafetyState {
     Washout,
     /// E-stop: back to neutral, then parked for good.
     Estop,
+    /// The platform reported a fault (or went silent): motion stops, for good.
+    Fault,
+}
+
+/// What the platform says before a step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlatformReadiness {
+    /// It follows poses (or does not say: hexcue's JSON output).
+    Ready,
+    /// Not yet (a base still engaging): hold neutral, and do not start the fade-in.
+    NotReady,
+    /// Failed: stop all motion.
+    Fault,
 }
 
 impl SafetyState {
@@ -54,6 +69,7 @@ impl SafetyState {
             SafetyState::Running => "running",
             SafetyState::Washout => "washout",
             SafetyState::Estop => "estop",
+            SafetyState::Fault => "fault",
         }
     }
 }
@@ -157,6 +173,7 @@ pub struct Safety {
     estop: bool,
     neutral: NeutralReturn,
     last_sent: PlatformCommand,
+    platform: PlatformReadiness,
 }
 
 impl Safety {
@@ -169,6 +186,7 @@ impl Safety {
             estop: false,
             neutral: NeutralReturn::new(limits, dt_s),
             last_sent: PlatformCommand::default(),
+            platform: PlatformReadiness::Ready,
         }
     }
 
@@ -193,9 +211,16 @@ impl Safety {
         self.estop
     }
 
-    /// Parked after an e-stop: nothing more will move.
+    /// Parked after an e-stop (or in a platform fault, asked to stop): nothing more will move.
     pub fn is_stopped(&self) -> bool {
-        self.estop && self.state == SafetyState::Parked
+        self.estop && matches!(self.state, SafetyState::Parked | SafetyState::Fault)
+    }
+
+    /// What the platform says before this step; a fault is latched here.
+    pub fn platform(&mut self, readiness: PlatformReadiness) {
+        if self.platform != PlatformReadiness::Fault {
+            self.platform = readiness;
+        }
     }
 
     fn enter(&mut self, state: SafetyState) {
@@ -214,13 +239,16 @@ impl Safety {
         use SafetyState::*;
         self.time_in_state_s += self.dt_s;
         let mut reset_algorithms = false;
+        let platform_ready = self.platform == PlatformReadiness::Ready;
         match self.state {
+            Fault => {}
+            _ if self.platform == PlatformReadiness::Fault => self.enter(Fault),
             _ if self.estop && !matches!(self.state, Estop | Parked) => self.enter(Estop),
-            Parked if input_ok && !self.estop => {
+            Parked if input_ok && platform_ready && !self.estop => {
                 self.enter(Engaging);
                 reset_algorithms = true;
             }
-            Engaging | Running if !input_ok => self.enter(Washout),
+            Engaging | Running if !input_ok || !platform_ready => self.enter(Washout),
             Engaging if self.time_in_state_s >= self.params.fade_in_s => self.enter(Running),
             Washout | Estop if self.neutral.at_neutral() => self.enter(Parked),
             _ => {}
@@ -240,13 +268,17 @@ impl Safety {
         }
     }
 
-    /// The command for this step: the driving algorithm's while engaging or running, else
-    /// the way back to (or rest at) neutral.
+    /// The command for this step: the driving algorithm's while engaging or running, the
+    /// last pose at rest in a fault, else the way back to (or rest at) neutral.
     pub fn command(&mut self, algorithm: &PlatformCommand) -> PlatformCommand {
         match self.state {
             SafetyState::Engaging | SafetyState::Running => *algorithm,
             SafetyState::Washout | SafetyState::Estop => self.neutral.step(),
             SafetyState::Parked => PlatformCommand::default(),
+            SafetyState::Fault => PlatformCommand {
+                pose: self.last_sent.pose,
+                ..Default::default()
+            },
         }
     }
 
@@ -453,6 +485,61 @@ mod tests {
             let out = sent_through_limiter(&mut s, &mut limiter, &held);
             assert_eq!(out.pose, Vector6::zeros());
         }
+    }
+
+    #[test]
+    fn the_fade_in_waits_for_the_platform() {
+        let mut s = Safety::new(SafetyParams::default(), limits(), DT);
+        s.platform(PlatformReadiness::NotReady);
+        // Input for 2 s while the base engages: parked at neutral, no fade.
+        for _ in 0..200 {
+            let p = s.begin_step(true);
+            assert_eq!((p.state, p.cue_gain), (SafetyState::Parked, 0.0));
+            assert_eq!(
+                s.command(&PlatformCommand {
+                    pose: Vector6::repeat(0.1),
+                    ..Default::default()
+                })
+                .pose,
+                Vector6::zeros()
+            );
+        }
+        s.platform(PlatformReadiness::Ready);
+        let p = s.begin_step(true);
+        assert_eq!(p.state, SafetyState::Engaging);
+        assert!(p.reset_algorithms && p.cue_gain < 1e-3);
+    }
+
+    #[test]
+    fn a_platform_fault_holds_the_pose_for_good() {
+        let l = limits();
+        let mut s = Safety::new(SafetyParams::default(), l, DT);
+        let mut limiter = WorkspaceLimiter::new(full_flight().stewart(), l, 0.02, DT);
+        let held = PlatformCommand {
+            pose: Vector6::new(0.2, 0.0, -0.05, 0.0, 0.05, 0.0),
+            ..Default::default()
+        };
+        for _ in 0..600 {
+            s.begin_step(true);
+            sent_through_limiter(&mut s, &mut limiter, &held);
+        }
+        assert_eq!(s.state(), SafetyState::Running);
+        s.platform(PlatformReadiness::Fault);
+        // A later "ready" does not clear it.
+        s.platform(PlatformReadiness::Ready);
+        let p = s.begin_step(true);
+        assert_eq!((p.state, p.cue_gain), (SafetyState::Fault, 0.0));
+        let out = sent_through_limiter(&mut s, &mut limiter, &held);
+        assert!((out.pose - held.pose).amax() < 1e-9, "{out:?}");
+        assert!(!s.is_stopped());
+        // An e-stop now ends the session without leaving the fault.
+        s.estop();
+        assert_eq!(s.begin_step(true).state, SafetyState::Fault);
+        assert!(s.is_stopped());
+        // A fault while parked, waiting: also latched.
+        let mut s = Safety::new(SafetyParams::default(), l, DT);
+        s.platform(PlatformReadiness::Fault);
+        assert_eq!(s.begin_step(true).state, SafetyState::Fault);
     }
 
     #[test]

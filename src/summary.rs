@@ -76,6 +76,10 @@ pub struct LiveSummary {
     /// file, docs/formats.md), if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub unit_warning: Option<String>,
+    /// Present only when a platform fault stopped all motion: the output and what it said
+    /// (a Moog base's fault state, or its silence). The session then ends with an error.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub platform_fault: Option<String>,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]

@@ -23,8 +23,8 @@ use crate::mca::AlgorithmId;
 use crate::metrics::TimeHistogram;
 use crate::model::stewart::Stewart;
 use crate::profile::Profile;
-use crate::safety::{Safety, SafetyParams, SafetyState};
-use crate::sinks::{CommandSink, FrameSink, PlatformOutput};
+use crate::safety::{PlatformReadiness, Safety, SafetyParams, SafetyState};
+use crate::sinks::{CommandSink, FrameSink, PlatformOutput, PlatformPhase, PlatformStatus};
 use crate::source::{HeldSample, HeldSampleHandle};
 use crate::sources::live::LiveInput;
 use crate::summary::{LiveSummary, Quantiles, Summary, SummaryBuilder};
@@ -87,6 +87,8 @@ pub struct StepReport<'a> {
     pub stats: &'a LiveStats,
     /// What happened at this step (usually nothing).
     pub events: &'a [LiveEvent],
+    /// What the platform says of itself (the first output that answers: a Moog base).
+    pub platform: Option<PlatformStatus>,
 }
 
 /// Counters and histograms of the session, in constant memory.
@@ -104,6 +106,8 @@ pub struct LiveStats {
     pub malformed: u64,
     /// The unit or sign mistake the first seconds of input suggest, if any.
     pub unit_warning: Option<String>,
+    /// The platform fault that stopped all motion (the output and what it said), if any.
+    pub platform_fault: Option<String>,
 }
 
 impl LiveStats {
@@ -121,6 +125,7 @@ impl LiveStats {
             input_lost_s: self.input_lost_steps as f64 / rate_hz,
             malformed: self.malformed,
             unit_warning: self.unit_warning.clone(),
+            platform_fault: self.platform_fault.clone(),
         }
     }
 }
@@ -153,6 +158,10 @@ pub struct LiveSession {
     /// The first seconds of fresh input, for the unit and sign checks; `None` once decided.
     units: Option<UnitStats>,
     events: Vec<LiveEvent>,
+    /// Each output's phase at the last step (`None`: it does not say), for the events.
+    platform_phases: Vec<Option<PlatformPhase>>,
+    /// What the first answering output said at the last step.
+    platform: Option<PlatformStatus>,
 }
 
 impl LiveSession {
@@ -200,11 +209,14 @@ impl LiveSession {
             lost_since_s: None,
             units: Some(UnitStats::new()),
             events: Vec::new(),
+            platform_phases: Vec::new(),
+            platform: None,
         })
     }
 
     pub fn add_output(&mut self, sink: Box<dyn CommandSink>) {
         self.outputs.push(sink);
+        self.platform_phases.push(None);
     }
 
     /// Attaches a frame sink: it gets every frame after the step's command has been sent.
@@ -270,12 +282,13 @@ impl LiveSession {
         self.events.clear();
         let t_s = self.engine.position() as f64 / self.rate_hz;
         self.input_events(t_s, input_ok);
+        self.poll_platforms(t_s);
         let state_before = self.safety.state();
         let plan = self.safety.begin_step(input_ok);
         if plan.state != state_before {
             let text = self.state_text(plan.state);
             let level = match plan.state {
-                SafetyState::Estop => EventLevel::Error,
+                SafetyState::Estop | SafetyState::Fault => EventLevel::Error,
                 SafetyState::Washout => EventLevel::Warning,
                 _ => EventLevel::Info,
             };
@@ -346,7 +359,45 @@ impl LiveSession {
             time_in_state_s: self.safety.time_in_state_s(),
             stats: &self.stats,
             events: &self.events,
+            platform: self.platform.clone(),
         })
+    }
+
+    /// Reads what every output says of itself, tells the safety stage (the fade-in waits for
+    /// a ready platform; a fault stops motion), and makes an event of every change of phase.
+    fn poll_platforms(&mut self, t_s: f64) {
+        let mut readiness = PlatformReadiness::Ready;
+        let mut first = None;
+        for (out, last) in self.outputs.iter_mut().zip(&mut self.platform_phases) {
+            let Some(status) = out.poll() else {
+                continue;
+            };
+            match status.phase {
+                PlatformPhase::Fault => readiness = PlatformReadiness::Fault,
+                PlatformPhase::Engaged => {}
+                _ if readiness == PlatformReadiness::Ready => {
+                    readiness = PlatformReadiness::NotReady
+                }
+                _ => {}
+            }
+            if *last != Some(status.phase) {
+                *last = Some(status.phase);
+                let event = platform_event(t_s, &out.describe(), &status);
+                if status.phase == PlatformPhase::Fault && self.stats.platform_fault.is_none() {
+                    self.stats.platform_fault =
+                        Some(format!("{}: {}", out.describe(), status.detail));
+                }
+                self.events.push(event);
+            }
+            first.get_or_insert(status);
+        }
+        self.platform = first;
+        self.safety.platform(readiness);
+    }
+
+    /// The platform fault that stopped all motion, if there was one.
+    pub fn platform_fault(&self) -> Option<&str> {
+        self.stats.platform_fault.as_deref()
     }
 
     /// The input lost (after it had been good) and back.
@@ -398,6 +449,10 @@ impl LiveSession {
             }
             SafetyState::Washout => "washout to neutral: input lost".to_string(),
             SafetyState::Estop => "e-stop: washout to neutral, then park".to_string(),
+            SafetyState::Fault => format!(
+                "platform fault: all motion stopped, the pose held ({})",
+                self.stats.platform_fault.as_deref().unwrap_or("see above")
+            ),
             SafetyState::Parked if self.safety.estopped() => {
                 "parked at neutral after the e-stop".to_string()
             }
@@ -451,17 +506,64 @@ impl LiveSession {
     /// Says goodbye to the platform (Moog: park) and the simulator, and closes every frame
     /// sink; returns what each sink said.
     pub fn finish(mut self) -> Result<(Summary, Vec<String>)> {
+        let mut lines = Vec::new();
+        let t_s = self.engine.position() as f64 / self.rate_hz;
+        let mut events = Vec::new();
         for out in &mut self.outputs {
             out.close()
                 .with_context(|| format!("{}: closing", out.describe()))?;
+            // How the way out ended (Moog: settled, or a fault while parking).
+            let Some(status) = out.poll() else {
+                continue;
+            };
+            let event = platform_event(t_s, &out.describe(), &status);
+            if status.phase == PlatformPhase::Fault && self.stats.platform_fault.is_none() {
+                self.stats.platform_fault = Some(format!("{}: {}", out.describe(), status.detail));
+            }
+            lines.push(format!("live: {}{}", level_prefix(event.level), event.text));
+            events.push(event);
         }
         self.input.close();
         let summary = self.summary();
-        let mut lines = Vec::new();
-        for sink in self.frame_sinks.drain(..) {
+        for mut sink in self.frame_sinks.drain(..) {
+            for event in &events {
+                sink.event(event)?;
+            }
+            if let Some(fault) = &self.stats.platform_fault {
+                sink.annotate("platform_fault", fault);
+            }
             lines.push(sink.finish()?);
         }
         Ok((summary, lines))
+    }
+}
+
+/// `warning: ` and `error: ` before an event's text on stderr.
+pub fn level_prefix(level: EventLevel) -> &'static str {
+    match level {
+        EventLevel::Info => "",
+        EventLevel::Warning => "warning: ",
+        EventLevel::Error => "error: ",
+    }
+}
+
+/// A platform's change of phase, for the operator.
+fn platform_event(t_s: f64, output: &str, status: &PlatformStatus) -> LiveEvent {
+    let (level, what) = match status.phase {
+        PlatformPhase::Connecting => (EventLevel::Info, "connecting"),
+        PlatformPhase::Engaging => (
+            EventLevel::Info,
+            "engaging: poses held at neutral until it is engaged",
+        ),
+        PlatformPhase::Engaged => (EventLevel::Info, "engaged: the cue may fade in"),
+        PlatformPhase::Parking => (EventLevel::Info, "parking"),
+        PlatformPhase::Parked => (EventLevel::Info, "parked"),
+        PlatformPhase::Fault => (EventLevel::Error, "FAULT: no more poses"),
+    };
+    LiveEvent {
+        t_s,
+        level,
+        text: format!("{output}: base {what}: {}", status.detail),
     }
 }
 

@@ -94,6 +94,11 @@ impl FrameSink for LiveRecording {
         )?)
     }
 
+    fn annotate(&mut self, key: &'static str, value: &str) {
+        self.extra.retain(|(k, _)| *k != key);
+        self.extra.push((key, value.to_string()));
+    }
+
     fn finish(self: Box<Self>) -> Result<String> {
         let LiveRecording {
             recorder,

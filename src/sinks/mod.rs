@@ -1,7 +1,8 @@
 //! Where frames and platform commands go (DESIGN §11): adapters around the core, each named
 //! for what it is. [`FrameSink`]s take whole frames (the MCAP recorder; Foxglove next);
 //! [`CommandSink`]s take the one command a live session sends to the platform each step
-//! (hexcue's JSON over UDP, Moog's 6DOF2000E DOF mode).
+//! (hexcue's JSON over UDP, Moog's 6DOF2000E DOF mode), and a platform that answers says
+//! where it is in its own sequence ([`PlatformStatus`]): the safety stage waits for it.
 
 pub mod moog;
 pub mod udp_json;
@@ -26,6 +27,64 @@ pub trait FrameSink: Send {
     fn event(&mut self, _event: &crate::live::LiveEvent) -> anyhow::Result<()> {
         Ok(())
     }
+    /// A fact about the whole session known only at its end (the platform's fault), under
+    /// `key`; sinks that keep metadata (the recording) keep it, others ignore it.
+    fn annotate(&mut self, _key: &'static str, _value: &str) {}
+}
+
+/// Where a platform that reports its state is in its own sequence.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlatformPhase {
+    /// No answer yet, or not yet in the mode poses need (Moog: DOF mode).
+    Connecting,
+    /// Rising to neutral: poses are held at neutral until it is engaged.
+    Engaging,
+    /// Follows poses.
+    Engaged,
+    /// Settling on the way out.
+    Parking,
+    /// Settled after parking.
+    Parked,
+    /// Stopped by a fault (reported, or silence): no more poses, latched.
+    Fault,
+}
+
+impl PlatformPhase {
+    pub fn word(self) -> &'static str {
+        match self {
+            PlatformPhase::Connecting => "CONNECTING",
+            PlatformPhase::Engaging => "ENGAGING",
+            PlatformPhase::Engaged => "ENGAGED",
+            PlatformPhase::Parking => "PARKING",
+            PlatformPhase::Parked => "PARKED",
+            PlatformPhase::Fault => "FAULT",
+        }
+    }
+}
+
+/// What a platform says of itself, for the safety stage and the operator.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlatformStatus {
+    pub phase: PlatformPhase,
+    /// Time in this phase (s).
+    pub in_phase_s: f64,
+    /// What the platform last said, in words (its state, the fault and why).
+    pub detail: String,
+    /// A few characters for the console's header: the fault word, or `NO REPLY`.
+    pub code: Option<String>,
+}
+
+impl PlatformStatus {
+    /// The console header's words: `BASE ENGAGING 1.3s`, `BASE FAULT 0x0080`.
+    pub fn header(&self) -> String {
+        match (&self.code, self.phase) {
+            (Some(code), _) => format!("BASE {} {code}", self.phase.word()),
+            (None, PlatformPhase::Engaged | PlatformPhase::Parked) => {
+                format!("BASE {}", self.phase.word())
+            }
+            (None, phase) => format!("BASE {} {:.1}s", phase.word(), self.in_phase_s),
+        }
+    }
 }
 
 /// The command a live session sends at one step, after the safety stage and the limiter.
@@ -48,10 +107,17 @@ pub struct PlatformOutput {
 
 /// A platform, or anything listening like one, fed one command per step.
 pub trait CommandSink: Send {
+    /// Reads what the platform has said since the last call, without waiting: `None` for an
+    /// output that does not answer (hexcue's JSON), which counts as ready. Called at the start
+    /// of every step, and once after [`CommandSink::close`].
+    fn poll(&mut self) -> Option<PlatformStatus> {
+        None
+    }
     /// Sends one command. A full socket buffer or a peer that is not listening is not an
     /// error here: the next step sends again, and a platform must not stall the clock.
     fn send(&mut self, out: &PlatformOutput) -> std::io::Result<()>;
-    /// The last words before the session ends (Moog: park).
+    /// The last words before the session ends (Moog: park until settled, or a timeout, whose
+    /// outcome the next [`CommandSink::poll`] tells).
     fn close(&mut self) -> std::io::Result<()> {
         Ok(())
     }
@@ -59,15 +125,20 @@ pub trait CommandSink: Send {
     fn describe(&self) -> String;
 }
 
-/// Opens a command sink from `udp://HOST:PORT` or `moog://HOST:PORT`.
-pub fn open_output(url: &str) -> Result<Box<dyn CommandSink>> {
+/// Opens a command sink from `udp://HOST:PORT` or `moog://HOST:PORT`; a Moog base is driven
+/// with `moog` (the profile's `[moog]`) at one command every `period`.
+pub fn open_output(
+    url: &str,
+    moog: &crate::profile::MoogParams,
+    period: std::time::Duration,
+) -> Result<Box<dyn CommandSink>> {
     let (scheme, addr) = url
         .split_once("://")
         .with_context(|| format!("--output {url}: expected udp://HOST:PORT or moog://HOST:PORT"))?;
     let addr = crate::sources::resolve(addr).with_context(|| format!("--output {url}"))?;
     Ok(match scheme {
         "udp" => Box::new(udp_json::UdpJson::open(addr)?),
-        "moog" => Box::new(moog::Moog::open(addr)?),
+        "moog" => Box::new(moog::Moog::open(addr, moog, period)?),
         other => bail!("--output {url}: unknown scheme `{other}`; expected udp:// or moog://"),
     })
 }

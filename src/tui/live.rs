@@ -21,6 +21,7 @@ use crate::mca::AlgorithmId;
 use crate::metrics::CHANNELS;
 use crate::profile::Profile;
 use crate::safety::SafetyState;
+use crate::sinks::PlatformPhase;
 use crate::summary::{Summary, SummaryBuilder};
 
 use super::app::{App, EventSource, UiEvent, FRAME_INTERVAL};
@@ -48,6 +49,8 @@ pub struct LiveStatus {
     pub stopping: bool,
     /// The first seconds of input suggest a unit or sign mistake (the summary says which).
     pub unit_warning: bool,
+    /// What the platform says of itself (a Moog base), if it answers.
+    pub platform: Option<crate::sinks::PlatformStatus>,
 }
 
 impl LiveStatus {
@@ -69,6 +72,7 @@ impl LiveStatus {
             step_p99_ms: s.step.quantile(0.99) / 1e3,
             stopping,
             unit_warning: s.unit_warning.is_some(),
+            platform: report.platform.clone(),
         }
     }
 }
@@ -81,6 +85,7 @@ pub fn state_badge(state: SafetyState) -> (&'static str, &'static str) {
         SafetyState::Running => ("▶", "RUNNING"),
         SafetyState::Washout => ("~", "WASHOUT"),
         SafetyState::Estop => ("✖", "E-STOP"),
+        SafetyState::Fault => ("⚠", "FAULT"),
     }
 }
 
@@ -91,18 +96,29 @@ pub(super) fn status_line(app: &App, live: &LiveStatus) -> Line<'static> {
     let style = match live.state {
         SafetyState::Running => th.ok(),
         SafetyState::Engaging | SafetyState::Washout => th.warn(),
-        SafetyState::Estop => th.crit(),
+        SafetyState::Estop | SafetyState::Fault => th.crit(),
         SafetyState::Parked => th.dim(),
     };
     let mut spans = vec![
         Span::styled(format!("{sym} {word}"), style.add_modifier(Modifier::BOLD)),
         Span::styled(format!(" {:.1}s", live.time_in_state_s), th.dim()),
+    ];
+    // The base's own state beside the session's: the fade-in waits for BASE ENGAGED.
+    if let Some(p) = &live.platform {
+        let style = match p.phase {
+            PlatformPhase::Engaged => th.ok(),
+            PlatformPhase::Fault => th.crit().add_modifier(Modifier::BOLD),
+            _ => th.warn(),
+        };
+        spans.push(Span::styled(format!("  {}", p.header()), style));
+    }
+    spans.extend([
         Span::styled(format!("  LIVE {}", live.input), th.title()),
         Span::styled("  drive ", th.dim()),
         Span::styled(live.drive.label(), th.text().add_modifier(Modifier::BOLD)),
         Span::styled("  profile ", th.dim()),
         Span::styled(app.info.profile_name.clone(), th.text()),
-    ];
+    ]);
     if !live.outputs.is_empty() {
         spans.push(Span::styled(
             format!("  → {}", live.outputs.join(" ")),
@@ -505,6 +521,7 @@ mod tests {
             step_p99_ms: 3.1,
             stopping,
             unit_warning: false,
+            platform: None,
         });
         app
     }
@@ -554,9 +571,45 @@ mod tests {
     }
 
     #[test]
+    fn the_header_shows_the_base_state_word() {
+        use crate::sinks::PlatformStatus;
+        let mut app = live_app(SafetyState::Parked, false);
+        let base = |phase, in_phase_s, code: Option<&str>| PlatformStatus {
+            phase,
+            in_phase_s,
+            detail: String::new(),
+            code: code.map(String::from),
+        };
+        for (status, state, want) in [
+            (
+                base(PlatformPhase::Engaging, 1.34, None),
+                SafetyState::Parked,
+                "■ PARKED 1.5s  BASE ENGAGING 1.3s",
+            ),
+            (
+                base(PlatformPhase::Engaged, 4.0, None),
+                SafetyState::Running,
+                "▶ RUNNING 1.5s  BASE ENGAGED  LIVE",
+            ),
+            (
+                base(PlatformPhase::Fault, 0.2, Some("0x0080")),
+                SafetyState::Fault,
+                "⚠ FAULT 1.5s  BASE FAULT 0x0080",
+            ),
+        ] {
+            if let Some(l) = app.live.as_mut() {
+                l.state = state;
+                l.platform = Some(status);
+            }
+            let text = screen(&app, 120, 24);
+            assert!(text.contains(want), "missing {want:?} in\n{text}");
+        }
+    }
+
+    #[test]
     fn every_state_has_a_word_and_a_symbol() {
         use SafetyState::*;
-        let badges: Vec<_> = [Parked, Engaging, Running, Washout, Estop]
+        let badges: Vec<_> = [Parked, Engaging, Running, Washout, Estop, Fault]
             .into_iter()
             .map(state_badge)
             .collect();
