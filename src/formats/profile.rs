@@ -229,6 +229,45 @@ mod tests {
     }
 
     #[test]
+    fn the_moog_section_is_optional_and_checked() {
+        let shipped = default_profile();
+        assert_eq!(shipped.moog, crate::profile::MoogParams::default());
+        assert_eq!(shipped.moog.neutral_heave_m, 0.0);
+        // Absent: the defaults.
+        let start = DEFAULT_PROFILE_TOML.find("[moog]").unwrap();
+        let end = start + DEFAULT_PROFILE_TOML[start..].find("[score]").unwrap();
+        let without = format!(
+            "{}{}",
+            &DEFAULT_PROFILE_TOML[..start],
+            &DEFAULT_PROFILE_TOML[end..]
+        );
+        assert_eq!(
+            parse_profile(&without, "t.toml").unwrap().moog,
+            shipped.moog
+        );
+        let e11 = with("neutral_heave_m = 0.0", "neutral_heave_m = -0.2286");
+        assert_eq!(
+            parse_profile(&e11, "t.toml").unwrap().moog.neutral_heave_m,
+            -0.2286
+        );
+        assert_eq!(
+            invalid_key(&with("neutral_heave_m = 0.0", "neutral_heave_m = -2.286")),
+            "moog.neutral_heave_m"
+        );
+        assert_eq!(
+            invalid_key(&with("reply_timeout_s = 0.5", "reply_timeout_s = 0.0")),
+            "moog.reply_timeout_s"
+        );
+        let err = parse_profile(
+            &with("neutral_heave_m = 0.0", "neutral_heave = 0.0"),
+            "t.toml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("neutral_heave"), "{err}");
+    }
+
+    #[test]
     fn score_section_refuses_unknown_keys_and_names_bad_weights() {
         let text = with(
             "limiter_weight = 10.0",
