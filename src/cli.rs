@@ -294,61 +294,8 @@ fn key_form(name: &str) -> String {
         .to_ascii_lowercase()
 }
 
-/// Refuses an output path before any work: one that exists (unless `force`), one that is a
-/// folder, or one whose folder is missing or not writable, naming the file and the option.
-pub fn check_output(path: &Path, force: bool, option: &str) -> Result<()> {
-    let shown = path.display();
-    if path.is_dir() {
-        bail!("{shown}: {option}: is a folder; expected a file name");
-    }
-    if path.exists() {
-        if !force {
-            bail!(
-                "{shown}: {option}: the file exists; pass --force to overwrite it, or choose \
-                 another name"
-            );
-        }
-        std::fs::OpenOptions::new()
-            .append(true)
-            .open(path)
-            .with_context(|| format!("{shown}: {option}: cannot be overwritten"))?;
-        return Ok(());
-    }
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    check_writable_dir(dir).with_context(|| format!("{shown}: {option}: cannot be written"))
-}
-
-/// A folder exists and a file can be created in it (tried, then removed).
-fn check_writable_dir(dir: &Path) -> Result<()> {
-    if !dir.is_dir() {
-        bail!("the folder {} does not exist", dir.display());
-    }
-    let probe = dir.join(format!(".hexcue-write-check-{}", std::process::id()));
-    match std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&probe)
-    {
-        Ok(_) => {
-            let _ = std::fs::remove_file(&probe);
-            Ok(())
-        }
-        Err(e) => bail!("cannot create a file in the folder {}: {e}", dir.display()),
-    }
-}
-
-/// The same file named by two options would be written twice.
-fn check_distinct(a: Option<&Path>, b: Option<&Path>, what: &str) -> Result<()> {
-    if let (Some(a), Some(b)) = (a, b) {
-        if a == b {
-            bail!("{}: {what} name the same file", a.display());
-        }
-    }
-    Ok(())
-}
+pub use crate::outputs::check_output;
+use crate::outputs::{check_distinct, check_output_of, check_writable_dir, Input};
 
 /// Parses a comma-separated option into known values, in the order given and without
 /// repeats; an unknown name is refused with the list of known ones.
@@ -991,15 +938,24 @@ fn check_session_outputs(
     summary: Option<&Path>,
     headless: bool,
     force: bool,
+    inputs: &[Input],
 ) -> Result<()> {
     check_distinct(record, summary, "--record and --summary")?;
     if let Some(path) = record {
-        check_output(path, force, "--record")?;
+        check_output_of(path, force, "--record", inputs)?;
     }
     if let (Some(path), true) = (summary, headless) {
-        check_output(path, force, "--summary")?;
+        check_output_of(path, force, "--summary", inputs)?;
     }
     Ok(())
+}
+
+/// The files a command reads, as [`check_output_of`] takes them.
+fn inputs<'a>(named: &[(Option<&'a Path>, &'a str)]) -> Vec<Input<'a>> {
+    named
+        .iter()
+        .filter_map(|(path, option)| path.map(|p| Input::new(p, option)))
+        .collect()
 }
 
 pub fn run(cli: Cli) -> Result<()> {
@@ -1010,6 +966,10 @@ pub fn run(cli: Cli) -> Result<()> {
                 args.summary.as_deref(),
                 args.headless,
                 args.force,
+                &inputs(&[
+                    (args.trace.as_deref(), "--trace"),
+                    (args.profile.as_deref(), "--profile"),
+                ]),
             )?;
             headless_or_console(
                 args.headless,
@@ -1020,13 +980,9 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Review(args) => {
             if let (Some(path), true) = (&args.summary, args.headless) {
-                check_output(path, args.force, "--summary")?;
+                let recording = [Input::new(&args.file, "recording")];
+                check_output_of(path, args.force, "--summary", &recording)?;
             }
-            check_distinct(
-                Some(args.file.as_path()),
-                args.summary.as_deref(),
-                "the recording and --summary",
-            )?;
             headless_or_console(
                 args.headless,
                 args.summary.as_deref(),
@@ -1046,6 +1002,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 args.summary.as_deref(),
                 args.headless,
                 args.force,
+                &inputs(&[(args.profile.as_deref(), "--profile")]),
             )?;
             headless_or_console(
                 args.headless,
@@ -1060,12 +1017,7 @@ pub fn run(cli: Cli) -> Result<()> {
             output,
             force,
         } => {
-            check_distinct(
-                Some(input.as_path()),
-                Some(output.as_path()),
-                "INPUT and OUTPUT",
-            )?;
-            check_output(&output, force, "OUTPUT")?;
+            check_output_of(&output, force, "OUTPUT", &[Input::new(&input, "recording")])?;
             let stats = crate::formats::recording::recover(&input, &output)?;
             eprintln!(
                 "{}: wrote a finished copy with {} steps ({} messages)",
@@ -1089,7 +1041,11 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     profile.mpc.time_limit_ms = f64::INFINITY;
     let algorithms = parse_algorithms(&args.algorithms)?;
     if let Some(path) = &args.out {
-        check_output(path, args.force, "--out")?;
+        let inputs = inputs(&[
+            (args.traces.as_deref(), "--traces"),
+            (args.profile.as_deref(), "--profile"),
+        ]);
+        check_output_of(path, args.force, "--out", &inputs)?;
     }
     // Every trace is read and checked before the first is run: a bad one at the end of the
     // folder must not cost the runs before it.
@@ -1179,8 +1135,8 @@ pub fn run_plot(args: &PlotArgs) -> Result<()> {
             bail!("--from {from} --to {to}: expected --from before --to");
         }
     }
-    check_distinct(Some(&args.file), Some(&args.output), "the recording and -o")?;
-    check_output(&args.output, args.force, "-o")?;
+    let recording = [Input::new(&args.file, "recording")];
+    check_output_of(&args.output, args.force, "-o", &recording)?;
     crate::plot::timeline::plot(&args.file, &request, &args.output)?;
     eprintln!("wrote {}", args.output.display());
     Ok(())
@@ -1217,6 +1173,10 @@ pub fn run_omct(args: &OmctArgs) -> Result<()> {
         .chain(tests.iter().map(|t| format!("{}.{}", t.key(), args.format)))
         .map(|name| args.out.join(name))
         .collect();
+    let profile_input = inputs(&[(args.profile.as_deref(), "--profile")]);
+    for path in &outputs {
+        crate::outputs::check_not_input(path, "--out", &profile_input)?;
+    }
     let existing: Vec<String> = outputs
         .iter()
         .filter(|p| p.exists())

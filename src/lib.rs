@@ -16,6 +16,7 @@ pub mod mca;
 pub mod metrics;
 pub mod model;
 pub mod omct;
+pub mod outputs;
 pub mod plot;
 pub mod profile;
 pub mod qp;
