@@ -62,6 +62,9 @@ pub enum Command {
     /// Tune one algorithm's keys against the cueing score on a set of traces (CMA-ES) and
     /// write the tuned profile (docs/tuning.md).
     Tune(crate::tune::TuneArgs),
+    /// Export a recording to CSV for MATLAB and spreadsheets: one file per topic, one topic,
+    /// or chosen fields side by side (docs/recordings.md).
+    Export(crate::export::ExportArgs),
 }
 
 #[derive(Args, Debug, Clone)]
@@ -767,12 +770,12 @@ pub fn format_table(s: &Summary) -> String {
     for (name, alg) in &s.algorithms {
         for ch in CHANNELS {
             if let Some(m) = alg.metrics.get(ch) {
-                // AAD and RMSE are in the channel's unit; the metrics keep SI (rad/s) where
-                // the console and the plots show °/s.
-                let unit = if ch.starts_with('f') {
-                    "m/s²"
+                // AAD and RMSE in the channel's unit as the console and the plots show it
+                // (°/s for rates); the JSON summary keeps SI (rad/s).
+                let (unit, scale) = if ch.starts_with('f') {
+                    ("m/s²", 1.0)
                 } else {
-                    "rad/s"
+                    ("°/s", 180.0 / std::f64::consts::PI)
                 };
                 let ed = if m.ed_at_bound {
                     at_bound = true;
@@ -785,13 +788,13 @@ pub fn format_table(s: &Summary) -> String {
                     name,
                     ch,
                     unit,
-                    sig(m.aad),
+                    sig(m.aad * scale),
                     sig(m.naad),
                     m.aas,
                     m.rae,
                     m.pc,
                     ed,
-                    sig(m.rmse),
+                    sig(m.rmse * scale),
                     m.false_cue_s
                 ));
             }
@@ -799,7 +802,8 @@ pub fn format_table(s: &Summary) -> String {
     }
     out.push_str(
         "\nAAD and RMSE in the unit shown (fz as the change from 1 g); NAAD, AAS, RAE and PC \
-         have none; ED and false in s.\n",
+         have none; ED and false in s. Usage and excursions in % of the limit. The JSON \
+         summary (--summary) keeps SI: rad/s, m and fractions.\n",
     );
     if at_bound {
         out.push_str(&format!(
@@ -811,14 +815,14 @@ pub fn format_table(s: &Summary) -> String {
     out.push('\n');
     for (name, alg) in &s.algorithms {
         out.push_str(&format!(
-            "{:<6} score {:.3}, limiter {:.2} % of steps ({}), max leg usage {:.3}, min margin {:.3} m, leg violations {}, \
+            "{:<6} score {:.3}, limiter {:.2} % of steps ({}), max leg usage {:.1} %, min margin {:.1} mm, leg violations {}, \
              step median {:.1} µs p99 {:.1} µs max {:.1} µs\n",
             name,
             alg.score,
             100.0 * alg.limiter_fraction,
             alg.limiter_steps,
-            alg.max_leg_usage,
-            alg.min_leg_margin_m,
+            100.0 * alg.max_leg_usage,
+            1000.0 * alg.min_leg_margin_m,
             alg.leg_violations,
             alg.step_time_us.median,
             alg.step_time_us.p99,
@@ -828,8 +832,8 @@ pub fn format_table(s: &Summary) -> String {
             .iter()
             .map(|d| {
                 format!(
-                    "{d} {:.2}",
-                    alg.max_dof_usage.get(*d).copied().unwrap_or(0.0)
+                    "{d} {:.0} %",
+                    100.0 * alg.max_dof_usage.get(*d).copied().unwrap_or(0.0)
                 )
             })
             .collect();
@@ -1012,6 +1016,7 @@ pub fn run(cli: Cli) -> Result<()> {
             )
         }
         Command::Tune(args) => crate::tune::run(&args),
+        Command::Export(args) => crate::export::run(&args),
         Command::Recover {
             input,
             output,

@@ -82,7 +82,7 @@ fn play_never_writes_over_its_trace_or_profile() {
 }
 
 #[test]
-fn review_plot_recover_compare_and_tune_never_write_over_their_inputs() {
+fn review_plot_recover_export_compare_and_tune_never_write_over_their_inputs() {
     let dir = tempfile::tempdir().unwrap();
     let trace = short_trace(dir.path(), 200);
     let mcap = dir.path().join("run.mcap");
@@ -102,6 +102,16 @@ fn review_plot_recover_compare_and_tune_never_write_over_their_inputs() {
         ],
         vec!["plot".as_ref(), m, "-o".as_ref(), m, "--force".as_ref()],
         vec!["recover".as_ref(), m, m, "--force".as_ref()],
+        vec!["export".as_ref(), m, "-o".as_ref(), m, "--force".as_ref()],
+        vec![
+            "export".as_ref(),
+            m,
+            "--topic".as_ref(),
+            "/cwf/platform".as_ref(),
+            "-o".as_ref(),
+            m,
+            "--force".as_ref(),
+        ],
     ];
     for args in &attempts {
         refused(args, &mcap, &recording, "recording");
