@@ -62,6 +62,9 @@ pub enum Command {
     /// Tune one algorithm's keys against the cueing score on a set of traces (CMA-ES) and
     /// write the tuned profile (docs/tuning.md).
     Tune(crate::tune::TuneArgs),
+    /// Export a recording to CSV for MATLAB and spreadsheets: one file per topic, one topic,
+    /// or chosen fields side by side (docs/recordings.md).
+    Export(crate::export::ExportArgs),
 }
 
 #[derive(Args, Debug, Clone)]
@@ -294,61 +297,8 @@ fn key_form(name: &str) -> String {
         .to_ascii_lowercase()
 }
 
-/// Refuses an output path before any work: one that exists (unless `force`), one that is a
-/// folder, or one whose folder is missing or not writable, naming the file and the option.
-pub fn check_output(path: &Path, force: bool, option: &str) -> Result<()> {
-    let shown = path.display();
-    if path.is_dir() {
-        bail!("{shown}: {option}: is a folder; expected a file name");
-    }
-    if path.exists() {
-        if !force {
-            bail!(
-                "{shown}: {option}: the file exists; pass --force to overwrite it, or choose \
-                 another name"
-            );
-        }
-        std::fs::OpenOptions::new()
-            .append(true)
-            .open(path)
-            .with_context(|| format!("{shown}: {option}: cannot be overwritten"))?;
-        return Ok(());
-    }
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    check_writable_dir(dir).with_context(|| format!("{shown}: {option}: cannot be written"))
-}
-
-/// A folder exists and a file can be created in it (tried, then removed).
-fn check_writable_dir(dir: &Path) -> Result<()> {
-    if !dir.is_dir() {
-        bail!("the folder {} does not exist", dir.display());
-    }
-    let probe = dir.join(format!(".hexcue-write-check-{}", std::process::id()));
-    match std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&probe)
-    {
-        Ok(_) => {
-            let _ = std::fs::remove_file(&probe);
-            Ok(())
-        }
-        Err(e) => bail!("cannot create a file in the folder {}: {e}", dir.display()),
-    }
-}
-
-/// The same file named by two options would be written twice.
-fn check_distinct(a: Option<&Path>, b: Option<&Path>, what: &str) -> Result<()> {
-    if let (Some(a), Some(b)) = (a, b) {
-        if a == b {
-            bail!("{}: {what} name the same file", a.display());
-        }
-    }
-    Ok(())
-}
+pub use crate::outputs::check_output;
+use crate::outputs::{check_distinct, check_output_of, check_writable_dir, Input};
 
 /// Parses a comma-separated option into known values, in the order given and without
 /// repeats; an unknown name is refused with the list of known ones.
@@ -825,12 +775,12 @@ pub fn format_table(s: &Summary) -> String {
     for (name, alg) in &s.algorithms {
         for ch in CHANNELS {
             if let Some(m) = alg.metrics.get(ch) {
-                // AAD and RMSE are in the channel's unit; the metrics keep SI (rad/s) where
-                // the console and the plots show °/s.
-                let unit = if ch.starts_with('f') {
-                    "m/s²"
+                // AAD and RMSE in the channel's unit as the console and the plots show it
+                // (°/s for rates); the JSON summary keeps SI (rad/s).
+                let (unit, scale) = if ch.starts_with('f') {
+                    ("m/s²", 1.0)
                 } else {
-                    "rad/s"
+                    ("°/s", 180.0 / std::f64::consts::PI)
                 };
                 let ed = if m.ed_at_bound {
                     at_bound = true;
@@ -843,13 +793,13 @@ pub fn format_table(s: &Summary) -> String {
                     name,
                     ch,
                     unit,
-                    sig(m.aad),
+                    sig(m.aad * scale),
                     sig(m.naad),
                     m.aas,
                     m.rae,
                     m.pc,
                     ed,
-                    sig(m.rmse),
+                    sig(m.rmse * scale),
                     m.false_cue_s
                 ));
             }
@@ -857,7 +807,8 @@ pub fn format_table(s: &Summary) -> String {
     }
     out.push_str(
         "\nAAD and RMSE in the unit shown (fz as the change from 1 g); NAAD, AAS, RAE and PC \
-         have none; ED and false in s.\n",
+         have none; ED and false in s. Usage and excursions in % of the limit. The JSON \
+         summary (--summary) keeps SI: rad/s, m and fractions.\n",
     );
     if at_bound {
         out.push_str(&format!(
@@ -869,14 +820,14 @@ pub fn format_table(s: &Summary) -> String {
     out.push('\n');
     for (name, alg) in &s.algorithms {
         out.push_str(&format!(
-            "{:<6} score {:.3}, limiter {:.2} % of steps ({}), max leg usage {:.3}, min margin {:.3} m, leg violations {}, \
+            "{:<6} score {:.3}, limiter {:.2} % of steps ({}), max leg usage {:.1} %, min margin {:.1} mm, leg violations {}, \
              step median {:.1} µs p99 {:.1} µs max {:.1} µs\n",
             name,
             alg.score,
             100.0 * alg.limiter_fraction,
             alg.limiter_steps,
-            alg.max_leg_usage,
-            alg.min_leg_margin_m,
+            100.0 * alg.max_leg_usage,
+            1000.0 * alg.min_leg_margin_m,
             alg.leg_violations,
             alg.step_time_us.median,
             alg.step_time_us.p99,
@@ -886,8 +837,8 @@ pub fn format_table(s: &Summary) -> String {
             .iter()
             .map(|d| {
                 format!(
-                    "{d} {:.2}",
-                    alg.max_dof_usage.get(*d).copied().unwrap_or(0.0)
+                    "{d} {:.0} %",
+                    100.0 * alg.max_dof_usage.get(*d).copied().unwrap_or(0.0)
                 )
             })
             .collect();
@@ -999,15 +950,24 @@ fn check_session_outputs(
     summary: Option<&Path>,
     headless: bool,
     force: bool,
+    inputs: &[Input],
 ) -> Result<()> {
     check_distinct(record, summary, "--record and --summary")?;
     if let Some(path) = record {
-        check_output(path, force, "--record")?;
+        check_output_of(path, force, "--record", inputs)?;
     }
     if let (Some(path), true) = (summary, headless) {
-        check_output(path, force, "--summary")?;
+        check_output_of(path, force, "--summary", inputs)?;
     }
     Ok(())
+}
+
+/// The files a command reads, as [`check_output_of`] takes them.
+fn inputs<'a>(named: &[(Option<&'a Path>, &'a str)]) -> Vec<Input<'a>> {
+    named
+        .iter()
+        .filter_map(|(path, option)| path.map(|p| Input::new(p, option)))
+        .collect()
 }
 
 pub fn run(cli: Cli) -> Result<()> {
@@ -1018,6 +978,10 @@ pub fn run(cli: Cli) -> Result<()> {
                 args.summary.as_deref(),
                 args.headless,
                 args.force,
+                &inputs(&[
+                    (args.trace.as_deref(), "--trace"),
+                    (args.profile.as_deref(), "--profile"),
+                ]),
             )?;
             headless_or_console(
                 args.headless,
@@ -1028,13 +992,9 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Review(args) => {
             if let (Some(path), true) = (&args.summary, args.headless) {
-                check_output(path, args.force, "--summary")?;
+                let recording = [Input::new(&args.file, "recording")];
+                check_output_of(path, args.force, "--summary", &recording)?;
             }
-            check_distinct(
-                Some(args.file.as_path()),
-                args.summary.as_deref(),
-                "the recording and --summary",
-            )?;
             headless_or_console(
                 args.headless,
                 args.summary.as_deref(),
@@ -1054,6 +1014,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 args.summary.as_deref(),
                 args.headless,
                 args.force,
+                &inputs(&[(args.profile.as_deref(), "--profile")]),
             )?;
             let mut platform_fault = None;
             headless_or_console(
@@ -1073,17 +1034,13 @@ pub fn run(cli: Cli) -> Result<()> {
             }
         }
         Command::Tune(args) => crate::tune::run(&args),
+        Command::Export(args) => crate::export::run(&args),
         Command::Recover {
             input,
             output,
             force,
         } => {
-            check_distinct(
-                Some(input.as_path()),
-                Some(output.as_path()),
-                "INPUT and OUTPUT",
-            )?;
-            check_output(&output, force, "OUTPUT")?;
+            check_output_of(&output, force, "OUTPUT", &[Input::new(&input, "recording")])?;
             let stats = crate::formats::recording::recover(&input, &output)?;
             eprintln!(
                 "{}: wrote a finished copy with {} steps ({} messages)",
@@ -1107,7 +1064,11 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     profile.mpc.time_limit_ms = f64::INFINITY;
     let algorithms = parse_algorithms(&args.algorithms)?;
     if let Some(path) = &args.out {
-        check_output(path, args.force, "--out")?;
+        let inputs = inputs(&[
+            (args.traces.as_deref(), "--traces"),
+            (args.profile.as_deref(), "--profile"),
+        ]);
+        check_output_of(path, args.force, "--out", &inputs)?;
     }
     // Every trace is read and checked before the first is run: a bad one at the end of the
     // folder must not cost the runs before it.
@@ -1197,8 +1158,8 @@ pub fn run_plot(args: &PlotArgs) -> Result<()> {
             bail!("--from {from} --to {to}: expected --from before --to");
         }
     }
-    check_distinct(Some(&args.file), Some(&args.output), "the recording and -o")?;
-    check_output(&args.output, args.force, "-o")?;
+    let recording = [Input::new(&args.file, "recording")];
+    check_output_of(&args.output, args.force, "-o", &recording)?;
     crate::plot::timeline::plot(&args.file, &request, &args.output)?;
     eprintln!("wrote {}", args.output.display());
     Ok(())
@@ -1235,6 +1196,10 @@ pub fn run_omct(args: &OmctArgs) -> Result<()> {
         .chain(tests.iter().map(|t| format!("{}.{}", t.key(), args.format)))
         .map(|name| args.out.join(name))
         .collect();
+    let profile_input = inputs(&[(args.profile.as_deref(), "--profile")]);
+    for path in &outputs {
+        crate::outputs::check_not_input(path, "--out", &profile_input)?;
+    }
     let existing: Vec<String> = outputs
         .iter()
         .filter(|p| p.exists())

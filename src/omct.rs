@@ -19,9 +19,23 @@ use crate::profile::Profile;
 use crate::trace::{AircraftSample, Trace};
 use crate::G_MPS2;
 
+/// The twelve OMCT frequencies as the standard's table gives them (rad/s): 0.1·10^(i/5),
+/// five a decade, rounded to the table's figures. Measured at these exact values, so that a
+/// report says 10, not the 10.0006 a computed log-spacing gives.
+pub const OMCT_FREQUENCIES_RADPS: [f64; 12] = [
+    0.1, 0.158, 0.251, 0.398, 0.631, 1.0, 1.585, 2.512, 3.981, 6.31, 10.0, 15.85,
+];
+
 /// The twelve OMCT frequencies, log-spaced from 0.1 to 15.85 rad/s.
 pub fn frequencies_radps() -> [f64; 12] {
-    std::array::from_fn(|i| 0.1 * (15.85f64 / 0.1).powf(i as f64 / 11.0))
+    OMCT_FREQUENCIES_RADPS
+}
+
+/// A frequency as the standard's table writes it: its shortest exact decimal (0.1, 0.158, 10,
+/// 15.85), never a float's tail.
+pub fn frequency_label(w_radps: f64) -> String {
+    let rounded = (w_radps * 1000.0).round() / 1000.0;
+    format!("{rounded}")
 }
 
 /// A channel of aircraft input or platform output at the head: Δf x, y, z (m/s²), ω x, y, z
@@ -468,10 +482,20 @@ mod tests {
     #[test]
     fn frequencies_span_the_standard_range() {
         let f = frequencies_radps();
-        assert!((f[0] - 0.1).abs() < 1e-12 && (f[11] - 15.85).abs() < 1e-9);
-        for k in 1..12 {
-            assert!((f[k] / f[k - 1] - (158.5f64).powf(1.0 / 11.0)).abs() < 1e-9);
+        assert_eq!((f[0], f[5], f[10], f[11]), (0.1, 1.0, 10.0, 15.85));
+        for (k, w) in f.iter().enumerate() {
+            // Five a decade, each within the table's rounding of 0.1·10^(k/5).
+            let exact = 0.1 * 10f64.powf(k as f64 / 5.0);
+            assert!(
+                (w - exact).abs() <= 0.0005 * exact.max(1.0),
+                "{w} vs {exact}"
+            );
         }
+        let labels: Vec<String> = f.iter().map(|&w| frequency_label(w)).collect();
+        assert_eq!(
+            labels.join(" "),
+            "0.1 0.158 0.251 0.398 0.631 1 1.585 2.512 3.981 6.31 10 15.85"
+        );
     }
 
     #[test]

@@ -223,3 +223,109 @@ fn shipped_profiles_are_accepted() {
         assert!(out.status.success(), "{file}: {}", stderr(&out));
     }
 }
+
+/// A shipped trace with columns scaled: `rates` multiplies p, q, r, `attitude` phi, theta, psi
+/// (the heading kept in 0…360° as a logger in degrees writes it).
+fn scaled_trace(text: &str, rates: f64, attitude: f64) -> String {
+    let mut lines = text.lines();
+    let mut out = lines.next().unwrap().to_string() + "\n";
+    for line in lines {
+        let mut v: Vec<f64> = line.split(',').map(|f| f.parse().unwrap()).collect();
+        for x in &mut v[4..7] {
+            *x *= rates;
+        }
+        for x in &mut v[7..10] {
+            *x *= attitude;
+        }
+        if attitude != 1.0 {
+            v[9] = v[9].rem_euclid(360.0);
+        }
+        let fields: Vec<String> = v.iter().map(|x| format!("{x:.6}")).collect();
+        out += &(fields.join(",") + "\n");
+    }
+    out
+}
+
+/// Issue 24, item 1: a unit mistake is refused on every shipped flight, the quiet landing and
+/// take-off included, naming the file, the columns and the likely cause; the shipped flights
+/// themselves pass without a warning.
+#[test]
+fn degrees_and_degrees_per_second_are_refused_on_every_shipped_flight() {
+    let dir = tempfile::tempdir().unwrap();
+    let deg = 180.0 / std::f64::consts::PI;
+    for trace in shipped_traces() {
+        let name = trace.file_stem().unwrap().to_string_lossy().into_owned();
+        let text = std::fs::read_to_string(&trace).unwrap();
+        let variants = [
+            ("rates-deg-s", deg, 1.0, ["`p`, `q`, `r`", "°/s"]),
+            (
+                "attitude-deg",
+                1.0,
+                deg,
+                ["`phi`, `theta`, `psi`", "degrees"],
+            ),
+            ("both-deg", deg, deg, ["`phi`, `theta`, `psi`", "degrees"]),
+        ];
+        for (what, rates, attitude, words) in variants {
+            let path = dir.path().join(format!("{name}-{what}.csv"));
+            std::fs::write(&path, scaled_trace(&text, rates, attitude)).unwrap();
+            let out = hexcue(&[
+                "play".as_ref(),
+                "--headless".as_ref(),
+                "--algorithms".as_ref(),
+                "cwf".as_ref(),
+                "--trace".as_ref(),
+                path.as_os_str(),
+            ]);
+            let err = stderr(&out);
+            assert!(!out.status.success(), "{name} {what} ran:\n{err}");
+            assert!(stdout(&out).is_empty(), "{name} {what}: no table");
+            assert!(
+                err.contains(&path.display().to_string()),
+                "{name} {what}: the file is named: {err}"
+            );
+            for w in words {
+                assert!(err.contains(w), "{name} {what}: `{w}` in {err}");
+            }
+            assert!(err.contains("π/180"), "{name} {what}: {err}");
+        }
+        // Unmodified: no refusal and no warning.
+        let plan = hexcue::formats::trace::scan_trace_file(&trace, 100.0)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(
+            plan.notices.iter().all(|n| !n.contains("warning")),
+            "{name}: {:?}",
+            plan.notices
+        );
+    }
+}
+
+/// What cannot be judged is said: a flight at rest gives the rates nothing to be compared
+/// with, and the warning names the file and the columns.
+#[test]
+fn a_flight_that_cannot_be_judged_is_run_with_a_warning_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("parked.csv");
+    let mut text = String::from("t,fx,fy,fz,p,q,r,phi,theta,psi\n");
+    for k in 0..300 {
+        text += &format!("{:.2},0.1,0,-9.81,0,0,0,0,0.05,1.2\n", k as f64 / 100.0);
+    }
+    std::fs::write(&path, text).unwrap();
+    let out = hexcue(&[
+        "play".as_ref(),
+        "--headless".as_ref(),
+        "--algorithms".as_ref(),
+        "cwf".as_ref(),
+        "--trace".as_ref(),
+        path.as_os_str(),
+    ]);
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("warning")
+            && err.contains(&path.display().to_string())
+            && err.contains("could not be checked")
+            && err.contains("`p`, `q`, `r`"),
+        "{err}"
+    );
+}

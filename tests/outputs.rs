@@ -207,5 +207,55 @@ fn input_clipping_is_reported_on_stderr_and_in_the_summary() {
     assert_eq!(summary["input_clipped"]["fx"], 100);
     assert_eq!(summary["input_clipped"]["fy"], 0);
     // And the table says in which unit its numbers are.
-    assert!(stdout(&out).contains("m/s²") && stdout(&out).contains("rad/s"));
+    assert!(stdout(&out).contains("m/s²") && stdout(&out).contains("°/s"));
+}
+
+/// Issue 24, item 11: one convention for people (°/s, %) in the table, SI in the JSON.
+#[test]
+fn the_table_shows_degrees_per_second_and_percent_where_the_json_keeps_si() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("s.json");
+    let out = play(&["--summary".as_ref(), json.as_os_str()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let table = stdout(&out);
+    let summary = read_json(&json);
+    let cwf = &summary["algorithms"]["cwf"];
+    for ch in ["wx", "wy", "wz"] {
+        let row: Vec<&str> = table
+            .lines()
+            .find(|l| l.split_whitespace().take(2).eq(["cwf", ch]))
+            .unwrap_or_else(|| panic!("no {ch} row: {table}"))
+            .split_whitespace()
+            .collect();
+        assert_eq!(row[2], "°/s", "{row:?}");
+        let aad_deg: f64 = row[3].parse().unwrap();
+        let aad_rad = cwf["metrics"][ch]["aad"].as_f64().unwrap();
+        assert!(
+            (aad_deg - aad_rad.to_degrees()).abs() <= 1e-4 + 1e-3 * aad_deg.abs(),
+            "{ch}: table {aad_deg} °/s, JSON {aad_rad} rad/s"
+        );
+    }
+    let usage = cwf["max_leg_usage"].as_f64().unwrap();
+    let shown = format!("max leg usage {:.1} %", 100.0 * usage);
+    assert!(table.contains(&shown), "{shown}: {table}");
+    assert!(
+        usage > 0.0 && usage < 1.5,
+        "the JSON keeps the fraction: {usage}"
+    );
+    let margin_mm = 1000.0 * cwf["min_leg_margin_m"].as_f64().unwrap();
+    assert!(
+        table.contains(&format!("min margin {margin_mm:.1} mm")),
+        "{table}"
+    );
+    let excursions = table
+        .lines()
+        .find(|l| l.starts_with("cwf") && l.contains("peak excursion"))
+        .unwrap();
+    assert!(excursions.matches(" %").count() == 6, "{excursions}");
+    assert!(
+        !table
+            .lines()
+            .any(|l| l.starts_with("cwf") && l.contains("rad/s")),
+        "{table}"
+    );
 }

@@ -5,3 +5,4 @@ pub mod omct;
 pub mod profile;
 pub mod recording;
 pub mod trace;
+pub mod units;

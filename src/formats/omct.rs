@@ -4,7 +4,7 @@ use serde::Serialize;
 use serde_json::{json, Value};
 
 use crate::mca::AlgorithmId;
-use crate::omct::{OmctCurve, OmctTest};
+use crate::omct::{frequency_label, OmctCurve, OmctTest};
 
 /// Everything one `hexcue omct` run measured.
 #[derive(Clone, Debug)]
@@ -70,8 +70,9 @@ impl OmctReport {
              A·sin(ωt) from rest, the platform's response at the pilot's head (after the \
              workspace limiter) is fitted after the transient, and gain = response amplitude / A, \
              phase = the response's phase against the input (negative: a lag), wrapped into \
-             (−180°, 180°]; the Bode plots unwrap it along frequency, so a lag past −180° reads \
-             there as −190° and here as +170°. A starts at 0.1 g or 5 °/s and is halved until the limiter stays idle; `*` marks a point at \
+             (−180°, 180°] here, in omct.json and in the Bode plots (whose phase line breaks \
+             where it crosses ±180°): a lead of 5° is +5°, never −355°. Frequencies are the \
+             standard's (0.1 to 15.85 rad/s, five a decade). A starts at 0.1 g or 5 °/s and is halved until the limiter stays idle; `*` marks a point at \
              which the limiter still acted at the smallest amplitude tried.\n\n",
         );
         for &test in &self.tests {
@@ -104,7 +105,7 @@ impl OmctReport {
             }
             s.push('\n');
             for (k, w) in self.frequencies_radps.iter().enumerate() {
-                s.push_str(&format!("| {w:.3} |"));
+                s.push_str(&format!("| {} |", frequency_label(*w)));
                 for (_, c) in &algs {
                     match c.points.get(k) {
                         Some(p) => {
@@ -177,8 +178,8 @@ mod tests {
         };
         let md = r.to_markdown();
         assert!(md.contains("## pitch-rate"), "{md}");
-        assert!(md.contains("| 0.100 | 0.5000 | 30.0 | 5.000 |"), "{md}");
-        assert!(md.contains("| 2.000 | 0.5000 | 30.0 | 5.000 * |"), "{md}");
+        assert!(md.contains("| 0.1 | 0.5000 | 30.0 | 5.000 |"), "{md}");
+        assert!(md.contains("| 2 | 0.5000 | 30.0 | 5.000 * |"), "{md}");
         let j = r.to_json();
         assert_eq!(j["tests"][0]["test"], "pitch-rate");
         assert_eq!(j["tests"][0]["results"]["cwf"][1]["gain"], 0.5);

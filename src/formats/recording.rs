@@ -1423,6 +1423,18 @@ impl Recording {
         })
     }
 
+    /// Every message of a JSON channel, in file order, read as it is needed; for an
+    /// unfinished file the iterator ends quietly where its data end (`hexcue export`).
+    pub fn json_messages(&self) -> Result<JsonMessages, RecordingError> {
+        Ok(JsonMessages {
+            path: shown(&self.path),
+            source: RecordSource::open(&self.path)?,
+            finished: self.finished,
+            channels: BTreeMap::new(),
+            done: false,
+        })
+    }
+
     /// What to give a [`Recorder`] to write this session again.
     pub fn meta(&self) -> RecordingMeta {
         RecordingMeta {
@@ -1487,6 +1499,66 @@ impl PendingStep {
                 ][kind]
             }
         }
+    }
+}
+
+/// One message of a JSON channel: its topic, log time (ns) and the JSON as written.
+#[derive(Clone, Debug)]
+pub struct JsonMessage {
+    pub topic: String,
+    pub log_time_ns: u64,
+    pub data: Vec<u8>,
+}
+
+/// Streams a recording's JSON messages; see [`Recording::json_messages`].
+pub struct JsonMessages {
+    path: String,
+    source: RecordSource,
+    finished: bool,
+    channels: BTreeMap<u16, String>,
+    done: bool,
+}
+
+impl Iterator for JsonMessages {
+    type Item = Result<JsonMessage, RecordingError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        while !self.done {
+            match self.source.next_record() {
+                None => self.done = true,
+                // Where an unfinished file's data end, as `Recording::open` found.
+                Some(Err(_)) if !self.finished => self.done = true,
+                Some(Err(e)) => {
+                    self.done = true;
+                    return Some(Err(match e {
+                        SourceError::Io(error) => RecordingError::Io {
+                            path: self.path.clone(),
+                            action: "read the recording",
+                            error,
+                        },
+                        SourceError::Mcap(error) => RecordingError::Damaged {
+                            path: self.path.clone(),
+                            bytes: self.source.bytes,
+                            error,
+                        },
+                    }));
+                }
+                Some(Ok(Record::Channel(c))) if c.message_encoding == "json" => {
+                    self.channels.insert(c.id, c.topic);
+                }
+                Some(Ok(Record::Message { header, data })) => {
+                    if let Some(topic) = self.channels.get(&header.channel_id) {
+                        return Some(Ok(JsonMessage {
+                            topic: topic.clone(),
+                            log_time_ns: header.log_time,
+                            data: data.into_owned(),
+                        }));
+                    }
+                }
+                Some(Ok(_)) => {}
+            }
+        }
+        None
     }
 }
 

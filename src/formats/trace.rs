@@ -15,6 +15,8 @@ use crate::trace::MAX_TRACE_SAMPLES;
 use crate::trace::{lerp3, AircraftSample, ResampleError, Trace, TraceInfo, GRID_TOLERANCE_STEPS};
 use crate::G_MPS2;
 
+pub use super::units::{UnitJudgement, UnitNames, UnitStats};
+
 /// Every shipped trace, `recordings/traces/<name>.csv` and its sidecar, embedded so that
 /// `hexcue compare` finds them wherever it runs: (name, CSV, sidecar JSON).
 pub const SHIPPED_TRACES: [(&str, &str, &str); 5] = [
@@ -881,7 +883,9 @@ fn scan<R: BufRead>(
             ),
         ));
     }
-    check_units(&units, &rows.layout, &ctx)?;
+    if let Some(warning) = check_units(&units, &rows.layout, &ctx)? {
+        notices.push(warning);
+    }
     let t0 = first.unwrap_or(0.0);
     // The median step: the value of rank (n−1)/2 among the n−1 steps, in order.
     let mid = (n - 1) / 2;
@@ -1186,256 +1190,13 @@ fn read_sidecar(path: &Path, trace: &mut Trace, measured_rate_hz: f64) {
     }
 }
 
-/// Thresholds of [`check_units`] (docs/formats.md, "Units and signs").
-mod units {
-    /// Trace time at the start that stands for "at rest or trimmed" (s).
-    pub const START_S: f64 = 1.0;
-    /// |f| within this factor of 1 g in the other unit counts as that unit.
-    pub const UNIT_TOLERANCE: f64 = 0.2;
-    /// Median fz above this (m/s², half a g, positive = up) at the start and over the whole
-    /// trace is a z-up convention.
-    pub const Z_UP_MPS2: f64 = 4.9;
-    /// Rate magnitude (rad/s, 115°/s) beyond which a light aircraft does not stay long...
-    pub const FAST_RATE_RADPS: f64 = 2.0;
-    /// ...for this long in total (s) and this share of the trace.
-    pub const FAST_FOR_S: f64 = 2.0;
-    pub const FAST_SHARE: f64 = 0.1;
-    /// The attitude check needs this much attitude motion (RMS Euler rate, rad/s)...
-    pub const MIN_ATTITUDE_RMS_RADPS: f64 = 0.01;
-    /// ...and rates that explain it this well (correlation of the Euler rates from p, q, r
-    /// with the attitude's derivative) to decide.
-    pub const MIN_CORRELATION: f64 = 0.9;
-    /// Fitted ratio (attitude's derivative / Euler rates from p, q, r) inside this band means
-    /// p, q, r are 57.3× too large (°/s); its inverse band means the attitude is in degrees.
-    pub const DEG_BAND: (f64, f64) = (1.0 / 80.0, 1.0 / 40.0);
-    /// Pitch beyond which the Euler kinematics are too ill-conditioned to use (|cos θ| <).
-    pub const MIN_COS_THETA: f64 = 0.3;
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let mid = v.len() / 2;
-    *v.select_nth_unstable_by(mid, f64::total_cmp).1
-}
-
-/// Values kept for a median in bounded memory: every value up to [`UnitStats::KEPT`], then
-/// every second, fourth, ... (the stride doubles whenever the store is full), so the median
-/// is exact for traces up to that length and a uniform subsample's beyond it.
-#[derive(Clone, Debug, Default)]
-struct Thinned {
-    values: Vec<f64>,
-    stride: usize,
-    seen: usize,
-}
-
-impl Thinned {
-    fn push(&mut self, v: f64) {
-        self.stride = self.stride.max(1);
-        if self.seen.is_multiple_of(self.stride) {
-            if self.values.len() >= UnitStats::KEPT {
-                let mut i = 0;
-                self.values.retain(|_| {
-                    i += 1;
-                    i % 2 == 1
-                });
-                self.stride *= 2;
-            }
-            if self.seen.is_multiple_of(self.stride) {
-                self.values.push(v);
-            }
-        }
-        self.seen += 1;
-    }
-}
-
-/// The statistics [`check_units`] decides on, gathered one sample at a time so that a trace
-/// streamed from its file (and a live simulator's first seconds) are checked without being
-/// held: the first second's medians, medians over the whole ([`Thinned`]), the attitude's
-/// derivative against the body rates (running sums) and the time spent at fast rates.
-#[derive(Clone, Debug, Default)]
-pub struct UnitStats {
-    t0: Option<f64>,
-    last_t: f64,
-    rows: usize,
-    start_norm: Vec<f64>,
-    start_fz: Vec<f64>,
-    all_norm: Thinned,
-    all_fz: Thinned,
-    prev: Option<AircraftSample>,
-    /// Sums of the least-squares fit of [`UnitStats::attitude_rate_ratio`].
-    sab: f64,
-    saa: f64,
-    sbb: f64,
-    pairs: usize,
-    fast: usize,
-}
-
-/// Names of the columns a [`UnitStats`] verdict cites, in the order fx, fy, fz, p, q, r, phi,
-/// theta, psi; and what "the whole" is called (`the trace`, `the first 10 s of input`).
-pub struct UnitNames<'a> {
-    pub columns: [String; 9],
-    pub whole: &'a str,
-    pub has_attitude: bool,
-}
-
-impl UnitStats {
-    /// Values kept per median (2 × 256 KiB at most).
-    const KEPT: usize = 1 << 15;
-
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Samples pushed.
-    pub fn len(&self) -> usize {
-        self.rows
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.rows == 0
-    }
-
-    /// Time from the first sample to the last (s).
-    pub fn duration_s(&self) -> f64 {
-        self.t0.map_or(0.0, |t0| self.last_t - t0)
-    }
-
-    pub fn push(&mut self, s: &AircraftSample) {
-        let t0 = *self.t0.get_or_insert(s.t_s);
-        let norm = s.specific_force_mps2.norm();
-        if s.t_s - t0 <= units::START_S && self.start_norm.len() < Self::KEPT {
-            self.start_norm.push(norm);
-            self.start_fz.push(s.specific_force_mps2.z);
-        }
-        self.all_norm.push(norm);
-        self.all_fz.push(s.specific_force_mps2.z);
-        self.fast += usize::from(s.angular_velocity_radps.amax() > units::FAST_RATE_RADPS);
-        if let Some(prev) = self.prev {
-            self.fit_pair(&prev, s);
-        }
-        self.prev = Some(*s);
-        self.last_t = s.t_s;
-        self.rows += 1;
-    }
-
-    /// One pair of consecutive samples into the fit b ≈ s·a of the attitude's derivative b
-    /// (finite differences of φ, θ, ψ) to the Euler rates a that p, q, r give.
-    fn fit_pair(&mut self, w0: &AircraftSample, w1: &AircraftSample) {
-        let wrap = |d: f64| {
-            let two_pi = std::f64::consts::TAU;
-            d - two_pi * (d / two_pi).round()
-        };
-        let dt = w1.t_s - w0.t_s;
-        let att = (w0.attitude_rad + w1.attitude_rad) / 2.0;
-        let rate = (w0.angular_velocity_radps + w1.angular_velocity_radps) / 2.0;
-        let (sp, cp) = att.x.sin_cos();
-        let (st, ct) = att.y.sin_cos();
-        if ct.abs() < units::MIN_COS_THETA || dt <= 0.0 {
-            return;
-        }
-        let (p, q, r) = (rate.x, rate.y, rate.z);
-        let a = Vector3::new(
-            p + (q * sp + r * cp) * st / ct,
-            q * cp - r * sp,
-            (q * sp + r * cp) / ct,
-        );
-        let d = w1.attitude_rad - w0.attitude_rad;
-        let b = Vector3::new(wrap(d.x), d.y, wrap(d.z)) / dt;
-        if !(a.iter().chain(b.iter()).all(|v| v.is_finite())) {
-            return;
-        }
-        self.sab += a.dot(&b);
-        self.saa += a.norm_squared();
-        self.sbb += b.norm_squared();
-        self.pairs += 1;
-    }
-
-    /// The least-squares ratio of the attitude's derivative to the Euler rates from p, q, r;
-    /// `None` when the attitude barely moves or the two do not match well enough to decide.
-    fn attitude_rate_ratio(&self) -> Option<f64> {
-        let (sab, saa, sbb, n) = (self.sab, self.saa, self.sbb, self.pairs);
-        if n < 10 || saa <= 0.0 || sbb <= 0.0 {
-            return None;
-        }
-        let rms_b = (sbb / (3 * n) as f64).sqrt();
-        let correlation = sab / (saa * sbb).sqrt();
-        (rms_b >= units::MIN_ATTITUDE_RMS_RADPS && correlation >= units::MIN_CORRELATION)
-            .then(|| sab / saa)
-    }
-
-    /// The clear unit and sign mistakes that pass the range checks: a z-up frame (fz ≈ +9.81
-    /// at rest), specific force in ft/s² or in g, body rates in °/s (decided by the attitude's
-    /// derivative when there is attitude, else by sustained rates no light aircraft flies),
-    /// attitude in degrees. The message names the columns and the likely cause; `None` when
-    /// the numbers are believable (or there are fewer than two samples).
-    pub fn verdict(&self, names: &UnitNames) -> Option<String> {
-        if self.rows < 2 {
-            return None;
-        }
-        let whole = names.whole;
-        let c = &names.columns;
-        let norm_start = median(self.start_norm.clone());
-        let norm_all = median(self.all_norm.values.clone());
-        let near = |v: f64, unit: f64| (v - unit).abs() <= units::UNIT_TOLERANCE * unit;
-        let f_columns = format!("`{}`, `{}`, `{}`", c[0], c[1], c[2]);
-        const FT_PER_M: f64 = 1.0 / FT_TO_M;
-        if near(norm_start, G_MPS2 * FT_PER_M) && near(norm_all, G_MPS2 * FT_PER_M) {
-            return Some(format!(
-                "columns {f_columns}: |f| is {norm_start:.2} at the start (median of the first second) and {norm_all:.2} over {whole}, which is 1 g in ft/s² (32.17); expected m/s² (9.81): multiply by 0.3048 (JSBSim's `accelerations/a-pilot-*-ft_sec2` headers are converted when kept as JSBSim writes them)"
-            ));
-        }
-        if near(norm_start, 1.0) && near(norm_all, 1.0) {
-            return Some(format!(
-                "columns {f_columns}: |f| is {norm_start:.2} at the start and {norm_all:.2} over {whole}, which is 1 g as a load factor; expected m/s² (9.81): multiply by 9.80665"
-            ));
-        }
-        let fz_start = median(self.start_fz.clone());
-        let fz_all = median(self.all_fz.values.clone());
-        if fz_start > units::Z_UP_MPS2 && fz_all > 0.0 {
-            return Some(format!(
-                "column `{}`: fz is {fz_start:+.2} m/s² at the start (median of the first second) and {fz_all:+.2} over {whole}: a z-up convention? hexcue's head frame has z down, so rest and level flight give fz = −9.81; negate fz (a z-up frame usually flips y, q and r as well)",
-                c[2]
-            ));
-        }
-        let rate_columns = format!("`{}`, `{}`, `{}`", c[3], c[4], c[5]);
-        if names.has_attitude {
-            if let Some(ratio) = self.attitude_rate_ratio() {
-                let att_columns = format!("`{}`, `{}`, `{}`", c[6], c[7], c[8]);
-                let (lo, hi) = units::DEG_BAND;
-                if (lo..=hi).contains(&ratio) {
-                    return Some(format!(
-                        "columns {rate_columns}: the attitude ({att_columns}) changes {:.1}× slower than these rates say; rates in °/s? expected rad/s: multiply by π/180 (0.017453)",
-                        1.0 / ratio
-                    ));
-                }
-                if (1.0 / hi..=1.0 / lo).contains(&ratio) {
-                    return Some(format!(
-                        "columns {att_columns}: the attitude changes {ratio:.1}× faster than the rates {rate_columns} say; attitude in degrees? expected radians: multiply by π/180"
-                    ));
-                }
-                // The rates explain the attitude: whatever their size, they are in rad/s.
-                return None;
-            }
-        }
-        let dt = self.duration_s() / (self.rows - 1) as f64;
-        let fast_s = self.fast as f64 * dt;
-        let share = self.fast as f64 / self.rows as f64;
-        if fast_s >= units::FAST_FOR_S && share >= units::FAST_SHARE {
-            return Some(format!(
-                "columns {rate_columns}: a rate beyond {} rad/s ({:.0}°/s) for {fast_s:.1} s ({:.0} % of {whole}); rates in °/s? expected rad/s: multiply by π/180 (0.017453)",
-                units::FAST_RATE_RADPS,
-                units::FAST_RATE_RADPS.to_degrees(),
-                100.0 * share
-            ));
-        }
-        None
-    }
-}
-
-/// Refuses a trace whose [`UnitStats`] show a unit or sign mistake, naming its columns.
-fn check_units(stats: &UnitStats, layout: &Layout, ctx: &Ctx) -> Result<(), TraceError> {
+/// Refuses a trace whose [`UnitStats`] show a unit or sign mistake, naming its columns; says
+/// what could not be checked (returned as a notice naming the file).
+fn check_units(
+    stats: &UnitStats,
+    layout: &Layout,
+    ctx: &Ctx,
+) -> Result<Option<String>, TraceError> {
     let header = |q: Quantity| {
         layout.sources[q.index()]
             .as_ref()
@@ -1449,9 +1210,12 @@ fn check_units(stats: &UnitStats, layout: &Layout, ctx: &Ctx) -> Result<(), Trac
             .iter()
             .all(|q| layout.sources[q.index()].is_some()),
     };
-    match stats.verdict(&names) {
-        Some(message) => Err(ctx.file(TraceErrorKind::Units, message)),
-        None => Ok(()),
+    match stats.judge(&names) {
+        UnitJudgement::Mistake(message) => Err(ctx.file(TraceErrorKind::Units, message)),
+        UnitJudgement::Unchecked(message) => {
+            Ok(Some(format!("warning: {}: {message}", ctx.source_name)))
+        }
+        UnitJudgement::Believable => Ok(None),
     }
 }
 
@@ -1719,7 +1483,15 @@ mod tests {
         let t = parse(&native(5)).unwrap();
         assert_eq!(t.len(), 5);
         assert_eq!(t.rate_hz, 100.0);
-        assert!(t.notices.is_empty(), "{:?}", t.notices);
+        // Five rows of a fixed attitude cannot show the rates' unit, and that is said.
+        assert_eq!(t.notices.len(), 1, "{:?}", t.notices);
+        assert!(
+            t.notices[0].starts_with(
+                "warning: x.csv: the units of columns `p`, `q`, `r` could not be checked"
+            ),
+            "{:?}",
+            t.notices
+        );
         let s = t.samples[3];
         assert_eq!(s.t_s, 0.03);
         assert_eq!(s.specific_force_mps2, Vector3::new(0.3, 0.1, -9.81));
@@ -1947,20 +1719,6 @@ mod tests {
 
     #[test]
     fn unit_checks_hold_bounded_memory_and_still_decide_on_long_traces() {
-        // Past the kept values the medians are a uniform subsample's: exact before it.
-        let mut t = Thinned::default();
-        for i in 0..UnitStats::KEPT {
-            t.push(i as f64);
-        }
-        assert_eq!(t.values.len(), UnitStats::KEPT);
-        assert_eq!(median(t.values.clone()), (UnitStats::KEPT / 2) as f64);
-        for i in UnitStats::KEPT..10 * UnitStats::KEPT {
-            t.push(i as f64);
-        }
-        assert!(t.values.len() <= UnitStats::KEPT, "{}", t.values.len());
-        assert!(t.values.windows(2).all(|w| w[1] - w[0] == t.stride as f64));
-        let m = median(t.values.clone());
-        assert!((m / (5 * UnitStats::KEPT) as f64 - 1.0).abs() < 0.01, "{m}");
         // A z-up trace longer than the kept values is refused as a short one is.
         let z_up = synthetic(UnitStats::KEPT as f64 / 100.0 * 1.5, |_| {
             [0.2, 0.0, 9.81, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
@@ -2374,7 +2132,11 @@ mod tests {
         let t = load_trace(&csv, 100.0).unwrap().trace;
         assert_eq!(t.name, "my-flight");
         assert!(t.info.is_none());
-        assert!(t.notices.is_empty(), "{:?}", t.notices);
+        assert!(
+            t.notices.iter().all(|n| n.contains("could not be checked")),
+            "{:?}",
+            t.notices
+        );
 
         std::fs::write(dir.path().join("my-flight.json"), "{ \"name\": ").unwrap();
         let t = load_trace(&csv, 100.0).unwrap().trace;

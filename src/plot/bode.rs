@@ -20,21 +20,33 @@ fn gain_db(gain: f64) -> Option<f64> {
     (gain.is_finite() && gain > 0.0).then(|| (20.0 * gain.log10()).max(GAIN_FLOOR_DB))
 }
 
-/// Phases unwrapped along frequency, so that a lag growing past −180° draws as a curve and
-/// not as a jump; points without a measurable gain have no phase.
-fn unwrapped_phase(curve: &OmctCurve) -> Vec<(f64, f64)> {
-    let mut out: Vec<(f64, f64)> = Vec::new();
+/// Phases as the table gives them, in (−180°, 180°], in runs of consecutive measurable
+/// points; a run ends where the phase crosses ±180° (a jump of more than 180° between
+/// neighbours), so that the line is broken there instead of drawn across the plot.
+/// Unwrapping instead would show a 5° lead as −355° after a resonance's phase swing.
+fn phase_runs(curve: &OmctCurve) -> Vec<Vec<(f64, f64)>> {
+    let mut runs: Vec<Vec<(f64, f64)>> = Vec::new();
+    let mut open = false;
     for p in &curve.points {
         if gain_db(p.gain).is_none_or(|g| g <= GAIN_FLOOR_DB) || !p.phase_deg.is_finite() {
+            open = false;
             continue;
         }
-        let mut ph = p.phase_deg;
-        if let Some(&(_, prev)) = out.last() {
-            ph += 360.0 * ((prev - ph) / 360.0).round();
+        let point = (p.frequency_radps, p.phase_deg);
+        match runs.last_mut() {
+            Some(run)
+                if open
+                    && run
+                        .last()
+                        .is_some_and(|&(_, q)| (q - point.1).abs() <= 180.0) =>
+            {
+                run.push(point)
+            }
+            _ => runs.push(vec![point]),
         }
-        out.push((p.frequency_radps, ph));
+        open = true;
     }
-    out
+    runs
 }
 
 fn gain_unit(curve: &OmctCurve) -> String {
@@ -119,14 +131,16 @@ pub fn draw<DB: DrawingBackend>(
         chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
     }
 
-    let phases: Vec<Vec<(f64, f64)>> = curves.iter().map(|c| unwrapped_phase(c)).collect();
+    let phases: Vec<Vec<Vec<(f64, f64)>>> = curves.iter().map(|c| phase_runs(c)).collect();
     let (lo, hi) = phases
         .iter()
+        .flatten()
         .flatten()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &(_, p)| {
             (a.min(p), b.max(p))
         });
     let (p0, p1) = padded(lo.min(-10.0), hi.max(10.0));
+    let (p0, p1) = (p0.max(-190.0), p1.min(190.0));
     let mut chart = ChartBuilder::on(&bottom)
         .margin_left(10)
         .margin_right(25)
@@ -143,10 +157,12 @@ pub fn draw<DB: DrawingBackend>(
         .label_style(font(13.0))
         .axis_desc_style(font(14.0))
         .draw()?;
-    for (c, points) in curves.iter().zip(&phases) {
+    for (c, runs) in curves.iter().zip(&phases) {
         let color = algorithm_color(c.algorithm);
-        chart.draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))?;
-        chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
+        for points in runs {
+            chart.draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))?;
+            chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
+        }
     }
     Ok(())
 }
@@ -175,24 +191,33 @@ mod tests {
     }
 
     #[test]
-    fn phase_unwraps_and_skips_unmeasurable_points() {
+    fn phase_stays_wrapped_breaks_at_the_wrap_and_skips_unmeasurable_points() {
         let c = OmctCurve {
             test: OmctTest::Surge,
             algorithm: AlgorithmId::Cwf,
             input_unit: "m/s²",
             output_unit: "m/s²",
             points: vec![
+                point(0.5, 1.0, -60.0),
                 point(1.0, 1.0, -170.0),
                 point(2.0, 1.0, 175.0),
                 point(3.0, 0.0, 10.0),
                 point(4.0, f64::NAN, 10.0),
                 point(5.0, 1.0, 160.0),
+                point(6.0, 1.0, 5.0),
             ],
         };
-        let p = unwrapped_phase(&c);
-        assert_eq!(p.len(), 3);
-        assert!((p[1].1 - -185.0).abs() < 1e-9, "{p:?}");
-        assert!((p[2].1 - -200.0).abs() < 1e-9, "{p:?}");
+        let runs = phase_runs(&c);
+        let phases: Vec<Vec<f64>> = runs
+            .iter()
+            .map(|r| r.iter().map(|p| p.1).collect())
+            .collect();
+        // −170° to +175° is a crossing of ±180°: the line breaks; the unmeasurable points
+        // break it too; a 5° lead stays +5°.
+        assert_eq!(
+            phases,
+            vec![vec![-60.0, -170.0], vec![175.0], vec![160.0, 5.0]]
+        );
         assert_eq!(gain_db(1e-9), Some(GAIN_FLOOR_DB));
         assert_eq!(gain_db(0.0), None);
     }

@@ -10,7 +10,7 @@
 
 pub mod keys;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -438,15 +438,15 @@ pub fn run(args: &TuneArgs) -> Result<()> {
             DEFAULT_PROFILE_SOURCE.to_string(),
         ),
     };
+    let mut inputs: Vec<crate::outputs::Input> = args
+        .traces
+        .iter()
+        .map(|t| crate::outputs::Input::new(t, "--traces"))
+        .collect();
     if let Some(p) = &args.profile {
-        if p == &args.out || (args.out.exists() && same_file(p, &args.out)) {
-            bail!(
-                "{}: --out is the base profile; write the tuned profile elsewhere",
-                args.out.display()
-            );
-        }
+        inputs.push(crate::outputs::Input::new(p, "--profile"));
     }
-    crate::cli::check_output(&args.out, args.force, "--out")?;
+    crate::outputs::check_output_of(&args.out, args.force, "--out", &inputs)?;
     let budget = args.budget.unwrap_or(match algorithm {
         AlgorithmId::Cwf => 200,
         _ => 50,
@@ -590,13 +590,6 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         );
     }
     Ok(())
-}
-
-fn same_file(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    }
 }
 
 #[cfg(test)]
