@@ -684,8 +684,9 @@ pub fn run_live_headless(args: &LiveArgs) -> Result<Summary> {
         args.output.join(", ")
     };
     eprintln!(
-        "live: {} → {outputs}; {} drives, {} Hz; SIGINT or SIGTERM to stop",
+        "live: {} ({}) → {outputs}; {} drives, {} Hz; SIGINT or SIGTERM to stop",
         args.input,
+        session.input_source(),
         session.drive().label(),
         profile.rate_hz
     );
@@ -909,6 +910,9 @@ pub fn format_table(s: &Summary) -> String {
         if let Some(w) = &l.unit_warning {
             out.push_str(&format!("live: warning: {w}\n"));
         }
+        if let Some(none) = s.no_input_line() {
+            out.push_str(&format!("live: NOT A CLEAN SESSION: {none}\n"));
+        }
     }
     out
 }
@@ -1047,12 +1051,23 @@ pub fn run(cli: Cli) -> Result<()> {
                 args.headless,
                 args.force,
             )?;
+            let mut no_input = None;
             headless_or_console(
                 args.headless,
                 args.summary.as_deref(),
-                || run_live_headless(&args),
+                || {
+                    let summary = run_live_headless(&args)?;
+                    no_input = summary.no_input_line();
+                    Ok(summary)
+                },
                 || crate::console::run_live_session(&args),
-            )
+            )?;
+            // After the summary is written and printed: a script sees the failure, a person
+            // the table that explains it.
+            match no_input {
+                Some(line) => bail!("live: {line}"),
+                None => Ok(()),
+            }
         }
         Command::Tune(args) => crate::tune::run(&args),
         Command::Recover {

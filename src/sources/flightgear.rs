@@ -35,6 +35,10 @@ pub fn encode(
 }
 
 impl Decoder for FlightGear {
+    fn protocol(&self) -> &'static str {
+        "FlightGear generic protocol `hexcue` (binary)"
+    }
+
     fn decode(&mut self, d: &[u8]) -> Result<Decoded, String> {
         if d.len() != FRAME_BYTES {
             return Err(format!(

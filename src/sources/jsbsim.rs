@@ -116,6 +116,10 @@ impl Jsbsim {
 }
 
 impl Decoder for Jsbsim {
+    fn protocol(&self) -> &'static str {
+        "JSBSim socket output"
+    }
+
     fn decode(&mut self, datagram: &[u8]) -> Result<Decoded, String> {
         let text = std::str::from_utf8(datagram).map_err(|_| "not ASCII text".to_string())?;
         let mut decoded = Decoded::Nothing;
