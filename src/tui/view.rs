@@ -808,7 +808,10 @@ fn fmt_axis(v: f64) -> String {
     }
 }
 
-const HELP: &[(&str, &str)] = &[
+/// One row of the help overlay: the key or word, and what it does or means.
+type HelpRow = (&'static str, &'static str);
+
+const HELP: &[HelpRow] = &[
     ("space", "pause / play (at the end: from the start)"),
     (". or →", "one step (when paused; → seeks while playing)"),
     ("← → [ ]", "seek −5 s / +5 s"),
@@ -840,7 +843,7 @@ const LEGEND: &[(&str, &str)] = &[
 fn render_help(app: &App, f: &mut ratatui::Frame, area: Rect) {
     let th = &app.theme;
     let live = app.live.is_some();
-    let (keys, legend): (&[(&str, &str)], &[(&str, &str)]) = if live {
+    let (keys, legend): (&[HelpRow], &[HelpRow]) = if live {
         (super::live::HELP, super::live::LEGEND)
     } else {
         (HELP, LEGEND)
