@@ -638,8 +638,9 @@ pub fn run_live_headless(args: &LiveArgs) -> Result<Summary> {
         args.output.join(", ")
     };
     eprintln!(
-        "live: {} → {outputs}; {} drives, {} Hz; SIGINT or SIGTERM to stop",
+        "live: {} ({}) → {outputs}; {} drives, {} Hz; SIGINT or SIGTERM to stop",
         args.input,
+        session.input_source(),
         session.drive().label(),
         profile.rate_hz
     );
@@ -868,6 +869,9 @@ pub fn format_table(s: &Summary) -> String {
         if let Some(f) = &l.platform_fault {
             out.push_str(&format!("live: error: platform fault: {f}\n"));
         }
+        if let Some(none) = s.no_input_line() {
+            out.push_str(&format!("live: NOT A CLEAN SESSION: {none}\n"));
+        }
     }
     out
 }
@@ -1017,20 +1021,24 @@ pub fn run(cli: Cli) -> Result<()> {
                 &inputs(&[(args.profile.as_deref(), "--profile")]),
             )?;
             let mut platform_fault = None;
+            let mut no_input = None;
             headless_or_console(
                 args.headless,
                 args.summary.as_deref(),
                 || {
                     let summary = run_live_headless(&args)?;
                     platform_fault = summary.live.as_ref().and_then(|l| l.platform_fault.clone());
+                    no_input = summary.no_input_line();
                     Ok(summary)
                 },
                 || crate::console::run_live_session(&args),
             )?;
-            // After the summary is written and printed: the run is on record, and it failed.
-            match platform_fault {
-                Some(fault) => bail!("platform fault: {fault}"),
-                None => Ok(()),
+            // After the summary is written and printed: the run is on record, and it failed;
+            // a script sees the failure, a person the table that explains it.
+            match (platform_fault, no_input) {
+                (Some(fault), _) => bail!("platform fault: {fault}"),
+                (None, Some(line)) => bail!("live: {line}"),
+                (None, None) => Ok(()),
             }
         }
         Command::Tune(args) => crate::tune::run(&args),

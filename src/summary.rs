@@ -36,6 +36,25 @@ pub struct Summary {
 pub const INPUT_AXES: [&str; 6] = ["fx", "fy", "fz", "p", "q", "r"];
 
 impl Summary {
+    /// For a live session in which no sample ever arrived: what that means, in one line.
+    /// Such a session cued nothing, and its zeros must not read as a clean run.
+    pub fn no_input_line(&self) -> Option<String> {
+        let live = self.live.as_ref()?;
+        if live.first_input_s.is_some() {
+            return None;
+        }
+        let garbage = match live.malformed {
+            0 => String::new(),
+            n => format!(" ({n} malformed datagrams, none decoded)"),
+        };
+        Some(format!(
+            "no input received from {} in {:.2} s{garbage}: nothing was cued and the platform \
+             stayed parked at neutral",
+            self.trace,
+            self.steps as f64 / self.rate_hz
+        ))
+    }
+
     /// "fx 12 (0.2 %), r 3 (0.1 %)" for the axes with clipped samples; `None` when none was.
     pub fn clipping_line(&self) -> Option<String> {
         let parts: Vec<String> = INPUT_AXES
@@ -68,6 +87,9 @@ pub struct LiveSummary {
     /// From the arrival of the newest sample a command uses to that command being sent (ms),
     /// over the steps with fresh input.
     pub latency_ms: Quantiles,
+    /// Session time at which the first sample arrived (s); `null` when none did: nothing was
+    /// cued and the platform never left neutral, which is not a clean session.
+    pub first_input_s: Option<f64>,
     /// Time without fresh input (or with the simulator paused) after the first sample (s).
     pub input_lost_s: f64,
     /// Datagrams refused and ignored.

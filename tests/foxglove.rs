@@ -349,8 +349,8 @@ fn recorded_events(path: &std::path::Path) -> Vec<String> {
 
 /// `hexcue live --headless --foxglove` against a simulator that sends level flight, pauses
 /// long enough for the input to be lost, resumes, and is still sending when --duration ends
-/// the session with an e-stop: a WebSocket client sees the recording's channels advertised,
-/// transforms, and the session's events (input lost, washout, e-stop) on `/events`; the
+/// the session with a stop: a WebSocket client sees the recording's channels advertised,
+/// transforms, and the session's events (input lost, to neutral, stopping) on `/events`; the
 /// session's recording has the same channels as a playback's, and the same events.
 #[test]
 fn a_live_session_serves_its_channels_and_events_to_foxglove() {
@@ -461,10 +461,10 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
         "engaging",
         "running",
         "input lost",
-        "washout to neutral: input lost",
+        "to neutral: input lost",
         "input back",
-        "e-stop",
-        "parked at neutral after the e-stop",
+        "stopping: return to neutral, then park",
+        "parked at neutral after the stop",
     ] {
         assert!(
             events.iter().any(|e| e.starts_with(start)),

@@ -10,6 +10,7 @@
 //! sample's arrival is known to a millisecond, with a bounded number of reads per step so
 //! that a flood of datagrams cannot stall the clock.
 
+pub mod input_watch;
 pub mod recording;
 
 use std::time::{Duration, Instant};
@@ -27,7 +28,9 @@ use crate::safety::{PlatformReadiness, Safety, SafetyParams, SafetyState};
 use crate::sinks::{CommandSink, FrameSink, PlatformOutput, PlatformPhase, PlatformStatus};
 use crate::source::{HeldSample, HeldSampleHandle};
 use crate::sources::live::LiveInput;
+
 use crate::summary::{LiveSummary, Quantiles, Summary, SummaryBuilder};
+use input_watch::{InputCounts, InputWatch};
 
 /// Datagrams read at most per step: ten times what a simulator at 10× the step rate sends.
 pub const MAX_READS_PER_STEP: usize = 100;
@@ -49,7 +52,8 @@ pub fn live_profile(profile: &Profile) -> Profile {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Control {
     Continue,
-    /// E-stop: washout to neutral, park, and end the session once parked.
+    /// The stop: return to neutral, park, and end the session once parked (software; the
+    /// platform's own emergency stop is the operator's hardware button).
     Stop,
 }
 
@@ -104,6 +108,8 @@ pub struct LiveStats {
     pub stale_steps: u64,
     pub samples_in: u64,
     pub malformed: u64,
+    /// Session time of the step that first had a sample (s).
+    pub first_input_s: Option<f64>,
     /// The unit or sign mistake the first seconds of input suggest, if any.
     pub unit_warning: Option<String>,
     /// The platform fault that stopped all motion (the output and what it said), if any.
@@ -122,6 +128,7 @@ impl LiveStats {
             deadline_misses: self.deadline_misses,
             step_ms: ms(&self.step),
             latency_ms: ms(&self.latency),
+            first_input_s: self.first_input_s,
             input_lost_s: self.input_lost_steps as f64 / rate_hz,
             malformed: self.malformed,
             unit_warning: self.unit_warning.clone(),
@@ -157,6 +164,8 @@ pub struct LiveSession {
     lost_since_s: Option<f64>,
     /// The first seconds of fresh input, for the unit and sign checks; `None` once decided.
     units: Option<UnitStats>,
+    /// Says so while no input arrives, or malformed input does.
+    watch: InputWatch,
     events: Vec<LiveEvent>,
     /// Each output's phase at the last step (`None`: it does not say), for the events.
     platform_phases: Vec<Option<PlatformPhase>>,
@@ -182,6 +191,7 @@ impl LiveSession {
         let engine = Engine::with_source(profile, Box::new(source), algorithms)
             .context("building the algorithms")?;
         let dt = profile.dt_s();
+        let watch = InputWatch::new(input.url(), &input.source_text());
         Ok(LiveSession {
             engine,
             held,
@@ -208,6 +218,7 @@ impl LiveSession {
             input_was_ok: false,
             lost_since_s: None,
             units: Some(UnitStats::new()),
+            watch,
             events: Vec::new(),
             platform_phases: Vec::new(),
             platform: None,
@@ -238,6 +249,12 @@ impl LiveSession {
 
     pub fn input(&self) -> &LiveInput {
         &self.input
+    }
+
+    /// Where input is expected: the protocol and the address ("JSBSim socket output, UDP
+    /// listening on 127.0.0.1:5138").
+    pub fn input_source(&self) -> &str {
+        self.watch.source()
     }
 
     pub fn safety(&self) -> &Safety {
@@ -281,8 +298,17 @@ impl LiveSession {
 
         self.events.clear();
         let t_s = self.engine.position() as f64 / self.rate_hz;
+        if latest.is_some() && self.stats.first_input_s.is_none() {
+            self.stats.first_input_s = Some(t_s);
+        }
         self.input_events(t_s, input_ok);
         self.poll_platforms(t_s);
+        self.events.extend(self.watch.step(InputCounts {
+            t_s,
+            samples_in: self.input.samples_in,
+            malformed: self.input.malformed,
+            last_malformed: self.input.last_malformed.as_deref(),
+        }));
         let state_before = self.safety.state();
         let plan = self.safety.begin_step(input_ok);
         if plan.state != state_before {
@@ -445,16 +471,20 @@ impl LiveSession {
             ),
             SafetyState::Running => format!("running: {} drives the platform", self.drive.label()),
             SafetyState::Washout if self.input.paused() => {
-                "washout to neutral: the simulator is paused".to_string()
+                "to neutral: the simulator is paused".to_string()
             }
-            SafetyState::Washout => "washout to neutral: input lost".to_string(),
-            SafetyState::Estop => "e-stop: washout to neutral, then park".to_string(),
+            SafetyState::Washout => "to neutral: input lost".to_string(),
+            SafetyState::Estop => {
+                "stopping: return to neutral, then park (hexcue's stop, not the platform's \
+                 emergency stop)"
+                    .to_string()
+            }
             SafetyState::Fault => format!(
                 "platform fault: all motion stopped, the pose held ({})",
                 self.stats.platform_fault.as_deref().unwrap_or("see above")
             ),
             SafetyState::Parked if self.safety.estopped() => {
-                "parked at neutral after the e-stop".to_string()
+                "parked at neutral after the stop".to_string()
             }
             SafetyState::Parked => "parked at neutral, waiting for input".to_string(),
         }
@@ -697,6 +727,54 @@ mod tests {
         );
         assert_eq!(summary.live.unwrap().unit_warning, None);
         assert!(events.iter().any(|e| e.text.starts_with("running")));
+    }
+
+    /// A simulator at 60, 120 or 250 Hz against hexcue's 100 Hz: before each step, every
+    /// sample the simulator would have sent by then arrives (its heading counts the samples,
+    /// so each is told apart); the step must use the newest one as it is (zero-order hold:
+    /// held at 60 Hz, the ones in between skipped at 250 Hz, never interpolated), on
+    /// hexcue's own clock.
+    #[test]
+    fn inputs_at_any_rate_are_held_on_the_profiles_clock() {
+        for rate_hz in [60.0, 120.0, 250.0] {
+            let (mut s, addr) = session();
+            let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+            let mut sent = 0usize;
+            let (mut repeats, mut skips) = (0, 0);
+            let mut previous = None;
+            for n in 0..300usize {
+                // The simulator's sample j leaves at j / rate: all of those due by step n.
+                while sent as f64 / rate_hz <= n as f64 / 100.0 + 1e-12 {
+                    let psi_rad = sent as f64 * 1e-3;
+                    let line = format!(
+                        "{},0.5,0,-32.17,0,0,0,0,0,{psi_rad:.6}\n",
+                        sent as f64 / rate_hz
+                    );
+                    tx.send_to(line.as_bytes(), addr).unwrap();
+                    sent += 1;
+                }
+                let r = s.step(Instant::now(), Control::Continue).unwrap();
+                assert_eq!(
+                    r.frame.t_s,
+                    n as f64 / 100.0,
+                    "hexcue's clock at {rate_hz} Hz"
+                );
+                let newest = sent - 1;
+                let held = (r.frame.aircraft.attitude_rad.z / 1e-3).round() as usize;
+                assert_eq!(held, newest, "step {n} at {rate_hz} Hz");
+                assert!((r.frame.aircraft.attitude_rad.z - newest as f64 * 1e-3).abs() < 1e-12);
+                match previous {
+                    Some(p) if p == held => repeats += 1,
+                    Some(p) if held > p + 1 => skips += 1,
+                    _ => {}
+                }
+                previous = Some(held);
+            }
+            let st = s.stats();
+            assert_eq!(st.samples_in, sent as u64);
+            assert_eq!(st.input_lost_steps, 0, "{rate_hz} Hz");
+            assert_eq!((repeats > 0, skips > 0), (rate_hz < 100.0, rate_hz > 100.0));
+        }
     }
 
     #[test]

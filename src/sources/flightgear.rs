@@ -1,11 +1,13 @@
 //! FlightGear's generic protocol in binary mode with `integrations/flightgear/hexcue.xml`: one
-//! 44-byte datagram a frame, big-endian, 4 bytes a field: time (f32, s), freeze flag (i32),
-//! specific force at the pilot x, y, z (f32, ft/s², body axes x forward, y right, z down),
-//! body rates p, q, r (f32, rad/s), roll, pitch, heading (f32, deg).
+//! 44-byte datagram a rendered frame at most (45–85 a second measured in software GL), big-
+//! endian, 4 bytes a field: time (f32, s), freeze flag (i32), specific force at the pilot x,
+//! y, z (f32, ft/s², body axes x forward, y right, z down, gravity included), body rates p, q,
+//! r (f32, rad/s), roll, pitch, heading (f32, deg).
 //!
 //! Converted at the edge: ft/s² × 0.3048 → m/s², attitude deg → rad. The body rates are
-//! already rad/s: `/orientation/p-body` is FlightGear's `get_P_body()`, the FDM's body rate in
-//! rad/s (docs/live.md cites the source).
+//! already rad/s: `/orientation/p-body` is tied to `FGInterface::get_P_body()`, the FDM's
+//! body rate in rad/s. docs/live.md cites FlightGear's source for every field;
+//! tests/live_inputs.rs builds datagrams from the protocol file as FlightGear does.
 
 use super::live::{Decoded, Decoder};
 use crate::trace::AircraftSample;
@@ -17,7 +19,8 @@ const FT_TO_M: f64 = 0.3048;
 pub struct FlightGear;
 
 /// One frame as `integrations/flightgear/hexcue.xml` lays it out, from values in
-/// FlightGear's units (for tests and simulators of FlightGear).
+/// FlightGear's units, for the decoder's unit tests. A hand-made copy of the layout: the
+/// end-to-end test builds its datagrams from the protocol file itself instead.
 pub fn encode(
     t_s: f32,
     paused: bool,
@@ -35,6 +38,10 @@ pub fn encode(
 }
 
 impl Decoder for FlightGear {
+    fn protocol(&self) -> &'static str {
+        "FlightGear generic protocol `hexcue` (binary)"
+    }
+
     fn decode(&mut self, d: &[u8]) -> Result<Decoded, String> {
         if d.len() != FRAME_BYTES {
             return Err(format!(

@@ -2,7 +2,9 @@
 //! once, `<LABELS> ,Time,a-pilot-x-ft sec2,...` (each property's last path element with `_`
 //! written as a space), then per frame one line `Time, value, value, ...` of space-padded
 //! numbers. Columns are found from the labels line; a session that missed it (hexcue started
-//! after JSBSim) reads the order of the shipped `integrations/jsbsim/hexcue.xml`.
+//! after JSBSim) reads the order of the shipped `integrations/jsbsim/hexcue.xml`. JSBSim sends
+//! every frame, 120 Hz at its default time step, not at the profile's rate: the live clock
+//! holds the newest sample (docs/live.md).
 //!
 //! Units and signs: `a-pilot-*-ft_sec2` is the specific force at the pilot in body axes
 //! (x forward, y right, z down; −32.17 ft/s² on z in level flight), ft/s² → m/s² ×0.3048;
@@ -116,6 +118,10 @@ impl Jsbsim {
 }
 
 impl Decoder for Jsbsim {
+    fn protocol(&self) -> &'static str {
+        "JSBSim socket output"
+    }
+
     fn decode(&mut self, datagram: &[u8]) -> Result<Decoded, String> {
         let text = std::str::from_utf8(datagram).map_err(|_| "not ASCII text".to_string())?;
         let mut decoded = Decoded::Nothing;

@@ -30,6 +30,8 @@ pub enum Decoded {
 
 /// One simulator's protocol, pure: bytes in, a sample out.
 pub trait Decoder: Send {
+    /// The protocol, as the operator knows it (for "no input from …" messages).
+    fn protocol(&self) -> &'static str;
     /// Decodes one datagram; an error is a malformed datagram, with the reason.
     fn decode(&mut self, datagram: &[u8]) -> Result<Decoded, String>;
     /// Datagrams to send to the simulator now (X-Plane's subscription); `receiving` says
@@ -123,6 +125,21 @@ impl LiveInput {
 
     pub fn url(&self) -> &str {
         &self.url
+    }
+
+    /// Where input is expected and by which protocol, for the operator: "JSBSim socket
+    /// output, UDP listening on 127.0.0.1:5138", or for X-Plane the address asked and the
+    /// port the replies come back to.
+    pub fn source_text(&self) -> String {
+        let local = self
+            .socket
+            .local_addr()
+            .map_or_else(|_| "?".to_string(), |a| a.to_string());
+        let protocol = self.decoder.protocol();
+        match self.peer {
+            Some(peer) => format!("{protocol}, asking {peer} over UDP, replies to {local}"),
+            None => format!("{protocol}, UDP listening on {local}"),
+        }
     }
 
     /// The address the socket is bound to (tests bind port 0).

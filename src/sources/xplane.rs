@@ -76,6 +76,10 @@ impl Default for XPlane {
 }
 
 impl Decoder for XPlane {
+    fn protocol(&self) -> &'static str {
+        "X-Plane RREF subscription"
+    }
+
     fn decode(&mut self, d: &[u8]) -> Result<Decoded, String> {
         if d.len() < 5 || &d[..4] != b"RREF" || !(d.len() - 5).is_multiple_of(8) {
             return Err(format!(

@@ -1,7 +1,7 @@
 //! The console of `hexcue live`: the playback layout (one column per algorithm) with a live
-//! header (safety state, input, outputs, timing) and live keys (e-stop, quit). The session
-//! runs on its own clock thread; this thread only draws and reads keys, so a slow terminal
-//! cannot delay a platform command.
+//! header (safety state, input, outputs, timing) and live keys (stop, channel, help). The
+//! session runs on its own clock thread; this thread only draws and reads keys, so a slow
+//! terminal cannot delay a platform command.
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use ratatui::backend::Backend;
-use ratatui::crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
+use ratatui::crossterm::event::{self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
 use ratatui::style::Modifier;
 use ratatui::text::{Line, Span};
 use ratatui::Terminal;
@@ -32,6 +32,8 @@ use super::{SessionInfo, Theme};
 #[derive(Clone, Debug, PartialEq)]
 pub struct LiveStatus {
     pub input: String,
+    /// Where input is expected: protocol and address (`LiveSession::input_source`).
+    pub input_source: String,
     pub outputs: Vec<String>,
     pub drive: AlgorithmId,
     pub state: SafetyState,
@@ -51,13 +53,18 @@ pub struct LiveStatus {
     pub unit_warning: bool,
     /// What the platform says of itself (a Moog base), if it answers.
     pub platform: Option<crate::sinks::PlatformStatus>,
+    /// Session time (s), for how long input has been awaited.
+    pub t_s: f64,
+    /// A short answer to a key (`r`), shown in the footer for a few seconds.
+    pub notice: Option<String>,
 }
 
 impl LiveStatus {
-    fn of(report: &StepReport, input: &str, outputs: &[String], stopping: bool) -> Self {
+    fn of(report: &StepReport, input: (&str, &str), outputs: &[String], stopping: bool) -> Self {
         let s = report.stats;
         LiveStatus {
-            input: input.to_string(),
+            input: input.0.to_string(),
+            input_source: input.1.to_string(),
             outputs: outputs.to_vec(),
             drive: report.output.algorithm,
             state: report.output.state,
@@ -73,21 +80,50 @@ impl LiveStatus {
             stopping,
             unit_warning: s.unit_warning.is_some(),
             platform: report.platform.clone(),
+            t_s: report.frame.t_s,
+            notice: None,
         }
     }
 }
 
-/// The state word, with a symbol so that it reads without colour.
+/// The state word, with a symbol so that it reads without colour. The words are the
+/// operator's, not the code's: the return to neutral when input is lost is not called a
+/// washout (the CWF column's mode is the washout filter), and the stop key's software
+/// return to neutral and park is not called an e-stop (an operator reads that as the
+/// platform's hardware emergency stop, which hexcue does not replace).
 pub fn state_badge(state: SafetyState) -> (&'static str, &'static str) {
     match state {
         SafetyState::Parked => ("■", "PARKED"),
         SafetyState::Engaging => ("◐", "ENGAGING"),
         SafetyState::Running => ("▶", "RUNNING"),
-        SafetyState::Washout => ("~", "WASHOUT"),
-        SafetyState::Estop => ("✖", "E-STOP"),
+        SafetyState::Washout => ("↓", "TO NEUTRAL"),
+        SafetyState::Estop => ("✖", "STOPPING"),
         SafetyState::Fault => ("⚠", "FAULT"),
     }
 }
+
+/// The live console's keys, for the help overlay (`?`) and docs/console.md.
+pub const HELP: &[(&str, &str)] = &[
+    ("e q Esc", "stop: return to neutral, park, end the session"),
+    ("Ctrl-C", "the same stop (so do SIGINT, SIGTERM, SIGHUP)"),
+    ("tab 1..6", "channel fx fy Δfz wx wy wz"),
+    ("r", "recording? live records with --record, from the start"),
+    ("?", "this help; ? or Esc closes it, other keys act"),
+];
+
+/// What the live header's words mean.
+pub const LEGEND: &[(&str, &str)] = &[
+    (
+        "■ PARKED",
+        "at neutral, waiting for input (or after the stop)",
+    ),
+    ("◐ ENGAGING", "input arrived: the cue fades in over 3 s"),
+    ("▶ RUNNING", "the driving algorithm moves the platform"),
+    ("↓ TO NEUTRAL", "input lost or sim paused: back to neutral"),
+    ("✖ STOPPING", "stop key: to neutral, then park (software)"),
+    ("input 4ms", "age of the newest sample; LOST past 0.2 s"),
+    ("NO INPUT", "nothing decoded yet; where hexcue listens"),
+];
 
 /// The header's first line in a live session.
 pub(super) fn status_line(app: &App, live: &LiveStatus) -> Line<'static> {
@@ -133,7 +169,11 @@ pub(super) fn header_line2(app: &App, live: &LiveStatus) -> Line<'static> {
     let th = &app.theme;
     let s = &app.snapshot;
     let input = match live.input_age_s {
-        None => Span::styled(" waiting for input", th.warn()),
+        // Where hexcue listens comes first: it is what the operator must check.
+        None => Span::styled(
+            format!(" ⚠ NO INPUT {:.0}s: {}", live.t_s, live.input_source),
+            th.crit(),
+        ),
         Some(_) if live.sim_paused => Span::styled(" sim PAUSED", th.warn()),
         Some(a) if a > 0.2 => Span::styled(format!(" input LOST {a:.1}s"), th.crit()),
         Some(a) => Span::styled(format!(" input {:.0}ms", a * 1e3), th.ok()),
@@ -188,12 +228,22 @@ pub(super) fn footer_line(app: &App, live: &LiveStatus) -> Line<'static> {
     let th = &app.theme;
     if live.stopping {
         return Line::from(Span::styled(
-            "stopping: washout to neutral, then park; the session ends once parked",
+            "stopping: return to neutral, then park; the session ends once parked",
             th.warn(),
         ));
     }
+    if let Some(n) = &live.notice {
+        return Line::from(vec![
+            Span::styled("» ", th.key()),
+            Span::styled(n.clone(), th.text()),
+        ]);
+    }
     let mut spans = Vec::new();
-    for (k, what) in [("e", "E-STOP"), ("tab", "chan"), ("q", "park & quit")] {
+    for (k, what) in [
+        ("e", "stop: neutral, park, quit"),
+        ("tab", "chan"),
+        ("?", "help"),
+    ] {
         spans.push(Span::styled(k.to_string(), th.key()));
         spans.push(Span::styled(format!(" {what}  "), th.dim()));
     }
@@ -323,6 +373,14 @@ where
     let stop = Arc::new(AtomicBool::new(false));
     let latest: Arc<Mutex<Option<LiveFrame>>> = Arc::new(Mutex::new(None));
     let input = session.input().url().to_string();
+    let source = session.input_source().to_string();
+    let record_notice = match &recording {
+        Some(path) => format!(
+            "recording to {path} since the session's first step (--record); it ends with the session"
+        ),
+        None => "not recording: live records a whole session, from its first step, with --record FILE"
+            .to_string(),
+    };
     let mut model = LiveViewModel::new(profile, session.algorithms(), &input, recording);
     let (stop_c, latest_c) = (stop.clone(), latest.clone());
     let clock = std::thread::Builder::new()
@@ -353,7 +411,7 @@ where
                         snapshot: Arc::new(model.snapshot(report.frame)),
                         status: LiveStatus::of(
                             report,
-                            &input,
+                            (&input, &source),
                             &outputs,
                             stop_c.load(Ordering::Relaxed),
                         ),
@@ -372,6 +430,7 @@ where
         .context("starting the clock thread")?;
 
     let mut app = App::new(Arc::new(info), profile, theme);
+    let mut notice: Option<Instant> = None;
     let mut signal = None;
     let mut last_draw: Option<Instant> = None;
     let mut dirty = true;
@@ -386,6 +445,14 @@ where
                 app.live = Some(lf.status);
                 dirty = true;
             }
+            let shown = notice.filter(|at| at.elapsed() < super::app::NOTICE_FOR);
+            if let Some(live) = app.live.as_mut() {
+                let want = shown.map(|_| record_notice.clone());
+                if live.notice != want {
+                    live.notice = want;
+                    dirty = true;
+                }
+            }
             let since = last_draw.map(|t| t.elapsed());
             if dirty && since.is_none_or(|s| s >= FRAME_INTERVAL) {
                 terminal.draw(|f| app.render(f))?;
@@ -397,20 +464,10 @@ where
             }
             match events.next(FRAME_INTERVAL)? {
                 Some(UiEvent::Key(key)) if key.kind != KeyEventKind::Release => {
-                    let ctrl = key.modifiers.contains(KeyModifiers::CONTROL);
-                    match key.code {
-                        KeyCode::Char('c') | KeyCode::Char('C') if ctrl => {
-                            stop.store(true, Ordering::Relaxed)
-                        }
-                        KeyCode::Char('e' | 'E' | 'q' | 'Q') | KeyCode::Esc => {
-                            stop.store(true, Ordering::Relaxed)
-                        }
-                        KeyCode::Tab => app.channel = (app.channel + 1) % CHANNELS.len(),
-                        KeyCode::BackTab => {
-                            app.channel = (app.channel + CHANNELS.len() - 1) % CHANNELS.len()
-                        }
-                        KeyCode::Char(c @ '1'..='6') => app.channel = (c as usize) - ('1' as usize),
-                        _ => {}
+                    match on_key(&mut app, key) {
+                        LiveKey::Stop => stop.store(true, Ordering::Relaxed),
+                        LiveKey::RecordNotice => notice = Some(Instant::now()),
+                        LiveKey::Shown => {}
                     }
                     dirty = true;
                 }
@@ -435,6 +492,51 @@ where
         lines,
         signal,
     })
+}
+
+/// What a key asks of the live session.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LiveKey {
+    /// Return to neutral, park, end the session.
+    Stop,
+    /// Say whether the session is being recorded (`r`).
+    RecordNotice,
+    /// Only the view changed (help, channel), or nothing.
+    Shown,
+}
+
+/// Applies a key to the live view. The stop keys act whatever is open: an operator reaching
+/// for them must never first have to close an overlay; Esc closes the help when it is open
+/// and stops otherwise.
+pub fn on_key(app: &mut App, key: KeyEvent) -> LiveKey {
+    let ctrl = key.modifiers.contains(KeyModifiers::CONTROL);
+    match key.code {
+        KeyCode::Char('c' | 'C') if ctrl => LiveKey::Stop,
+        KeyCode::Char('e' | 'E' | 'q' | 'Q') => LiveKey::Stop,
+        KeyCode::Esc if app.help => {
+            app.help = false;
+            LiveKey::Shown
+        }
+        KeyCode::Esc => LiveKey::Stop,
+        KeyCode::Char('?') => {
+            app.help = !app.help;
+            LiveKey::Shown
+        }
+        KeyCode::Char('r' | 'R') => LiveKey::RecordNotice,
+        KeyCode::Tab => {
+            app.channel = (app.channel + 1) % CHANNELS.len();
+            LiveKey::Shown
+        }
+        KeyCode::BackTab => {
+            app.channel = (app.channel + CHANNELS.len() - 1) % CHANNELS.len();
+            LiveKey::Shown
+        }
+        KeyCode::Char(c @ '1'..='6') => {
+            app.channel = (c as usize) - ('1' as usize);
+            LiveKey::Shown
+        }
+        _ => LiveKey::Shown,
+    }
 }
 
 /// Keys and resizes from crossterm, signals from signal-hook: as the playback console.
@@ -504,6 +606,7 @@ mod tests {
         app.snapshot = Arc::new(model.snapshot(&last));
         app.live = Some(LiveStatus {
             input: url.into(),
+            input_source: "JSBSim socket output, UDP listening on 127.0.0.1:5138".into(),
             outputs: vec![
                 "udp://127.0.0.1:6000".into(),
                 "moog://192.168.1.100:991".into(),
@@ -522,6 +625,8 @@ mod tests {
             stopping,
             unit_warning: false,
             platform: None,
+            t_s: 4.5,
+            notice: None,
         });
         app
     }
@@ -540,7 +645,8 @@ mod tests {
             "▶ RUNNING",
             "LIVE jsbsim://",
             "input 4ms",
-            "e E-STOP",
+            "e stop: neutral, park, quit",
+            "? help",
             "S-MPC",
         ] {
             assert!(text.contains(want), "missing {want:?} in\n{text}");
@@ -557,17 +663,98 @@ mod tests {
         }
         let text = screen(&app, 160, 40);
         for want in [
-            "✖ E-STOP",
+            "✖ STOPPING",
             "input LOST 0.9s",
             "⚠ 3 missed",
             "2 malformed",
             "● REC live.mcap",
             "→ udp://127.0.0.1:6000 moog://192.168.1.100:991",
-            "washout to neutral, then park",
+            "return to neutral, then park",
         ] {
             assert!(text.contains(want), "missing {want:?} in\n{text}");
         }
         insta::assert_snapshot!("live_160x40_stopping", text);
+    }
+
+    fn key(code: KeyCode) -> KeyEvent {
+        KeyEvent::new(code, KeyModifiers::NONE)
+    }
+
+    #[test]
+    fn the_stop_keys_stop_even_over_the_help_and_esc_closes_it_first() {
+        let mut app = live_app(SafetyState::Running, false);
+        assert_eq!(on_key(&mut app, key(KeyCode::Char('?'))), LiveKey::Shown);
+        assert!(app.help);
+        assert_eq!(on_key(&mut app, key(KeyCode::Tab)), LiveKey::Shown);
+        assert!(
+            app.help && app.channel == 1,
+            "other keys act under the help"
+        );
+        assert_eq!(on_key(&mut app, key(KeyCode::Esc)), LiveKey::Shown);
+        assert!(!app.help);
+        assert_eq!(on_key(&mut app, key(KeyCode::Esc)), LiveKey::Stop);
+        app.help = true;
+        for stop in [KeyCode::Char('e'), KeyCode::Char('q')] {
+            assert_eq!(on_key(&mut app, key(stop)), LiveKey::Stop);
+        }
+        let ctrl_c = KeyEvent::new(KeyCode::Char('c'), KeyModifiers::CONTROL);
+        assert_eq!(on_key(&mut app, ctrl_c), LiveKey::Stop);
+        assert_eq!(
+            on_key(&mut app, key(KeyCode::Char('r'))),
+            LiveKey::RecordNotice
+        );
+        assert_eq!(on_key(&mut app, key(KeyCode::Char('?'))), LiveKey::Shown);
+        assert!(!app.help);
+        assert_eq!(on_key(&mut app, key(KeyCode::Char('4'))), LiveKey::Shown);
+        assert_eq!(app.channel, 3);
+    }
+
+    #[test]
+    fn the_help_lists_the_live_keys_and_words() {
+        let mut app = live_app(SafetyState::Running, false);
+        app.help = true;
+        let text = screen(&app, 80, 24);
+        for want in [
+            "e q Esc",
+            "stop: return to neutral, park, end the session",
+            "↓ TO NEUTRAL",
+            "✖ STOPPING",
+            "NO INPUT",
+            "~ CWF",
+        ] {
+            assert!(text.contains(want), "missing {want:?} in\n{text}");
+        }
+        // The playback's keys do not apply to a live session.
+        assert!(!text.contains("go to a time"), "{text}");
+        insta::assert_snapshot!("live_help_80x24", text);
+    }
+
+    #[test]
+    fn waiting_for_input_says_where_hexcue_listens() {
+        let mut app = live_app(SafetyState::Parked, false);
+        if let Some(l) = app.live.as_mut() {
+            l.input_age_s = None;
+            l.samples_in = 0;
+            l.malformed = 12;
+        }
+        let text = screen(&app, 120, 24);
+        for want in [
+            "■ PARKED",
+            "⚠ NO INPUT 4s: JSBSim socket output, UDP listening on 127.0.0.1:5138",
+            "12 malformed",
+        ] {
+            assert!(text.contains(want), "missing {want:?} in\n{text}");
+        }
+    }
+
+    #[test]
+    fn r_says_whether_the_session_records() {
+        let mut app = live_app(SafetyState::Running, false);
+        if let Some(l) = app.live.as_mut() {
+            l.notice = Some("not recording: live records a whole session".into());
+        }
+        let text = screen(&app, 80, 24);
+        assert!(text.contains("» not recording: live records"), "{text}");
     }
 
     #[test]

@@ -381,7 +381,9 @@ fn render_column(
     f.render_widget(Paragraph::new(fitted(legs)), legs_a);
 }
 
-/// Symbol and word of a controller mode, so that it reads without colour.
+/// Symbol and word of a controller mode, so that it reads without colour. The classical
+/// washout filter's only mode shows as `CWF`, as the MPC's shows as `MPC`: the word
+/// "washout" next to a live header that says RUNNING read as a safety state.
 fn mode_badge(mode: &Mode) -> (&'static str, String) {
     let sym = match mode {
         Mode::Washout => "~",
@@ -391,7 +393,11 @@ fn mode_badge(mode: &Mode) -> (&'static str, String) {
         Mode::Blend => "◐",
         Mode::Fallback => "✖",
     };
-    (sym, mode.word().to_uppercase())
+    let word = match mode {
+        Mode::Washout => "CWF".to_string(),
+        other => other.word().to_uppercase(),
+    };
+    (sym, word)
 }
 
 fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'static>> {
@@ -802,7 +808,10 @@ fn fmt_axis(v: f64) -> String {
     }
 }
 
-const HELP: &[(&str, &str)] = &[
+/// One row of the help overlay: the key or word, and what it does or means.
+type HelpRow = (&'static str, &'static str);
+
+const HELP: &[HelpRow] = &[
     ("space", "pause / play (at the end: from the start)"),
     (". or →", "one step (when paused; → seeks while playing)"),
     ("← → [ ]", "seek −5 s / +5 s"),
@@ -833,17 +842,34 @@ const LEGEND: &[(&str, &str)] = &[
 
 fn render_help(app: &App, f: &mut ratatui::Frame, area: Rect) {
     let th = &app.theme;
+    let live = app.live.is_some();
+    let (keys, legend): (&[HelpRow], &[HelpRow]) = if live {
+        (super::live::HELP, super::live::LEGEND)
+    } else {
+        (HELP, LEGEND)
+    };
+    let kw = keys
+        .iter()
+        .chain(legend)
+        .map(|(k, _)| k.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(10);
     let row = |(k, what): &(&str, &str)| {
         Line::from(vec![
-            Span::styled(format!("{k:>10} "), th.key()),
+            Span::styled(format!("{k:>kw$} "), th.key()),
             Span::styled(what.to_string(), th.text()),
         ])
     };
-    let mut lines: Vec<Line> = HELP.iter().map(row).collect();
+    let mut lines: Vec<Line> = keys.iter().map(row).collect();
     lines.push(Line::from(""));
-    lines.extend(LEGEND.iter().map(row));
+    lines.extend(legend.iter().map(row));
+    if live {
+        // The columns are the playback's: their words mean the same.
+        lines.extend(LEGEND.iter().map(row));
+    }
     lines.push(Line::styled(
-        "modes: ◆ COTC ◇ FREE ◐ BLEND w ● MPC ~ WASHOUT ✖ FALLBACK",
+        "modes: ◆ COTC ◇ FREE ◐ BLEND w ● MPC ~ CWF ✖ FALLBACK",
         th.dim(),
     ));
     let h = (lines.len() as u16 + 2).min(area.height);
