@@ -52,7 +52,7 @@ pub struct LiveStatus {
 
 impl LiveStatus {
     fn of(report: &StepReport, input: &str, outputs: &[String], stopping: bool) -> Self {
-        let s = report.stats;
+        let s = &report.stats;
         LiveStatus {
             input: input.to_string(),
             outputs: outputs.to_vec(),
@@ -65,10 +65,10 @@ impl LiveStatus {
             commands_out: s.commands_out,
             deadline_misses: s.deadline_misses,
             malformed: s.malformed,
-            latency_p99_ms: s.latency.quantile(0.99) / 1e3,
-            step_p99_ms: s.step.quantile(0.99) / 1e3,
+            latency_p99_ms: s.latency_p99_ms,
+            step_p99_ms: s.step_p99_ms,
             stopping,
-            unit_warning: s.unit_warning.is_some(),
+            unit_warning: s.unit_warning,
         }
     }
 }
@@ -323,8 +323,9 @@ where
                         Control::Continue
                     }
                 },
+                // On the sink thread: the view model's work never delays a step.
                 |report| {
-                    model.push(report.frame);
+                    model.push(&report.frame);
                     if published.is_some_and(|p| p.elapsed() < FRAME_INTERVAL) {
                         return;
                     }
@@ -334,7 +335,7 @@ where
                     }
                     published = Some(Instant::now());
                     let frame = LiveFrame {
-                        snapshot: Arc::new(model.snapshot(report.frame)),
+                        snapshot: Arc::new(model.snapshot(&report.frame)),
                         status: LiveStatus::of(
                             report,
                             &input,
