@@ -934,7 +934,14 @@ fn realtime_line(l: &crate::summary::LiveSummary) -> String {
         (true, false) => "normal priority (SCHED_FIFO refused)".to_string(),
     }];
     if rt.requested {
-        parts.push(if rt.memory_locked { "memory locked" } else { "memory not locked" }.into());
+        parts.push(
+            if rt.memory_locked {
+                "memory locked"
+            } else {
+                "memory not locked"
+            }
+            .into(),
+        );
     }
     parts.push(format!(
         "{} frames dropped on the way to the recording and console",

@@ -269,7 +269,10 @@ impl Engine {
     /// could wait on it for a scheduler tick or more; the lanes together take well under a
     /// period.
     pub fn set_parallel(&mut self, parallel: bool) {
-        let heavy = self.lanes.iter().any(|l| l.algorithm.id() != AlgorithmId::Cwf);
+        let heavy = self
+            .lanes
+            .iter()
+            .any(|l| l.algorithm.id() != AlgorithmId::Cwf);
         self.parallel = parallel && heavy;
     }
 

@@ -25,22 +25,29 @@ fn free_port() -> u16 {
 /// `hexcue live --headless` for `duration_s` with a recording and a summary in `dir`.
 fn live_command(dir: &Path, duration_s: f64, extra: &[&str]) -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_hexcue"));
-    c.args(["live", "--headless", "--algorithms", "cwf", "--drive", "cwf"])
-        .arg("--input")
-        .arg(format!("jsbsim://127.0.0.1:{}", free_port()))
-        .arg("--output")
-        .arg(format!("udp://127.0.0.1:{}", free_port()))
-        .arg("--duration")
-        .arg(duration_s.to_string())
-        .arg("--record")
-        .arg(dir.join("live.mcap"))
-        .arg("--summary")
-        .arg(dir.join("live.json"))
-        .args(extra)
-        .current_dir(repo())
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped());
+    c.args([
+        "live",
+        "--headless",
+        "--algorithms",
+        "cwf",
+        "--drive",
+        "cwf",
+    ])
+    .arg("--input")
+    .arg(format!("jsbsim://127.0.0.1:{}", free_port()))
+    .arg("--output")
+    .arg(format!("udp://127.0.0.1:{}", free_port()))
+    .arg("--duration")
+    .arg(duration_s.to_string())
+    .arg("--record")
+    .arg(dir.join("live.mcap"))
+    .arg("--summary")
+    .arg(dir.join("live.json"))
+    .args(extra)
+    .current_dir(repo())
+    .stdin(Stdio::null())
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped());
     c
 }
 
@@ -158,17 +165,29 @@ fn the_stepping_thread_is_raised_as_the_summary_says_and_the_sinks_thread_below_
     };
     let (main, sinks) = (find("hexcue"), find(SINKS));
     if fifo {
-        assert_eq!((main.policy, main.rt_priority), (SCHED_FIFO, 50), "{view:?}");
+        assert_eq!(
+            (main.policy, main.rt_priority),
+            (SCHED_FIFO, 50),
+            "{view:?}"
+        );
     } else {
         assert_eq!(main.policy, SCHED_OTHER, "{view:?}");
         assert!(err.contains("not real time"), "{err}");
     }
-    let sinks_sched = if fifo { (SCHED_FIFO, 1) } else { (SCHED_OTHER, 0) };
+    let sinks_sched = if fifo {
+        (SCHED_FIFO, 1)
+    } else {
+        (SCHED_OTHER, 0)
+    };
     assert_eq!((sinks.policy, sinks.rt_priority), sinks_sched, "{view:?}");
     assert_eq!(locked > 0, lock, "VmLck {locked} kB");
     let table = String::from_utf8_lossy(&out.stdout);
     assert!(
-        table.contains(if fifo { "SCHED_FIFO priority 50" } else { "SCHED_FIFO refused" }),
+        table.contains(if fifo {
+            "SCHED_FIFO priority 50"
+        } else {
+            "SCHED_FIFO refused"
+        }),
         "{table}"
     );
 }
@@ -283,7 +302,9 @@ fn a_priority_out_of_range_is_refused_with_the_range() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert!(
-        err.contains("SCHED_FIFO priority 100 refused: priority 100 is outside SCHED_FIFO's range 1–99"),
+        err.contains(
+            "SCHED_FIFO priority 100 refused: priority 100 is outside SCHED_FIFO's range 1–99"
+        ),
         "{err}"
     );
     let rt = &read_json(&dir.path().join("live.json"))["live"]["realtime"];

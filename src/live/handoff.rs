@@ -155,12 +155,15 @@ mod tests {
         }
     }
 
+    /// Every frame a sink got (its step) with the events that came with it.
+    type Seen = Arc<Mutex<Vec<(usize, Vec<String>)>>>;
+
     /// A sink that, on its first frame, says so and then waits to be let go: a recording
     /// stuck on a slow disk.
     struct Stuck {
         entered: Arc<Barrier>,
         release: Arc<Barrier>,
-        seen: Arc<Mutex<Vec<(usize, Vec<String>)>>>,
+        seen: Seen,
         first: bool,
     }
 
@@ -199,7 +202,8 @@ mod tests {
         let mut on_step_saw = Vec::new();
         let mut frames = frames(12).into_iter();
         std::thread::scope(|s| {
-            let feeder = s.spawn(|| feed(rx, vec![Box::new(sink)], |r| on_step_saw.push(r.frame.k)));
+            let feeder =
+                s.spawn(|| feed(rx, vec![Box::new(sink)], |r| on_step_saw.push(r.frame.k)));
             assert_eq!(
                 handoff.offer(report(frames.next().unwrap(), &[])),
                 Offered::Sent

@@ -732,7 +732,10 @@ mod tests {
             Ok(())
         }
         fn event(&mut self, event: &LiveEvent) -> Result<()> {
-            self.0.lock().unwrap().push((event.text.clone(), usize::MAX));
+            self.0
+                .lock()
+                .unwrap()
+                .push((event.text.clone(), usize::MAX));
             Ok(())
         }
         fn finish(self: Box<Self>) -> Result<String> {
@@ -781,7 +784,10 @@ mod tests {
             .enumerate()
             .all(|(i, (t, k))| t.as_deref() == Some("hexcue-live-sinks") && *k == i));
         // The event came with the first frame, once.
-        assert_eq!(seen[1], ("told before the first step".to_string(), usize::MAX));
+        assert_eq!(
+            seen[1],
+            ("told before the first step".to_string(), usize::MAX)
+        );
         assert_eq!(seen.iter().filter(|(_, k)| *k == usize::MAX).count(), 1);
         let (summary, lines) = s.finish().unwrap();
         assert_eq!(lines, ["witness closed"]);

@@ -280,7 +280,10 @@ mod tests {
             assert!(why.contains("outside SCHED_FIFO's range 1–99"), "{why}");
             assert_eq!(linux::current_policy(), before);
             let warning = guard.warning().unwrap();
-            assert!(warning.contains("SCHED_FIFO priority 0 refused"), "{warning}");
+            assert!(
+                warning.contains("SCHED_FIFO priority 0 refused"),
+                "{warning}"
+            );
         });
     }
 
