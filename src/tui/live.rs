@@ -184,15 +184,15 @@ pub(super) fn footer_line(app: &App, live: &LiveStatus) -> Line<'static> {
     Line::from(spans)
 }
 
-/// What the clock thread publishes for the interface.
+/// What the session's sink thread publishes for the interface.
 #[derive(Clone)]
 pub struct LiveFrame {
     pub snapshot: Arc<Snapshot>,
     pub status: LiveStatus,
 }
 
-/// Keeps the charts' window and the running summary on the clock thread, and builds the
-/// interface's snapshots from them.
+/// Keeps the charts' window and the running summary on the session's sink thread (never
+/// on the stepping thread: `live::run`), and builds the interface's snapshots from them.
 pub struct LiveViewModel {
     algorithms: Vec<AlgorithmId>,
     rate_hz: f64,
@@ -281,7 +281,7 @@ pub struct LiveConsole {
     pub theme: Theme,
 }
 
-/// The metrics are refreshed this often on the clock thread.
+/// The metrics are refreshed this often on the session's sink thread.
 const SUMMARY_EVERY: Duration = Duration::from_millis(500);
 
 /// Runs `session` on its clock thread and the console on this one until the operator quits
