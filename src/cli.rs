@@ -109,6 +109,13 @@ pub struct LiveArgs {
     /// events on /events. See docs/foxglove.md.
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::foxglove::DEFAULT_ADDR)]
     pub foxglove: Option<SocketAddr>,
+    /// Leave the stepping thread at normal priority and memory unlocked (by default it runs
+    /// under SCHED_FIFO with memory locked where the OS allows, and warns where it does not).
+    #[arg(long)]
+    pub no_realtime: bool,
+    /// The stepping thread's SCHED_FIFO priority (Linux: 1–99).
+    #[arg(long, value_name = "N", default_value_t = crate::live::realtime::DEFAULT_PRIORITY, conflicts_with = "no_realtime")]
+    pub realtime_priority: i32,
 }
 
 #[derive(Args, Debug)]
@@ -601,6 +608,7 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
         input,
         crate::safety::SafetyParams::default(),
     )?;
+    session.set_realtime((!args.no_realtime).then_some(args.realtime_priority));
     for url in &args.output {
         session.add_output(crate::sinks::open_output(
             url,
@@ -658,7 +666,7 @@ pub fn run_live_headless(args: &LiveArgs) -> Result<Summary> {
             }
         },
         |report| {
-            for event in report.events {
+            for event in &report.events {
                 let level = match event.level {
                     crate::live::EventLevel::Info => "",
                     crate::live::EventLevel::Warning => "warning: ",
@@ -852,7 +860,8 @@ pub fn format_table(s: &Summary) -> String {
     if let Some(l) = &s.live {
         out.push_str(&format!(
             "\nlive: {} samples in, {} commands out, {} deadline misses, step median {:.3} ms p99 {:.3} ms, \
-             latency median {:.3} ms p99 {:.3} ms, input lost {:.2} s, {} malformed\n",
+             latency median {:.3} ms p99 {:.3} ms (new samples: p99 {:.3} ms), {} stale steps, \
+             input lost {:.2} s, {} malformed\n",
             l.samples_in,
             l.commands_out,
             l.deadline_misses,
@@ -860,6 +869,8 @@ pub fn format_table(s: &Summary) -> String {
             l.step_ms.p99,
             l.latency_ms.median,
             l.latency_ms.p99,
+            l.new_sample_latency_ms.p99,
+            l.stale_steps,
             l.input_lost_s,
             l.malformed
         ));
@@ -872,8 +883,34 @@ pub fn format_table(s: &Summary) -> String {
         if let Some(none) = s.no_input_line() {
             out.push_str(&format!("live: NOT A CLEAN SESSION: {none}\n"));
         }
+        out.push_str(&format!("live: {}\n", realtime_line(l)));
     }
     out
+}
+
+/// How the stepping thread ran, and what its sinks missed.
+fn realtime_line(l: &crate::summary::LiveSummary) -> String {
+    let rt = &l.realtime;
+    let mut parts = vec![match (rt.requested, rt.sched_fifo) {
+        (false, _) => "normal priority (--no-realtime)".to_string(),
+        (true, true) => format!("SCHED_FIFO priority {}", rt.priority),
+        (true, false) => "normal priority (SCHED_FIFO refused)".to_string(),
+    }];
+    if rt.requested {
+        parts.push(
+            if rt.memory_locked {
+                "memory locked"
+            } else {
+                "memory not locked"
+            }
+            .into(),
+        );
+    }
+    parts.push(format!(
+        "{} frames dropped on the way to the recording and console",
+        l.frames_dropped
+    ));
+    format!("stepping thread: {}", parts.join(", "))
 }
 
 /// Four decimals, or three significant digits for values too small to show that way

@@ -262,6 +262,20 @@ impl Engine {
         self.cue_gain = gain.clamp(0.0, 1.0);
     }
 
+    /// Steps the lanes one after the other on the caller's thread (`false`) rather than
+    /// the first here and the others on a thread started for the step. A live session does:
+    /// starting a thread takes the process's memory-map lock (its stacks are mapped), which
+    /// any other thread of the process may hold while it is preempted, so a real-time step
+    /// could wait on it for a scheduler tick or more; the lanes together take well under a
+    /// period.
+    pub fn set_parallel(&mut self, parallel: bool) {
+        let heavy = self
+            .lanes
+            .iter()
+            .any(|l| l.algorithm.id() != AlgorithmId::Cwf);
+        self.parallel = parallel && heavy;
+    }
+
     pub fn algorithms(&self) -> Vec<AlgorithmId> {
         self.lanes.iter().map(|l| l.algorithm.id()).collect()
     }

@@ -90,6 +90,15 @@ pub struct LiveSummary {
     /// Session time at which the first sample arrived (s); `null` when none did: nothing was
     /// cued and the platform never left neutral, which is not a clean session.
     pub first_input_s: Option<f64>,
+    /// The same, over the first command computed from each sample only: hexcue's own delay
+    /// from a sample's arrival to its command, without the steps that hold an older sample
+    /// because the simulator sent none newer (ms).
+    #[serde(default)]
+    pub new_sample_latency_ms: Quantiles,
+    /// Steps with fresh input whose sample was older than one period: the simulator slower
+    /// than hexcue's clock, or late.
+    #[serde(default)]
+    pub stale_steps: u64,
     /// Time without fresh input (or with the simulator paused) after the first sample (s).
     pub input_lost_s: f64,
     /// Datagrams refused and ignored.
@@ -102,12 +111,39 @@ pub struct LiveSummary {
     /// (a Moog base's fault state, or its silence). The session then ends with an error.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub platform_fault: Option<String>,
+    /// Steps whose frame the recording, Foxglove and the console did not get: their thread
+    /// was that far behind, and the stepping thread never waits for it.
+    #[serde(default)]
+    pub frames_dropped: u64,
+    /// What the stepping thread was granted (docs/live.md, *Real time*).
+    #[serde(default)]
+    pub realtime: RealtimeSummary,
+}
+
+/// The stepping thread's scheduling: asked for, granted, or refused and why.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RealtimeSummary {
+    /// Real time was asked for (`hexcue live --no-realtime` does not).
+    pub requested: bool,
+    /// The stepping thread ran under `SCHED_FIFO`.
+    pub sched_fifo: bool,
+    /// The `SCHED_FIFO` priority asked for (1–99); 0 when not asked.
+    pub priority: i32,
+    /// The process's memory was locked (`mlockall`, current and future pages).
+    pub memory_locked: bool,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sched_fifo_refused: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub memory_lock_refused: Option<String>,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Quantiles {
     pub median: f64,
     pub p99: f64,
+    /// The worst one.
+    #[serde(default)]
+    pub max: f64,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -1,16 +1,23 @@
 //! `hexcue live`: hexcue between a running simulator and a motion platform (DESIGN §10).
 //!
-//! One thread keeps the clock. Each period it steps once: the latest input sample (held
-//! between arrivals) goes through the engine and every algorithm; the driving algorithm's
-//! command passes the safety stage ([`crate::safety`]) and a last workspace limiter, and goes
-//! to every output; then the frame goes to every frame sink (the recording; Foxglove next).
-//! A command leaves every step, from start to exit, whatever the input does.
+//! One thread keeps the clock, at real-time priority where the OS allows it
+//! ([`realtime`]). Each period it steps once: the latest input sample (held between
+//! arrivals) goes through the engine and every algorithm; the driving algorithm's command
+//! passes the safety stage ([`crate::safety`]) and a last workspace limiter, and goes to
+//! every output. Nothing else happens on that thread: the step's report is handed to a
+//! second thread ([`handoff`]) that feeds the frame sinks (the recording, Foxglove) and the
+//! caller's `on_step` (the console, stderr), and is dropped and counted rather than waited
+//! for when that thread is behind. A command leaves every step, from start to exit,
+//! whatever the input does.
 //!
-//! While it waits for the next step it reads the input socket every millisecond, so a
-//! sample's arrival is known to a millisecond, with a bounded number of reads per step so
-//! that a flood of datagrams cannot stall the clock.
+//! While it waits for the next step it reads the input socket every millisecond, sleeping
+//! in between (never spinning: at real-time priority that would take a core from everyone),
+//! so a sample's arrival is known to a millisecond, with a bounded number of reads per step
+//! so that a flood of datagrams cannot stall the clock.
 
+pub mod handoff;
 pub mod input_watch;
+pub mod realtime;
 pub mod recording;
 
 use std::time::{Duration, Instant};
@@ -28,8 +35,7 @@ use crate::safety::{PlatformReadiness, Safety, SafetyParams, SafetyState};
 use crate::sinks::{CommandSink, FrameSink, PlatformOutput, PlatformPhase, PlatformStatus};
 use crate::source::{HeldSample, HeldSampleHandle};
 use crate::sources::live::LiveInput;
-
-use crate::summary::{LiveSummary, Quantiles, Summary, SummaryBuilder};
+use crate::summary::{LiveSummary, Quantiles, RealtimeSummary, Summary, SummaryBuilder};
 use input_watch::{InputCounts, InputWatch};
 
 /// Datagrams read at most per step: ten times what a simulator at 10× the step rate sends.
@@ -79,20 +85,37 @@ pub struct LiveEvent {
     pub text: String,
 }
 
-/// One step as it happened, for the console and the tests.
-pub struct StepReport<'a> {
-    pub frame: &'a Frame,
+/// One step as it happened: what the frame sinks, the console and the tests get. Owned, so
+/// that it moves to the sink thread without a copy of the frame.
+pub struct StepReport {
+    pub frame: Frame,
     pub output: PlatformOutput,
     /// Age of the held sample when the step began (s); `None` before the first.
     pub input_age_s: Option<f64>,
     /// The simulator says it is paused.
     pub sim_paused: bool,
     pub time_in_state_s: f64,
-    pub stats: &'a LiveStats,
-    /// What happened at this step (usually nothing).
-    pub events: &'a [LiveEvent],
+    pub stats: LiveCounters,
+    /// What happened at this step (usually nothing), and at steps whose report was dropped
+    /// on the way to the sinks.
+    pub events: Vec<LiveEvent>,
     /// What the platform says of itself (the first output that answers: a Moog base).
     pub platform: Option<PlatformStatus>,
+}
+
+/// The session's counters as of one step, small enough to go with every report.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LiveCounters {
+    pub samples_in: u64,
+    pub commands_out: u64,
+    pub deadline_misses: u64,
+    pub malformed: u64,
+    /// Reports the sink thread did not get before this one.
+    pub frames_dropped: u64,
+    pub latency_p99_ms: f64,
+    pub step_p99_ms: f64,
+    /// The first seconds of input suggest a unit or sign mistake (the summary says which).
+    pub unit_warning: bool,
 }
 
 /// Counters and histograms of the session, in constant memory.
@@ -102,6 +125,9 @@ pub struct LiveStats {
     pub deadline_misses: u64,
     pub step: TimeHistogram,
     pub latency: TimeHistogram,
+    /// The same, on the first step to use each sample only: hexcue's own delay, without
+    /// the steps that hold a sample because the simulator sent no newer one.
+    pub new_sample_latency: TimeHistogram,
     pub input_lost_steps: u64,
     /// Steps with the held sample older than one period when used: the simulator is slower
     /// than hexcue, or late.
@@ -114,6 +140,9 @@ pub struct LiveStats {
     pub unit_warning: Option<String>,
     /// The platform fault that stopped all motion (the output and what it said), if any.
     pub platform_fault: Option<String>,
+    /// Reports dropped on the way to the sink thread.
+    pub frames_dropped: u64,
+    pub realtime: RealtimeSummary,
 }
 
 impl LiveStats {
@@ -121,6 +150,7 @@ impl LiveStats {
         let ms = |h: &TimeHistogram| Quantiles {
             median: h.quantile(0.5) / 1e3,
             p99: h.quantile(0.99) / 1e3,
+            max: h.summary().max / 1e3,
         };
         LiveSummary {
             samples_in: self.samples_in,
@@ -128,11 +158,28 @@ impl LiveStats {
             deadline_misses: self.deadline_misses,
             step_ms: ms(&self.step),
             latency_ms: ms(&self.latency),
+            new_sample_latency_ms: ms(&self.new_sample_latency),
+            stale_steps: self.stale_steps,
             first_input_s: self.first_input_s,
             input_lost_s: self.input_lost_steps as f64 / rate_hz,
             malformed: self.malformed,
             unit_warning: self.unit_warning.clone(),
             platform_fault: self.platform_fault.clone(),
+            frames_dropped: self.frames_dropped,
+            realtime: self.realtime.clone(),
+        }
+    }
+
+    fn counters(&self) -> LiveCounters {
+        LiveCounters {
+            samples_in: self.samples_in,
+            commands_out: self.commands_out,
+            deadline_misses: self.deadline_misses,
+            malformed: self.malformed,
+            frames_dropped: self.frames_dropped,
+            latency_p99_ms: self.latency.quantile(0.99) / 1e3,
+            step_p99_ms: self.step.quantile(0.99) / 1e3,
+            unit_warning: self.unit_warning.is_some(),
         }
     }
 }
@@ -157,7 +204,13 @@ pub struct LiveSession {
     seq: u64,
     reads_left: usize,
     first_sample_seen: bool,
-    last_frame: Option<Frame>,
+    /// When the sample the last step used arrived: a step whose newest sample arrived
+    /// at the same instant holds it.
+    last_arrival: Option<Instant>,
+    /// The stepping thread's `SCHED_FIFO` priority; `None`: stay at normal priority.
+    realtime_priority: Option<i32>,
+    /// What the frame sinks said when the sink thread finished them.
+    sink_lines: Vec<String>,
     /// Whether the previous step had fresh input from a running simulator.
     input_was_ok: bool,
     /// Since when the input has been lost (session time, s).
@@ -188,8 +241,9 @@ impl LiveSession {
             "--drive {drive}: the algorithm driving the platform must be among --algorithms"
         );
         let (source, held) = HeldSample::new(input.url(), profile.rate_hz);
-        let engine = Engine::with_source(profile, Box::new(source), algorithms)
+        let mut engine = Engine::with_source(profile, Box::new(source), algorithms)
             .context("building the algorithms")?;
+        engine.set_parallel(false);
         let dt = profile.dt_s();
         let watch = InputWatch::new(input.url(), &input.source_text());
         Ok(LiveSession {
@@ -214,7 +268,9 @@ impl LiveSession {
             seq: 0,
             reads_left: MAX_READS_PER_STEP,
             first_sample_seen: false,
-            last_frame: None,
+            last_arrival: None,
+            realtime_priority: None,
+            sink_lines: Vec::new(),
             input_was_ok: false,
             lost_since_s: None,
             units: Some(UnitStats::new()),
@@ -230,9 +286,16 @@ impl LiveSession {
         self.platform_phases.push(None);
     }
 
-    /// Attaches a frame sink: it gets every frame after the step's command has been sent.
+    /// Attaches a frame sink: [`run`] feeds it every frame (and the events) from the sink
+    /// thread, after the step's command has been sent.
     pub fn add_frame_sink(&mut self, sink: Box<dyn FrameSink>) {
         self.frame_sinks.push(sink);
+    }
+
+    /// Runs the stepping thread under `SCHED_FIFO` at `priority` with memory locked, as far
+    /// as the OS allows ([`realtime`]); `None` (the default) leaves it at normal priority.
+    pub fn set_realtime(&mut self, priority: Option<i32>) {
+        self.realtime_priority = priority;
     }
 
     pub fn period(&self) -> Duration {
@@ -276,8 +339,9 @@ impl LiveSession {
         Ok(())
     }
 
-    /// One step, due at `due`: input, safety, engine, limiter, outputs, frame sinks.
-    pub fn step(&mut self, due: Instant, control: Control) -> Result<StepReport<'_>> {
+    /// One step, due at `due`: input, safety, engine, limiter, outputs. The report is for
+    /// the frame sinks and the console ([`run`] hands it to the sink thread).
+    pub fn step(&mut self, due: Instant, control: Control) -> Result<StepReport> {
         let started = Instant::now();
         self.poll_input(started)?;
         self.reads_left = MAX_READS_PER_STEP;
@@ -296,7 +360,6 @@ impl LiveSession {
             self.stats.stale_steps += 1;
         }
 
-        self.events.clear();
         let t_s = self.engine.position() as f64 / self.rate_hz;
         if latest.is_some() && self.stats.first_input_s.is_none() {
             self.stats.first_input_s = Some(t_s);
@@ -360,9 +423,11 @@ impl LiveSession {
             self.stats.deadline_misses += 1;
         }
         if let (Some((_, arrival)), true) = (latest, input_ok) {
-            self.stats
-                .latency
-                .push(sent.saturating_duration_since(arrival).as_secs_f64() * 1e6);
+            let us = sent.saturating_duration_since(arrival).as_secs_f64() * 1e6;
+            self.stats.latency.push(us);
+            if self.last_arrival.replace(arrival) != Some(arrival) {
+                self.stats.new_sample_latency.push(us);
+            }
         }
         self.stats.samples_in = self.input.samples_in;
         self.stats.malformed = self.input.malformed;
@@ -370,21 +435,14 @@ impl LiveSession {
         if input_ok {
             self.check_units(&frame);
         }
-        for sink in &mut self.frame_sinks {
-            sink.record(&frame)?;
-            for event in &self.events {
-                sink.event(event)?;
-            }
-        }
-        self.last_frame = Some(frame);
         Ok(StepReport {
-            frame: self.last_frame.as_ref().expect("set just above"),
+            frame,
             output,
             input_age_s,
             sim_paused: self.input.paused(),
             time_in_state_s: self.safety.time_in_state_s(),
-            stats: &self.stats,
-            events: &self.events,
+            stats: self.stats.counters(),
+            events: std::mem::take(&mut self.events),
             platform: self.platform.clone(),
         })
     }
@@ -534,7 +592,7 @@ impl LiveSession {
     }
 
     /// Says goodbye to the platform (Moog: park) and the simulator, and closes every frame
-    /// sink; returns what each sink said.
+    /// sink [`run`] has not closed; returns what each sink said.
     pub fn finish(mut self) -> Result<(Summary, Vec<String>)> {
         let mut lines = Vec::new();
         let t_s = self.engine.position() as f64 / self.rate_hz;
@@ -555,6 +613,7 @@ impl LiveSession {
         }
         self.input.close();
         let summary = self.summary();
+        lines.extend(std::mem::take(&mut self.sink_lines));
         for mut sink in self.frame_sinks.drain(..) {
             for event in &events {
                 sink.event(event)?;
@@ -598,11 +657,73 @@ fn platform_event(t_s: f64, output: &str, status: &PlatformStatus) -> LiveEvent 
 }
 
 /// The clock: steps `session` every period until `control` has asked it to stop and the
-/// platform is parked. `control` is asked before every step; `on_step` sees every step.
+/// platform is parked. `control` is asked before every step, on this thread; `on_step` sees
+/// every step's report after the frame sinks, on the sink thread, except reports dropped
+/// because that thread was [`handoff::CAPACITY_S`] behind. This thread is raised to real
+/// time for the loop if the session asks for it, and put back as it was on return. Frame
+/// sinks are finished before it returns, whatever ended the loop.
 pub fn run(
     session: &mut LiveSession,
+    control: impl FnMut(&LiveSession) -> Control,
+    on_step: impl FnMut(&StepReport) + Send,
+) -> Result<()> {
+    let sinks = std::mem::take(&mut session.frame_sinks);
+    let capacity = (handoff::CAPACITY_S * session.rate_hz).ceil() as usize;
+    let (mut handoff, rx) = handoff::Handoff::new(capacity);
+    let sinks_raised = session.realtime_priority.is_some();
+    std::thread::scope(|scope| {
+        // Started before this thread is raised (a thread inherits its creator's policy), and
+        // raised to the lowest real-time priority of its own: below the stepping thread,
+        // above normal load, so that it is not preempted by a build or a busy loop while it
+        // holds a lock of the process that the stepping thread may need (the memory map's,
+        // the allocator's).
+        let feeder = std::thread::Builder::new()
+            .name("hexcue-live-sinks".into())
+            .spawn_scoped(scope, move || {
+                if sinks_raised {
+                    // Refused or not, the stepping thread's own request tells the operator.
+                    let _ = realtime::raise_current_thread(realtime::SINKS_PRIORITY);
+                }
+                handoff::feed(rx, sinks, on_step)
+            })
+            .context("starting the sink thread")?;
+        let stepped = {
+            let guard = match session.realtime_priority {
+                Some(priority) => realtime::RealtimeGuard::enter(priority),
+                None => realtime::RealtimeGuard::off(),
+            };
+            session.stats.realtime = guard.summary().clone();
+            if let Some(text) = guard.warning() {
+                session.events.push(LiveEvent {
+                    t_s: 0.0,
+                    level: EventLevel::Warning,
+                    text,
+                });
+            }
+            clock_loop(session, control, &mut handoff)
+        };
+        session.stats.frames_dropped = handoff.dropped();
+        // Hang up: the sink thread drains what is queued, finishes the sinks and ends.
+        drop(handoff);
+        let fed = feeder
+            .join()
+            .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        match fed {
+            Ok(lines) => {
+                session.sink_lines = lines;
+                stepped
+            }
+            // The clock's own error first: a sink's failure is its consequence or lesser.
+            Err(e) => stepped.and(Err(e.context("recording or serving the session"))),
+        }
+    })
+}
+
+/// Steps on the schedule, handing each report over, until stopped and parked.
+fn clock_loop(
+    session: &mut LiveSession,
     mut control: impl FnMut(&LiveSession) -> Control,
-    mut on_step: impl FnMut(&StepReport),
+    handoff: &mut handoff::Handoff,
 ) -> Result<()> {
     let period = session.period();
     let mut due = Instant::now();
@@ -618,7 +739,11 @@ pub fn run(
         }
         let c = control(session);
         let report = session.step(due, c)?;
-        on_step(&report);
+        if handoff.offer(report) == handoff::Offered::Closed {
+            // A sink failed: its error comes from the sink thread's join.
+            return Ok(());
+        }
+        session.stats.frames_dropped = handoff.dropped();
         if session.is_stopped() {
             return Ok(());
         }
@@ -775,6 +900,80 @@ mod tests {
             assert_eq!(st.input_lost_steps, 0, "{rate_hz} Hz");
             assert_eq!((repeats > 0, skips > 0), (rate_hz < 100.0, rate_hz > 100.0));
         }
+    }
+
+    /// Notes which thread fed it which frame and event.
+    struct Witness(std::sync::Arc<std::sync::Mutex<Vec<(String, usize)>>>);
+
+    impl FrameSink for Witness {
+        fn record(&mut self, frame: &Frame) -> Result<()> {
+            let thread = std::thread::current().name().unwrap_or("").to_string();
+            self.0.lock().unwrap().push((thread, frame.k));
+            Ok(())
+        }
+        fn event(&mut self, event: &LiveEvent) -> Result<()> {
+            self.0
+                .lock()
+                .unwrap()
+                .push((event.text.clone(), usize::MAX));
+            Ok(())
+        }
+        fn finish(self: Box<Self>) -> Result<String> {
+            Ok("witness closed".into())
+        }
+    }
+
+    #[test]
+    fn run_feeds_every_frame_and_event_to_the_sinks_on_their_own_thread() {
+        let (mut s, _) = session();
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        s.add_frame_sink(Box::new(Witness(seen.clone())));
+        // As a refused real-time request is told: before the first step.
+        s.events.push(LiveEvent {
+            t_s: 0.0,
+            level: EventLevel::Warning,
+            text: "told before the first step".into(),
+        });
+        let mut asked = 0;
+        let mut on_step = Vec::new();
+        // Fewer steps than the channel holds: none may be dropped, whatever the timing.
+        run(
+            &mut s,
+            |_| {
+                asked += 1;
+                if asked > 20 {
+                    Control::Stop
+                } else {
+                    Control::Continue
+                }
+            },
+            |r| on_step.push((std::thread::current().name().map(String::from), r.frame.k)),
+        )
+        .unwrap();
+        let steps = s.stats().commands_out as usize;
+        assert!(steps > 20 && steps < 40, "{steps}");
+        let seen = seen.lock().unwrap();
+        let frames: Vec<&(String, usize)> = seen.iter().filter(|(_, k)| *k != usize::MAX).collect();
+        assert_eq!(frames.len(), steps);
+        for (i, (thread, k)) in frames.iter().enumerate() {
+            assert_eq!((thread.as_str(), *k), ("hexcue-live-sinks", i));
+        }
+        assert_eq!(on_step.len(), steps);
+        assert!(on_step
+            .iter()
+            .enumerate()
+            .all(|(i, (t, k))| t.as_deref() == Some("hexcue-live-sinks") && *k == i));
+        // The event came with the first frame, once.
+        assert_eq!(
+            seen[1],
+            ("told before the first step".to_string(), usize::MAX)
+        );
+        assert_eq!(seen.iter().filter(|(_, k)| *k == usize::MAX).count(), 1);
+        let (summary, lines) = s.finish().unwrap();
+        assert_eq!(lines, ["witness closed"]);
+        let live = summary.live.unwrap();
+        assert_eq!(live.frames_dropped, 0);
+        assert!(!live.realtime.requested);
     }
 
     #[test]

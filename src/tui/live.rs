@@ -61,7 +61,7 @@ pub struct LiveStatus {
 
 impl LiveStatus {
     fn of(report: &StepReport, input: (&str, &str), outputs: &[String], stopping: bool) -> Self {
-        let s = report.stats;
+        let s = &report.stats;
         LiveStatus {
             input: input.0.to_string(),
             input_source: input.1.to_string(),
@@ -75,10 +75,10 @@ impl LiveStatus {
             commands_out: s.commands_out,
             deadline_misses: s.deadline_misses,
             malformed: s.malformed,
-            latency_p99_ms: s.latency.quantile(0.99) / 1e3,
-            step_p99_ms: s.step.quantile(0.99) / 1e3,
+            latency_p99_ms: s.latency_p99_ms,
+            step_p99_ms: s.step_p99_ms,
             stopping,
-            unit_warning: s.unit_warning.is_some(),
+            unit_warning: s.unit_warning,
             platform: report.platform.clone(),
             t_s: report.frame.t_s,
             notice: None,
@@ -250,15 +250,15 @@ pub(super) fn footer_line(app: &App, live: &LiveStatus) -> Line<'static> {
     Line::from(spans)
 }
 
-/// What the clock thread publishes for the interface.
+/// What the session's sink thread publishes for the interface.
 #[derive(Clone)]
 pub struct LiveFrame {
     pub snapshot: Arc<Snapshot>,
     pub status: LiveStatus,
 }
 
-/// Keeps the charts' window and the running summary on the clock thread, and builds the
-/// interface's snapshots from them.
+/// Keeps the charts' window and the running summary on the session's sink thread (never
+/// on the stepping thread: `live::run`), and builds the interface's snapshots from them.
 pub struct LiveViewModel {
     algorithms: Vec<AlgorithmId>,
     rate_hz: f64,
@@ -347,7 +347,7 @@ pub struct LiveConsole {
     pub theme: Theme,
 }
 
-/// The metrics are refreshed this often on the clock thread.
+/// The metrics are refreshed this often on the session's sink thread.
 const SUMMARY_EVERY: Duration = Duration::from_millis(500);
 
 /// Runs `session` on its clock thread and the console on this one until the operator quits
@@ -397,8 +397,9 @@ where
                         Control::Continue
                     }
                 },
+                // On the sink thread: the view model's work never delays a step.
                 |report| {
-                    model.push(report.frame);
+                    model.push(&report.frame);
                     if published.is_some_and(|p| p.elapsed() < FRAME_INTERVAL) {
                         return;
                     }
@@ -408,7 +409,7 @@ where
                     }
                     published = Some(Instant::now());
                     let frame = LiveFrame {
-                        snapshot: Arc::new(model.snapshot(report.frame)),
+                        snapshot: Arc::new(model.snapshot(&report.frame)),
                         status: LiveStatus::of(
                             report,
                             (&input, &source),
