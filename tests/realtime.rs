@@ -53,6 +53,13 @@ fn live_command(dir: &Path, duration_s: f64, extra: &[&str]) -> Command {
 
 /// A thread's name, scheduling policy and real-time priority (proc(5): `stat` fields 41
 /// and 40, counted after the parenthesised name, which may hold spaces).
+/// Nothing sends to these sessions (they judge the threads, not the cue): each must run its
+/// whole duration and end as a session without input does, with status 1 and that reason.
+fn ran_to_its_end(status: &std::process::ExitStatus, err: &str) {
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(err.contains("no input received"), "{err}");
+}
+
 #[derive(Debug, PartialEq)]
 struct ThreadSched {
     name: String,
@@ -150,7 +157,7 @@ fn the_stepping_thread_is_raised_as_the_summary_says_and_the_sinks_thread_below_
     });
     let out = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
+    ran_to_its_end(&out.status, &err);
     let rt = &read_json(&dir.path().join("live.json"))["live"]["realtime"];
     assert_eq!(rt["requested"], Value::Bool(true), "{rt}");
     assert_eq!(rt["sched_fifo"], Value::Bool(fifo), "{rt}");
@@ -201,7 +208,7 @@ fn no_realtime_leaves_every_thread_alone_and_says_nothing() {
     let (view, locked) = watch(&mut child, |v| v.iter().any(|t| t.name == SINKS));
     let out = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
+    ran_to_its_end(&out.status, &err);
     assert!(!view.is_empty());
     assert!(view.iter().all(|t| t.policy == SCHED_OTHER), "{view:?}");
     assert_eq!(locked, 0);
@@ -262,7 +269,7 @@ fn a_refused_realtime_is_a_warning_with_its_reason_and_the_session_runs_on() {
     let (view, locked) = watch(&mut child, |v| v.iter().any(|t| t.name == SINKS));
     let out = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
+    ran_to_its_end(&out.status, &err);
     assert!(view.iter().all(|t| t.policy == SCHED_OTHER), "{view:?}");
     assert_eq!(locked, 0);
     let summary = read_json(&dir.path().join("live.json"));
@@ -300,7 +307,7 @@ fn a_priority_out_of_range_is_refused_with_the_range() {
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
+    ran_to_its_end(&out.status, &err);
     assert!(
         err.contains(
             "SCHED_FIFO priority 100 refused: priority 100 is outside SCHED_FIFO's range 1–99"

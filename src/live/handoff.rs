@@ -71,13 +71,15 @@ impl Handoff {
 }
 
 /// The sink thread's loop: every report in order to every frame sink (its frame, then its
-/// events), then to `on_step`; once the stepping thread has hung up, or a sink failed, every
-/// sink is finished. Returns what each sink said, or the first error.
+/// events), then to `on_step`, until the stepping thread hangs up. The sinks come back then,
+/// still open, so that what happens after the last step (the platform parking, a fault) is
+/// recorded before they are finished. If a sink fails, every sink is finished here and the
+/// first error returned.
 pub fn feed(
     rx: Receiver<StepReport>,
     mut sinks: Vec<Box<dyn FrameSink>>,
     mut on_step: impl FnMut(&StepReport),
-) -> Result<Vec<String>> {
+) -> Result<Vec<Box<dyn FrameSink>>> {
     let mut failed = None;
     'reports: for report in rx.iter() {
         for sink in &mut sinks {
@@ -91,22 +93,16 @@ pub fn feed(
         }
         on_step(&report);
     }
-    // Hang up first: the stepping thread learns of a failure at its next offer, not after
-    // the files are closed.
+    let Some(e) = failed else {
+        return Ok(sinks);
+    };
+    // Hang up first: the stepping thread learns of the failure at its next offer, not after
+    // the files are closed. The other sinks' own errors are lesser than the first.
     drop(rx);
-    let mut lines = Vec::new();
     for sink in sinks {
-        match sink.finish() {
-            Ok(line) => lines.push(line),
-            Err(e) => {
-                failed.get_or_insert(e);
-            }
-        }
+        let _ = sink.finish();
     }
-    match failed {
-        Some(e) => Err(e),
-        None => Ok(lines),
-    }
+    Err(e)
 }
 
 #[cfg(test)]
@@ -230,8 +226,8 @@ mod tests {
                 Offered::Sent
             );
             drop(handoff);
-            let lines = feeder.join().unwrap().unwrap();
-            assert_eq!(lines.len(), 1);
+            let sinks = feeder.join().unwrap().unwrap();
+            assert_eq!(sinks.len(), 1, "the sink comes back open");
         });
         let seen = seen.lock().unwrap();
         let ks: Vec<usize> = seen.iter().map(|(k, _)| *k).collect();
@@ -269,7 +265,9 @@ mod tests {
         std::thread::scope(|s| {
             let feeder = s.spawn(|| feed(rx, vec![Box::new(Failing)], |_| {}));
             handoff.offer(report(frames.next().unwrap(), &[]));
-            let err = feeder.join().unwrap().unwrap_err();
+            let Err(err) = feeder.join().unwrap() else {
+                panic!("the sink's error must come back")
+            };
             assert_eq!(err.to_string(), "disk full");
             assert_eq!(
                 handoff.offer(report(frames.next().unwrap(), &[])),

@@ -209,8 +209,6 @@ pub struct LiveSession {
     last_arrival: Option<Instant>,
     /// The stepping thread's `SCHED_FIFO` priority; `None`: stay at normal priority.
     realtime_priority: Option<i32>,
-    /// What the frame sinks said when the sink thread finished them.
-    sink_lines: Vec<String>,
     /// Whether the previous step had fresh input from a running simulator.
     input_was_ok: bool,
     /// Since when the input has been lost (session time, s).
@@ -270,7 +268,6 @@ impl LiveSession {
             first_sample_seen: false,
             last_arrival: None,
             realtime_priority: None,
-            sink_lines: Vec::new(),
             input_was_ok: false,
             lost_since_s: None,
             units: Some(UnitStats::new()),
@@ -613,7 +610,6 @@ impl LiveSession {
         }
         self.input.close();
         let summary = self.summary();
-        lines.extend(std::mem::take(&mut self.sink_lines));
         for mut sink in self.frame_sinks.drain(..) {
             for event in &events {
                 sink.event(event)?;
@@ -660,8 +656,9 @@ fn platform_event(t_s: f64, output: &str, status: &PlatformStatus) -> LiveEvent 
 /// platform is parked. `control` is asked before every step, on this thread; `on_step` sees
 /// every step's report after the frame sinks, on the sink thread, except reports dropped
 /// because that thread was [`handoff::CAPACITY_S`] behind. This thread is raised to real
-/// time for the loop if the session asks for it, and put back as it was on return. Frame
-/// sinks are finished before it returns, whatever ended the loop.
+/// time for the loop if the session asks for it, and put back as it was on return. The frame
+/// sinks come back to the session open, for [`LiveSession::finish`] to record the way out
+/// (the platform parking, a fault) before closing them; if one failed, all are finished here.
 pub fn run(
     session: &mut LiveSession,
     control: impl FnMut(&LiveSession) -> Control,
@@ -709,8 +706,8 @@ pub fn run(
             .join()
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
         match fed {
-            Ok(lines) => {
-                session.sink_lines = lines;
+            Ok(sinks) => {
+                session.frame_sinks = sinks;
                 stepped
             }
             // The clock's own error first: a sink's failure is its consequence or lesser.
