@@ -205,7 +205,8 @@ fn omct_writes_table_json_and_bode_plots() {
         "{md}"
     );
     assert!(
-        md.contains("| 0.100 |") && md.contains("| 15.850 |"),
+        // Frequencies as the standard's table writes them (issue 24, item 16).
+        md.contains("| 0.1 |") && md.contains("| 15.85 |") && !md.contains("15.850"),
         "{md}"
     );
 

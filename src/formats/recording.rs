@@ -52,6 +52,10 @@ const CHUNK_SIZE: u64 = 512 * 1024;
 /// Longest stretch of data, in wall time and in trace time, that a crash may lose.
 const FLUSH_INTERVAL: Duration = Duration::from_secs(1);
 const FLUSH_INTERVAL_S: f64 = 1.0;
+/// The Foxglove 3D topics (`/ALG/tf`, `/ALG/scene`) are written every this many steps (10 Hz
+/// at 100 Hz): they draw `/ALG/platform`, which keeps every step, and at every step they were
+/// a third of the file (docs/recordings.md, "Size").
+const SCENE_EVERY_STEPS: u64 = 10;
 /// Bytes fed to the reader at once: memory follows the file's actual content, never a
 /// length field that a damaged file may make huge.
 const READ_SIZE: usize = 64 * 1024;
@@ -167,6 +171,30 @@ fn nan_array<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N]
     Ok(std::array::from_fn(|i| values[i].unwrap_or(f64::NAN)))
 }
 
+/// Writes an array of the platform's motion or its legs rounded to 6 decimals in SI: 1 µm,
+/// 1 µrad, 1 µm/s, 10⁻⁶ m/s², far below what a platform resolves. The digits beyond are noise
+/// that zstd cannot shrink, and they were most of the file (docs/recordings.md, "Size per
+/// minute"). Files written before keep their full digits and read the same way.
+fn micro_array<S: serde::Serializer, const N: usize>(
+    v: &[f64; N],
+    s: S,
+) -> Result<S::Ok, S::Error> {
+    s.collect_seq(v.iter().map(|&x| micro(x)))
+}
+
+/// A value as the recording keeps the platform's: rounded to 6 decimals.
+fn micro(x: f64) -> f64 {
+    (x * 1e6).round() / 1e6
+}
+
+/// Writes an array of the aircraft's or a perceived signal in single precision (the shortest
+/// form that reads back to the same f32, 7 significant digits): relative, not absolute,
+/// because a quiet flight's perceived rates are a few µrad/s and their metrics (AAS, RAE) are
+/// ratios of sums of them.
+fn f32_array<S: serde::Serializer, const N: usize>(v: &[f64; N], s: S) -> Result<S::Ok, S::Error> {
+    s.collect_seq(v.iter().map(|&x| x as f32))
+}
+
 fn v3(v: &Vector3<f64>) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
@@ -182,11 +210,11 @@ struct AircraftMsg {
     /// Step index; absent from files other tools wrote, then counted.
     #[serde(default)]
     k: Option<u64>,
-    #[serde(deserialize_with = "nan_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
     specific_force: [f64; 3],
-    #[serde(deserialize_with = "nan_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
     angular_velocity: [f64; 3],
-    #[serde(deserialize_with = "nan_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
     attitude: [f64; 3],
 }
 
@@ -194,9 +222,9 @@ struct AircraftMsg {
 struct PerceivedMsg {
     #[serde(deserialize_with = "nan_f64")]
     t: f64,
-    #[serde(deserialize_with = "nan_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
     specific_force: [f64; 3],
-    #[serde(deserialize_with = "nan_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
     angular_velocity: [f64; 3],
 }
 
@@ -234,11 +262,11 @@ impl AircraftMsg {
 struct PlatformMsg {
     #[serde(deserialize_with = "nan_f64")]
     t: f64,
-    #[serde(deserialize_with = "nan_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
     pose: [f64; 6],
-    #[serde(deserialize_with = "nan_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
     velocity: [f64; 6],
-    #[serde(deserialize_with = "nan_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
     acceleration: [f64; 6],
 }
 
@@ -257,11 +285,11 @@ impl PlatformMsg {
 struct ActuatorsMsg {
     #[serde(deserialize_with = "nan_f64")]
     t: f64,
-    #[serde(deserialize_with = "nan_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
     length: [f64; 6],
-    #[serde(deserialize_with = "nan_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
     velocity: [f64; 6],
-    #[serde(deserialize_with = "nan_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
     margin: [f64; 6],
 }
 
@@ -823,7 +851,8 @@ impl Recorder {
             self.write(controller, log_time, &ControllerMsg::new(t, lane))?;
         }
         if let (Some(scene), Some(writer)) = (self.foxglove.as_mut(), self.writer.as_mut()) {
-            match scene.write(writer, frame, log_time, self.steps as u32) {
+            let draw = self.steps.is_multiple_of(SCENE_EVERY_STEPS);
+            match scene.write(writer, frame, log_time, self.steps as u32, draw) {
                 Ok(n) => self.messages += n,
                 Err(e) => return Err(scene_error(&self.path, e)),
             }
@@ -1942,11 +1971,44 @@ mod tests {
         }
     }
 
+    /// The frames as a recording keeps them: the aircraft and perceived arrays in single
+    /// precision, the platform's and the legs' rounded to 6 decimals.
     fn engine_frames() -> (Trace, Vec<Frame>) {
         let trace = manoeuvre();
         let mut engine =
             Engine::new(&full_flight(), Arc::new(trace.clone()), &[AlgorithmId::Cwf]).unwrap();
-        let frames = std::iter::from_fn(|| engine.step()).collect();
+        let frames = std::iter::from_fn(|| engine.step())
+            .map(|mut f| {
+                // Single precision written as its shortest decimal, read back as an f64.
+                let single = |x: f64| {
+                    serde_json::to_string(&(x as f32))
+                        .ok()
+                        .and_then(|t| t.parse::<f64>().ok())
+                        .unwrap_or(x)
+                };
+                let a = &mut f.aircraft;
+                a.specific_force_mps2 = a.specific_force_mps2.map(single);
+                a.angular_velocity_radps = a.angular_velocity_radps.map(single);
+                a.attitude_rad = a.attitude_rad.map(single);
+                let p = |p: &mut Perceived| {
+                    p.specific_force_mps2 = p.specific_force_mps2.map(single);
+                    p.angular_velocity_radps = p.angular_velocity_radps.map(single);
+                };
+                p(&mut f.reference);
+                for lane in &mut f.lanes {
+                    p(&mut lane.perceived);
+                    let c = &mut lane.command;
+                    c.pose = c.pose.map(micro);
+                    c.velocity = c.velocity.map(micro);
+                    c.acceleration = c.acceleration.map(micro);
+                    let l = &mut lane.legs;
+                    l.length_m = l.length_m.map(micro);
+                    l.velocity_mps = l.velocity_mps.map(micro);
+                    l.margin_m = l.margin_m.map(micro);
+                }
+                f
+            })
+            .collect();
         (trace, frames)
     }
 
@@ -1985,13 +2047,15 @@ mod tests {
     fn frames_round_trip_with_the_same_summary() {
         let (trace, frames, bytes, stats) = recorded();
         assert_eq!(stats.steps, 3000);
-        // hexcue's six topics and Foxglove's two (`/cwf/tf`, `/cwf/scene`) a step, and an
-        // `/events` message each time the limiter starts or stops acting.
+        // hexcue's six topics a step, Foxglove's two (`/cwf/tf`, `/cwf/scene`) every
+        // SCENE_EVERY_STEPS steps, and an `/events` message each time the limiter starts or
+        // stops acting.
         let edges = frames
             .windows(2)
             .filter(|w| w[0].lanes[0].limiter_active != w[1].lanes[0].limiter_active)
             .count() as u64;
-        assert_eq!(stats.messages, 3000 * 8 + edges);
+        let drawn = 2 * 3000 / SCENE_EVERY_STEPS;
+        assert_eq!(stats.messages, 3000 * 6 + drawn + edges);
         assert_eq!(stats.bytes, bytes.len() as u64);
         assert!((stats.duration_s - 29.99).abs() < 1e-9);
         let dir = tempfile::tempdir().unwrap();
@@ -1999,7 +2063,7 @@ mod tests {
         assert!(rec.finished && rec.stopped.is_none(), "{:?}", rec.notices);
         assert!(rec.notices.is_empty(), "{:?}", rec.notices);
         assert_eq!(rec.algorithms, vec![AlgorithmId::Cwf]);
-        assert_eq!((rec.steps, rec.messages), (3000, 3000 * 8 + edges));
+        assert_eq!((rec.steps, rec.messages), (3000, 3000 * 6 + drawn + edges));
         assert!((rec.last_t_s - 29.99).abs() < 1e-6);
         let back = read_all(&rec);
         assert_eq!(back.len(), frames.len());
