@@ -128,7 +128,8 @@ fn the_smpc_does_not_jolt_the_wrong_way_at_the_stalls_sway_reversal() {
         .into_iter()
         .find(|t| t.name == "horizontal-stall")
         .expect("the shipped stall");
-    let mut engine = Engine::new(&profile, std::sync::Arc::new(trace), &[AlgorithmId::Smpc]).unwrap();
+    let mut engine =
+        Engine::new(&profile, std::sync::Arc::new(trace), &[AlgorithmId::Smpc]).unwrap();
     let thresholds = {
         let v = &profile.vestibular;
         let w = v.canal_threshold_dps.map(f64::to_radians);
