@@ -65,18 +65,40 @@ fn channel_name(ch: &str) -> &str {
 /// loses to it on that channel, whatever its RAE: the margin of DESIGN §9 and issue 11 (no MPC
 /// with more false-cue time than the CWF plus 1 % of the flight).
 pub const FALSE_CUE_MARGIN: f64 = 0.01;
-/// RAEs within this relative difference count as level (then PC decides). Closer than this,
-/// the order moves with any retuning and is not what sets one algorithm apart in the seat.
-pub const RAE_TOLERANCE: f64 = 0.05;
-/// PCs within this difference count as level.
-pub const PC_TOLERANCE: f64 = 0.05;
+/// Threshold-aware errors (the score's per-channel term, `crate::score`) count as level when
+/// the higher is within this share of the lower plus [`ERROR_TOLERANCE_ABS`]: the bar of issue
+/// 21 and DESIGN §9. Closer than this the difference is below what the pilot can feel, and
+/// the order moves with any retuning.
+pub const ERROR_TOLERANCE_REL: f64 = 0.05;
+/// The absolute part of the error tolerance: errors this small are a few steps of a cue
+/// near its threshold.
+pub const ERROR_TOLERANCE_ABS: f64 = 0.005;
+
+/// Whether error `a` loses to `b`: above `b` by more than the tolerance.
+fn error_loses(a: f64, b: f64) -> bool {
+    a > b * (1.0 + ERROR_TOLERANCE_REL) + ERROR_TOLERANCE_ABS
+}
 
 /// What decided between two algorithms on a channel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Criterion {
     FalseCues,
-    Rae,
-    Pc,
+    Error,
+}
+
+/// One algorithm's numbers on one channel, as the verdict reads them: the metrics, and the
+/// threshold-aware error of the score (NaN when the summary has none).
+#[derive(Clone, Copy, Debug)]
+struct Judged {
+    metrics: ChannelMetrics,
+    error: f64,
+}
+
+impl std::ops::Deref for Judged {
+    type Target = ChannelMetrics;
+    fn deref(&self) -> &ChannelMetrics {
+        &self.metrics
+    }
 }
 
 /// One algorithm against another on one channel.
@@ -87,23 +109,21 @@ enum Outcome {
     Level,
 }
 
-/// `a` against `b`: false cues first (more than `margin_s` longer loses), then RAE (more than
-/// [`RAE_TOLERANCE`] higher loses), then PC (more than [`PC_TOLERANCE`] lower loses). A
-/// missing number (NaN) decides nothing.
-fn judge(a: &ChannelMetrics, b: &ChannelMetrics, margin_s: f64) -> Outcome {
+/// `a` against `b`: false cues first (more than `margin_s` longer loses), then the
+/// threshold-aware error (beyond the other's by more than the tolerance loses): what the
+/// pilot feels, and what `hexcue tune` minimises. RAE and PC stay in the tables; an error
+/// below the threshold is all but free there, so RAE would rank differences no one feels.
+/// A missing number (NaN) decides nothing.
+fn judge(a: &Judged, b: &Judged, margin_s: f64) -> Outcome {
     use Criterion::*;
     if a.false_cue_s > b.false_cue_s + margin_s {
         Outcome::Worse(FalseCues)
     } else if b.false_cue_s > a.false_cue_s + margin_s {
         Outcome::Better(FalseCues)
-    } else if a.rae > b.rae * (1.0 + RAE_TOLERANCE) {
-        Outcome::Worse(Rae)
-    } else if b.rae > a.rae * (1.0 + RAE_TOLERANCE) {
-        Outcome::Better(Rae)
-    } else if a.pc < b.pc - PC_TOLERANCE {
-        Outcome::Worse(Pc)
-    } else if b.pc < a.pc - PC_TOLERANCE {
-        Outcome::Better(Pc)
+    } else if error_loses(a.error, b.error) {
+        Outcome::Worse(Error)
+    } else if error_loses(b.error, a.error) {
+        Outcome::Better(Error)
     } else {
         Outcome::Level
     }
@@ -112,7 +132,7 @@ fn judge(a: &ChannelMetrics, b: &ChannelMetrics, margin_s: f64) -> Outcome {
 /// The verdict on one channel of one trace.
 struct Verdict<'a> {
     /// Each algorithm that ran, in the report's order, with its metrics on this channel.
-    algorithms: Vec<(&'a str, ChannelMetrics)>,
+    algorithms: Vec<(&'a str, Judged)>,
     /// 1 % of the flight (s).
     margin_s: f64,
     /// Each algorithm's rank (0: the top); equal ranks are level, or undecided when each of
@@ -142,7 +162,7 @@ fn flight_s(summary: &Summary) -> f64 {
 /// The algorithms whose false-cue time is within the margin of the fewest: the others are out
 /// of the running whatever their RAE.
 fn within_false_cue_margin(
-    algorithms: &[(&str, ChannelMetrics)],
+    algorithms: &[(&str, Judged)],
     among: &[usize],
     margin_s: f64,
 ) -> Vec<usize> {
@@ -162,12 +182,17 @@ fn within_false_cue_margin(
 }
 
 /// Ranks the algorithms on one channel: of those still unranked, the ones whose false cues
-/// are within the margin of the fewest compete, and those none of them beats (on RAE, then
-/// PC) take the next rank; when each competitor loses to another, they all take it.
+/// are within the margin of the fewest compete, and those none of them beats (on the
+/// threshold-aware error) take the next rank; when each competitor loses to another, they all take it.
 fn verdict<'a>(summary: &'a Summary, ch: &str) -> Verdict<'a> {
-    let algorithms: Vec<(&str, ChannelMetrics)> = ordered(summary)
+    let algorithms: Vec<(&str, Judged)> = ordered(summary)
         .into_iter()
-        .filter_map(|(k, a)| a.metrics.get(ch).map(|m| (k, *m)))
+        .filter_map(|(k, a)| {
+            a.metrics.get(ch).map(|m| {
+                let error = a.score_terms.error.get(ch).copied().unwrap_or(f64::NAN);
+                (k, Judged { metrics: *m, error })
+            })
+        })
         .collect();
     let margin_s = FALSE_CUE_MARGIN * flight_s(summary);
     let mut rank = vec![0; algorithms.len()];
@@ -204,16 +229,15 @@ fn verdict<'a>(summary: &'a Summary, ch: &str) -> Verdict<'a> {
     }
 }
 
-/// "17.8 s of false cues against 0.3 s", "RAE 1.804 against 0.877", ...: what decided between
-/// the loser `a` and the winner `b`, in numbers.
-fn loss_detail(c: Criterion, a: &ChannelMetrics, b: &ChannelMetrics) -> String {
+/// "17.8 s of false cues against 0.3 s", "error 0.467 against 0.255", ...: what decided
+/// between the loser `a` and the winner `b`, in numbers.
+fn loss_detail(c: Criterion, a: &Judged, b: &Judged) -> String {
     match c {
         Criterion::FalseCues => format!(
             "{:.1} s of false cues against {:.1} s",
             a.false_cue_s, b.false_cue_s
         ),
-        Criterion::Rae => format!("RAE {:.3} against {:.3}", a.rae, b.rae),
-        Criterion::Pc => format!("PC {} against {}, RAE level", signed(a.pc), signed(b.pc)),
+        Criterion::Error => format!("error {:.3} against {:.3}", a.error, b.error),
     }
 }
 
@@ -231,7 +255,7 @@ impl<'a> Verdict<'a> {
         }
     }
 
-    fn get(&self, key: &str) -> Option<&ChannelMetrics> {
+    fn get(&self, key: &str) -> Option<&Judged> {
         self.algorithms
             .iter()
             .find(|(k, _)| *k == key)
@@ -364,8 +388,7 @@ impl<'a> Verdict<'a> {
             .iter()
             .map(|(_, m)| m.false_cue_s)
             .fold(f64::INFINITY, f64::min);
-        let seconds =
-            |(k, m): &(&str, ChannelMetrics)| format!("{} {:.1} s", label(k), m.false_cue_s);
+        let seconds = |(k, m): &(&str, Judged)| format!("{} {:.1} s", label(k), m.false_cue_s);
         if self.unbeaten.is_empty() {
             let all: Vec<String> = self.algorithms.iter().map(seconds).collect();
             return format!("no clear best ({})", all.join(", "));
@@ -433,7 +456,10 @@ pub fn render_markdown(
          workspace limiter, on all six channels: surge f̂x, sway f̂y, heave f̂z (specific force) \
          and roll ω̂x, pitch ω̂y, yaw ω̂z (angular velocity). RAE = Σ|x − y| / Σ|x| and \
          NAAD = mean|x − y| / range(x): lower is better; a platform at rest has RAE 1. PC: \
-         Pearson correlation, higher is better. Score: the cueing score of docs/tuning.md \
+         Pearson correlation, higher is better. Error: the threshold-aware error of the \
+         score on that channel, the mean over the flight of the error in perception thresholds \
+         through a soft dead zone (below one threshold it costs a tenth), lower is better: \
+         what the pilot can feel, and what decides the verdicts. Score: the cueing score of docs/tuning.md \
          (threshold-aware error, false cues, limiter and legs), lower is better. False cues: the time during which the \
          simulator's perceived motion has the opposite sign of the aircraft's while both \
          exceed the perception thresholds (motion felt in the wrong direction). Step times are \
@@ -462,6 +488,20 @@ pub fn render_markdown(
             flight,
             FALSE_CUE_MARGIN * flight
         );
+        let header: Vec<String> = CHANNELS.iter().map(|c| format!("error {c}")).collect();
+        let _ = writeln!(out, "| algorithm | {} |", header.join(" | "));
+        let _ = writeln!(out, "|---|{}", "---:|".repeat(header.len()));
+        for (k, a) in ordered(s) {
+            let errors: Vec<String> = CHANNELS
+                .iter()
+                .map(|c| match a.score_terms.error.get(*c) {
+                    Some(e) => format!("{e:.3}"),
+                    None => "–".to_string(),
+                })
+                .collect();
+            let _ = writeln!(out, "| {} | {} |", label(k), errors.join(" | "));
+        }
+        let _ = writeln!(out);
         let header: Vec<String> = CHANNELS
             .iter()
             .map(|c| format!("RAE {c}"))
@@ -543,19 +583,21 @@ fn verdict_rule() -> String {
         "**How a channel's verdict is reached.** (1) False cues first, because motion felt \
          in the wrong direction is worse than missing motion: an algorithm whose false-cue time \
          exceeds the fewest by more than {:.0} % of the flight's duration is out, whatever its \
-         other numbers. (2) The rest are compared two by two on RAE: the higher loses when it \
-         exceeds the lower by more than {:.0} %. (3) Otherwise on PC: the lower loses when it \
-         is more than {:.2} below. Otherwise the two are level. The best is the one that none \
+         other numbers. (2) The rest are compared two by two on the threshold-aware error \
+         (`error`): the higher loses when it exceeds the lower × {:.2} + {:.3}, since a smaller \
+         difference is not felt. Otherwise the two are level: RAE and PC, which count \
+         differences below the perception threshold as fully as felt ones, are shown but do \
+         not decide. The best is the one that none \
          of the others beats; several such are level at the top (`=`); when each loses to \
          another, which close numbers can give, there is no clear best. Those left are ranked \
          below in the same way. An MPC is worse than the CWF when it ranks below the CWF and \
-         also loses to it head to head (false cues, then RAE, then PC, as above). Caveats on \
+         also loses to it head to head (false cues, then error, as above). Caveats on \
          the best: PC < 0 (its cue runs against the aircraft's motion more than with it) and \
          RAE ≥ 1 (its cue is no closer to the aircraft's motion than a platform at rest, \
          which gives RAE 1 and no false cue).\n\n",
         100.0 * FALSE_CUE_MARGIN,
-        100.0 * RAE_TOLERANCE,
-        PC_TOLERANCE
+        1.0 + ERROR_TOLERANCE_REL,
+        ERROR_TOLERANCE_ABS
     )
 }
 
@@ -814,8 +856,7 @@ fn channels_discussion(results: &[TraceResult]) -> String {
                     ));
                 }
             }
-            let top: Vec<&ChannelMetrics> =
-                v.unbeaten.iter().map(|&i| &v.algorithms[i].1).collect();
+            let top: Vec<&Judged> = v.unbeaten.iter().map(|&i| &v.algorithms[i].1).collect();
             if !top.is_empty() && top.iter().all(|m| m.rae >= 1.0) {
                 at_rest.push(s.trace.as_str());
             }
@@ -1146,14 +1187,17 @@ mod tests {
     use crate::summary::AlgorithmSummary;
     use std::collections::BTreeMap;
 
+    /// An algorithm whose threshold-aware error equals its RAE on every channel (a stand-in:
+    /// the tests set the two together).
     fn alg(rae_fx: f64, switches: u64) -> AlgorithmSummary {
+        let rae = |c: &str| if c == "fx" { rae_fx } else { 0.5 };
         let metrics = CHANNELS
             .iter()
             .map(|c| {
                 (
                     c.to_string(),
                     ChannelMetrics {
-                        rae: if *c == "fx" { rae_fx } else { 0.5 },
+                        rae: rae(c),
                         naad: 0.1,
                         pc: 0.9,
                         ..Default::default()
@@ -1176,7 +1220,10 @@ mod tests {
             switches,
             max_dof_usage: BTreeMap::new(),
             score: 1.0,
-            score_terms: Default::default(),
+            score_terms: crate::score::ScoreTerms {
+                error: CHANNELS.iter().map(|c| (c.to_string(), rae(c))).collect(),
+                ..Default::default()
+            },
         }
     }
 
@@ -1267,18 +1314,14 @@ mod tests {
         assert!(!md.contains("COTC predicts over"), "{md}");
     }
 
-    /// One channel's numbers for one algorithm of a result, on a 90 s flight (1 %: 0.9 s).
-    fn set(r: &mut TraceResult, alg: &str, ch: &str, rae: f64, pc: f64, false_s: f64) {
+    /// One channel's numbers for one algorithm of a result, on a 90 s flight (1 %: 0.9 s):
+    /// the threshold-aware error and the RAE are both set to `error`.
+    fn set(r: &mut TraceResult, alg: &str, ch: &str, error: f64, pc: f64, false_s: f64) {
         r.summary.steps = 9000;
-        let m = r
-            .summary
-            .algorithms
-            .get_mut(alg)
-            .unwrap()
-            .metrics
-            .get_mut(ch)
-            .unwrap();
-        m.rae = rae;
+        let a = r.summary.algorithms.get_mut(alg).unwrap();
+        a.score_terms.error.insert(ch.to_string(), error);
+        let m = a.metrics.get_mut(ch).unwrap();
+        m.rae = error;
         m.pc = pc;
         m.false_cue_s = false_s;
     }
@@ -1320,25 +1363,25 @@ mod tests {
     #[test]
     fn false_cues_within_one_percent_of_the_flight_do_not_decide() {
         let mut r = result(0.2, 0.28, 0.32);
-        // 1.1 s against 0.3 s on a 90 s flight: within 0.9 s, so RAE decides.
+        // 1.1 s against 0.3 s on a 90 s flight: within 0.9 s, so the error decides.
         set(&mut r, "smpc", "fz", 0.9, 0.3, 1.1);
         set(&mut r, "mpc", "fz", 0.8, 0.3, 1.1);
-        set(&mut r, "cwf", "fz", 0.95, 0.3, 0.3);
+        set(&mut r, "cwf", "fz", 1.0, 0.3, 0.3);
         let v = verdict(&r.summary, "fz");
         assert_eq!(v.best(), Best::One("mpc"));
         assert_eq!(v.worse_than_cwf(), vec![]);
         assert_eq!(
             v.losses(),
             vec![
-                "S-MPC loses to MPC: RAE 0.900 against 0.800",
-                "CWF loses to MPC: RAE 0.950 against 0.800"
+                "S-MPC loses to MPC: error 0.900 against 0.800",
+                "CWF loses to MPC: error 1.000 against 0.800"
             ]
         );
         // 1.3 s: beyond it, and the MPCs are worse than the CWF.
         set(&mut r, "mpc", "fz", 0.8, 0.3, 1.3);
         let v = verdict(&r.summary, "fz");
         assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::FalseCues)]);
-        // Out on false cues, the MPC's better RAE does not count against the S-MPC.
+        // Out on false cues, the MPC's lower error does not count against the S-MPC.
         assert_eq!(v.best(), Best::One("smpc"));
     }
 
@@ -1346,16 +1389,16 @@ mod tests {
     fn worse_than_the_cwf_means_below_it_and_beaten_by_it() {
         let mut r = result(0.2, 0.28, 0.32);
         // The MPC is out on false cues against the S-MPC (1.0 s against 0.0 s), not against
-        // the CWF (0.5 s), and its RAE beats the CWF's: not worse than the CWF. The S-MPC,
-        // beaten by the CWF on RAE, is.
+        // the CWF (0.5 s), and its error beats the CWF's: not worse than the CWF. The S-MPC,
+        // beaten by the CWF on error, is.
         set(&mut r, "smpc", "fz", 0.9, 0.3, 0.0);
         set(&mut r, "mpc", "fz", 0.4, 0.3, 1.0);
         set(&mut r, "cwf", "fz", 0.5, 0.3, 0.5);
         let v = verdict(&r.summary, "fz");
         assert_eq!(v.best(), Best::One("cwf"));
-        assert_eq!(v.worse_than_cwf(), vec![("smpc", Criterion::Rae)]);
+        assert_eq!(v.worse_than_cwf(), vec![("smpc", Criterion::Error)]);
         // The CWF out on false cues against the S-MPC: the best MPC is not called worse than
-        // it for a better RAE the CWF bought with them.
+        // it for a lower error the CWF bought with them.
         set(&mut r, "mpc", "fz", 0.8, 0.3, 0.5);
         set(&mut r, "cwf", "fz", 0.5, 0.3, 1.0);
         let v = verdict(&r.summary, "fz");
@@ -1367,40 +1410,56 @@ mod tests {
     }
 
     #[test]
-    fn close_numbers_are_level_and_pc_breaks_a_tie_on_rae() {
+    fn errors_within_what_is_felt_are_level_and_pc_does_not_decide() {
         let mut r = result(0.2, 0.28, 0.32);
         set(&mut r, "smpc", "fy", 0.50, 0.90, 0.0);
-        set(&mut r, "mpc", "fy", 0.51, 0.88, 0.0);
+        set(&mut r, "mpc", "fy", 0.53, 0.88, 0.0);
         set(&mut r, "cwf", "fy", 0.90, 0.70, 0.0);
         let v = verdict(&r.summary, "fy");
+        // 0.53 is within 0.50 × 1.05 + 0.005: level.
         assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc"]));
         assert_eq!(v.best_label(), "S-MPC = MPC");
         assert_eq!(v.pilot_cell(), "**S-MPC** = **MPC** 0.0 s");
-        // RAE level, PC 0.20 lower: the MPC loses on PC.
-        set(&mut r, "mpc", "fy", 0.51, 0.70, 0.0);
+        // A far lower PC with a level error: still level (PC is shown, not judged).
+        set(&mut r, "mpc", "fy", 0.53, 0.10, 0.0);
+        assert_eq!(
+            verdict(&r.summary, "fy").best(),
+            Best::Tie(vec!["smpc", "mpc"])
+        );
+        // Just beyond the tolerance the MPC loses.
+        set(&mut r, "mpc", "fy", 0.54, 0.88, 0.0);
         let v = verdict(&r.summary, "fy");
         assert_eq!(v.best(), Best::One("smpc"));
         assert!(v
             .losses()
-            .contains(&"MPC loses to S-MPC: PC +0.70 against +0.90, RAE level".to_string()));
-        // And a level MPC is not worse than the CWF: only PC decides between level RAEs.
-        set(&mut r, "cwf", "fy", 0.52, 0.90, 0.0);
-        let v = verdict(&r.summary, "fy");
-        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Pc)]);
+            .contains(&"MPC loses to S-MPC: error 0.540 against 0.500".to_string()));
+        // Errors of a few thousandths are level whatever their ratio: nothing is felt.
+        set(&mut r, "smpc", "wz", 0.000, 0.9, 0.0);
+        set(&mut r, "mpc", "wz", 0.004, 0.9, 0.0);
+        set(&mut r, "cwf", "wz", 0.002, 0.9, 0.0);
+        let v = verdict(&r.summary, "wz");
+        assert_eq!(v.worse_than_cwf(), vec![]);
+        assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc", "cwf"]));
+        // An MPC beyond the CWF's error × 1.05 + 0.005 is worse than it.
+        set(&mut r, "mpc", "wz", 0.030, 0.9, 0.0);
+        let v = verdict(&r.summary, "wz");
+        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Error)]);
     }
 
     #[test]
-    fn with_each_beaten_by_another_there_is_no_clear_best() {
+    fn a_chain_of_level_errors_puts_both_ends_of_it_apart() {
         let mut r = result(0.2, 0.28, 0.32);
-        // MPC beats S-MPC on PC (RAE level), the CWF beats the MPC on PC (RAE level), the
-        // S-MPC beats the CWF on RAE (8 % apart).
+        // S-MPC level with the MPC, the MPC level with the CWF, the CWF beyond the S-MPC's
+        // tolerance: the two unbeaten are level at the top and the CWF ranks below.
         set(&mut r, "smpc", "wz", 1.00, 0.2, 0.0);
         set(&mut r, "mpc", "wz", 1.04, 0.5, 0.0);
         set(&mut r, "cwf", "wz", 1.08, 0.9, 0.0);
         let v = verdict(&r.summary, "wz");
-        assert_eq!(v.best(), Best::Unclear);
-        assert_eq!(v.best_label(), "no clear best");
-        assert_eq!(v.losses().len(), 3);
+        assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc"]));
+        assert_eq!(
+            v.losses(),
+            vec!["CWF loses to S-MPC: error 1.080 against 1.000"]
+        );
     }
 
     #[test]

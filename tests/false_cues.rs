@@ -107,3 +107,70 @@ fn no_mpc_feels_turbulence_the_wrong_way_longer_than_the_washout() {
         assert!(a["limiter_fraction"].as_f64().unwrap() < 0.01, "{alg}");
     }
 }
+
+/// Issue #24 item 9: on the horizontal stall at t ≈ 35.2 s the S-MPC's perceived sway jumped
+/// from 0.27 to 0.88 m/s² within 50 ms while the aircraft's was −0.1 m/s² and falling. COTC's
+/// plan jolted the wrong way just before the reversal it then met: its false-cue guard only
+/// covered the grid points where the reference was already felt. No 50 ms change of the
+/// S-MPC's perceived motion may now carry it further against the aircraft's by more than a
+/// perception threshold, on any channel, through the stall and the reversal.
+#[test]
+fn the_smpc_does_not_jolt_the_wrong_way_at_the_stalls_sway_reversal() {
+    use hexcue::engine::Engine;
+    use hexcue::formats::profile::default_profile;
+    use hexcue::mca::AlgorithmId;
+
+    let mut profile = default_profile();
+    // Judge the algorithm, not the machine's load (as the core's tests do).
+    profile.mpc.time_limit_ms = f64::INFINITY;
+    let trace = hexcue::formats::trace::shipped_traces(profile.rate_hz)
+        .unwrap()
+        .into_iter()
+        .find(|t| t.name == "horizontal-stall")
+        .expect("the shipped stall");
+    let mut engine =
+        Engine::new(&profile, std::sync::Arc::new(trace), &[AlgorithmId::Smpc]).unwrap();
+    let thresholds = {
+        let v = &profile.vestibular;
+        let w = v.canal_threshold_dps.map(f64::to_radians);
+        let f = v.otolith_threshold_mps2;
+        [f[0], f[1], f[2], w[0], w[1], w[2]]
+    };
+    // (t, reference, S-MPC) per step, up to 1.3 s past the reversal.
+    let mut run: Vec<(f64, [f64; 6], [f64; 6])> = Vec::new();
+    while let Some(f) = engine.step() {
+        if f.t_s > 36.5 {
+            break;
+        }
+        let lane = f.lane(AlgorithmId::Smpc).unwrap();
+        run.push((
+            f.t_s,
+            std::array::from_fn(|c| f.reference.channel(c)),
+            std::array::from_fn(|c| lane.perceived.channel(c)),
+        ));
+    }
+    assert!(run.len() > 3600, "the stall is shorter than expected");
+    let window = 5; // 50 ms at 100 Hz
+    for c in 0..6 {
+        let mut worst = (0.0, 0.0);
+        for k in 0..run.len() - window {
+            let (t, _, sim0) = run[k];
+            let (_, r1, sim1) = run[k + window];
+            let change = sim1[c] - sim0[c];
+            // Further to the wrong side: the simulator ends opposite to the aircraft and
+            // moved away from it.
+            if sim1[c] * r1[c] < 0.0 && change * r1[c] < 0.0 {
+                let size = change.abs() / thresholds[c];
+                if size > worst.0 {
+                    worst = (size, t);
+                }
+            }
+        }
+        assert!(
+            worst.0 < 1.0,
+            "channel {c}: a {:.2}-threshold jolt the wrong way within 50 ms at t = {:.2} s",
+            worst.0,
+            worst.1
+        );
+    }
+}

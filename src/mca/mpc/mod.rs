@@ -195,6 +195,12 @@ pub struct Mpc {
     thresholds: [f64; 6],
     /// Channels that carry a false-cue slack at every grid point (weight > 0).
     false_cue_channels: Vec<usize>,
+    /// The aircraft's roll and pitch rate over each interval as the reference predicts it
+    /// (rad/s): the rotation the platform may follow above the canals' threshold.
+    ref_rate_radps: Vec<[f64; 2]>,
+    /// Scratch: per grid point and guarded channel, the direction in which the reference is
+    /// next felt from that point on (0: not within the horizon).
+    false_cue_ahead: Vec<f64>,
     /// Roll and pitch bounds at the end of each interval (rad): the excursion limit, or
     /// tighter where the heave tilt guard acts (`update_tilt_bounds`).
     tilt_bound_rad: Vec<[f64; 2]>,
@@ -323,6 +329,8 @@ impl Mpc {
             false_cue_channels: (0..6)
                 .filter(|&c| params.false_cue_weight[c] > 0.0)
                 .collect(),
+            false_cue_ahead: Vec::new(),
+            ref_rate_radps: vec![[0.0; 2]; grid.len()],
             leg_lo_m: profile.geometry.leg_min_m + margin,
             leg_hi_m: profile.geometry.leg_max_m - margin,
             terminal_weight: None,
@@ -714,6 +722,9 @@ impl Mpc {
         let u_prev_rates = total_rates(d.u_prev.as_slice());
         let alpha = lim.acceleration.fixed_rows::<3>(3).into_owned();
         let stride = self.params.leg_constraint_stride.max(1);
+        // Time from now to the end of each interval's first sample, for what the rate-change
+        // limit lets the roll and pitch rates reach (the unfelt-tilt guard never asks more).
+        let mut reach_s = self.dt_s;
         for i in 0..n {
             let (xc, uc) = (Self::x_col(i), Self::u_col(i));
             // Pose and translational velocity at the end of the interval.
@@ -744,7 +755,18 @@ impl Mpc {
                     len += 1;
                 }
                 let w = lim.velocity[3 + axis];
-                bound(&mut t, &mut b, &e[..len], -w, w);
+                let (mut lo, mut hi) = (-w, w);
+                if axis < 2 && self.params.unfelt_tilt_guard {
+                    // Beyond the aircraft's own rotation, no faster than the canals feel;
+                    // relaxed to what the rate-change limit can reach from the present rate.
+                    let aircraft = finite_or_zero(self.ref_rate_radps[i][axis]);
+                    let th = self.tilt_rate_max_radps[axis];
+                    let reach = alpha[axis] * reach_s;
+                    let now = u_prev_rates[axis];
+                    lo = lo.max((aircraft.min(0.0) - th).min(now + reach));
+                    hi = hi.min((aircraft.max(0.0) + th).max(now - reach));
+                }
+                bound(&mut t, &mut b, &e[..len], lo, hi);
                 // Over the first interval the change happens within one trace step.
                 let (dw, centre) = if i == 0 {
                     (alpha[axis] * self.dt_s, u_prev_rates[axis])
@@ -757,6 +779,7 @@ impl Mpc {
                 };
                 bound(&mut t, &mut b, &e[..len], centre - dw, centre + dw);
             }
+            reach_s += self.grid[i];
             // Tilt below the canals' threshold, so that it is not felt as rotation.
             for k in 0..2 {
                 let w = self.tilt_rate_max_radps[k];
@@ -787,24 +810,49 @@ impl Mpc {
         // felt direction (from the present on) where the prediction has faded below the
         // threshold; where nothing is felt s = 0 and the row cannot bind. The pattern stays
         // fixed either way: only the values change.
+        // With false_cue_carry the direction is also carried back from where the reference
+        // will first be felt to the grid points before it: there the simulator may not move
+        // further against that direction than it is now. Without it the plan was free to
+        // jolt the wrong way just before a reversal that it then met in time (#24 item 9).
         let felt = |r: f64, th: f64| if r.abs() > th { r.signum() } else { 0.0 };
         let y_now = &self.ref_discrete[0].c * &self.run.ref_x;
+        let sim_now = &self.perceived_c * &self.run.x;
         let mut carried: Vec<f64> = self
             .false_cue_channels
             .iter()
             .map(|&c| felt(y_now[c], self.thresholds[c]))
             .collect();
+        let mut ahead = std::mem::take(&mut self.false_cue_ahead);
+        ahead.clear();
+        ahead.resize(n * self.false_cue_channels.len(), 0.0);
+        for i in (0..n).rev() {
+            for (j, &c) in self.false_cue_channels.iter().enumerate() {
+                let r = self.y_ref.get(i).map_or(0.0, |y| y[c]);
+                let next = if i + 1 < n {
+                    ahead[(i + 1) * self.false_cue_channels.len() + j]
+                } else {
+                    0.0
+                };
+                let s = felt(r, self.thresholds[c]);
+                ahead[i * self.false_cue_channels.len() + j] = if s != 0.0 { s } else { next };
+            }
+        }
         for i in 0..n {
             let xc = Self::x_col(i);
             for (j, &c) in self.false_cue_channels.iter().enumerate() {
                 let th = self.thresholds[c];
                 let r = self.y_ref.get(i).map_or(0.0, |y| y[c]);
                 let mut sign = felt(r, th);
+                let mut bound = self.params.false_cue_margin * th;
                 if self.params.false_cue_carry {
                     if sign != 0.0 {
                         carried[j] = sign;
                     }
                     sign = carried[j];
+                    if sign == 0.0 {
+                        sign = ahead[i * self.false_cue_channels.len() + j];
+                        bound = bound.max(-sign * sim_now[c]);
+                    }
                 }
                 let col = self.slack_col(i, j);
                 for k in 0..NX {
@@ -814,7 +862,7 @@ impl Mpc {
                     }
                 }
                 t.push(row, col, -1.0);
-                b.push(self.params.false_cue_margin * th);
+                b.push(bound);
                 t.push(row + 1, col, -1.0);
                 b.push(0.0);
                 row += 2;
@@ -822,6 +870,7 @@ impl Mpc {
         }
         self.a_trip = t;
         self.b = b;
+        self.false_cue_ahead = ahead;
     }
 
     fn neutral_step_data(&self) -> (DVector<f64>, DVector<f64>, Vec<DVector<f64>>) {
@@ -1052,6 +1101,7 @@ impl Mpc {
                     }
                 }
             }
+            self.ref_rate_radps[i] = [u[3], u[4]];
             let d = &self.ref_discrete[self.interval_model[i]];
             xr = &d.a * &xr + &d.b * &u;
             self.y_ref[i] = &d.c * &xr;

@@ -79,6 +79,14 @@ pub struct MpcParams {
     /// cannot see (docs/mpc.md, "False cues").
     #[serde(default = "default_true")]
     pub heave_tilt_guard: bool,
+    /// Keep the platform's total roll and pitch rate (tilt plus rotational channel) within
+    /// the canals' threshold of the aircraft's own rate over the horizon, on the side of zero:
+    /// between min(0, ω_aircraft) − th and max(0, ω_aircraft) + th. Without it only the tilt
+    /// channel's rate was bounded, and the plan tilted through the rotational channel at
+    /// several times the threshold for surge and sway, a rotation the pilot feels and the
+    /// aircraft never made (docs/mpc.md, "Never worse than the CWF").
+    #[serde(default)]
+    pub unfelt_tilt_guard: bool,
     /// Input weight S on the platform acceleration per axis, per (m/s²)².
     pub acceleration_weight: [f64; 3],
     /// Input weight S on the tilt-channel roll and pitch rates, per (rad/s)².
