@@ -249,6 +249,19 @@ impl Stewart {
         })
     }
 
+    /// [`Stewart::usage`] with the leg's direction from neutral: positive where the leg is
+    /// longer than at neutral (extending), negative where it is shorter (retracting).
+    pub fn signed_usage(&self, lengths: &Vector6<f64>) -> Vector6<f64> {
+        let usage = self.usage(lengths);
+        Vector6::from_fn(|i, _| {
+            if lengths[i] >= self.neutral_lengths_m[i] {
+                usage[i]
+            } else {
+                -usage[i]
+            }
+        })
+    }
+
     pub fn fits(&self, pose: &Vector6<f64>, margin_m: f64) -> bool {
         self.margins(&self.leg_lengths(pose))
             .iter()
