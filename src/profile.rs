@@ -385,7 +385,8 @@ fn validate_geometry(g: &Geometry) -> Result<(), ProfileError> {
         }
     }
     if g.by_joints() {
-        if !(g.neutral_height() > 0.0) {
+        // NaN fails too: is_nan or not above 0.
+        if g.neutral_height().is_nan() || g.neutral_height() <= 0.0 {
             return err(
                 "geometry.base_joints_m".into(),
                 format!(
@@ -399,7 +400,7 @@ fn validate_geometry(g: &Geometry) -> Result<(), ProfileError> {
         // through them (and the forward kinematics would not converge).
         let j = stewart.jacobian(&nalgebra::Vector6::zeros());
         let sv = j.singular_values();
-        if !(sv.min() > 1e-3 * sv.max()) {
+        if sv.min().is_nan() || sv.min() <= 1e-3 * sv.max() {
             return err(
                 "geometry".into(),
                 "the legs do not hold the platform in all six DoF at the neutral pose (its \
