@@ -123,7 +123,9 @@ pub struct PlotArgs {
     /// The recording (.mcap) to draw.
     pub file: PathBuf,
     /// Panels, comma-separated, top to bottom: fx, fy, fz (perceived specific force, m/s²),
-    /// wx, wy, wz (perceived angular velocity, °/s), legs (leg usage; alias workspace).
+    /// wx, wy, wz (perceived angular velocity, °/s), legs (leg usage; alias workspace),
+    /// x, y, z, roll, pitch, yaw (platform pose; pose: all six), leg1 … leg6 (each leg's
+    /// usage with its direction; all-legs: all six).
     #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = crate::plot::timeline::DEFAULT_PANELS)]
     pub channels: Vec<String>,
     /// Start of the window (trace time, s). Default: the start of the recording.

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::mca::mpc::MpcParams;
 use crate::mca::washout::WashoutParams;
-use crate::model::stewart::{Geometry, Stewart};
+use crate::model::stewart::{Geometry, Stewart, SYMMETRIC_KEYS};
 use crate::model::vestibular::VestibularParams;
 
 /// A profile value that cannot describe a real simulator.
@@ -208,55 +208,7 @@ impl Profile {
             }
         }
         let g = &self.geometry;
-        positive("geometry.base_radius_m", g.base_radius_m)?;
-        positive("geometry.platform_radius_m", g.platform_radius_m)?;
-        positive("geometry.neutral_height_m", g.neutral_height_m)?;
-        positive("geometry.leg_min_m", g.leg_min_m)?;
-        positive("geometry.leg_max_m", g.leg_max_m)?;
-        for (key, v) in [
-            ("geometry.base_pair_spacing_deg", g.base_pair_spacing_deg),
-            (
-                "geometry.platform_pair_spacing_deg",
-                g.platform_pair_spacing_deg,
-            ),
-        ] {
-            if !(v.is_finite() && v > 0.0 && v < 120.0) {
-                return err(
-                    key,
-                    format!("{v}°: the two joints of a pair must be between 0° and 120° apart"),
-                );
-            }
-        }
-        if !g.platform_rotation_deg.is_finite() {
-            return err(
-                "geometry.platform_rotation_deg",
-                "must be a finite angle".into(),
-            );
-        }
-        if g.leg_min_m >= g.leg_max_m {
-            return err(
-                "geometry.leg_min_m",
-                format!(
-                    "{} m is not shorter than leg_max_m = {} m",
-                    g.leg_min_m, g.leg_max_m
-                ),
-            );
-        }
-        let stewart = self.stewart();
-        for (i, l) in stewart.neutral_lengths_m.iter().enumerate() {
-            if *l <= g.leg_min_m || *l >= g.leg_max_m {
-                return err(
-                    "geometry",
-                    format!(
-                        "at the neutral pose leg {} is {l:.4} m, outside its stroke [{}, {}] m: \
-                         change neutral_height_m or the joint radii",
-                        i + 1,
-                        g.leg_min_m,
-                        g.leg_max_m
-                    ),
-                );
-            }
-        }
+        validate_geometry(g)?;
         for (name, l) in [
             ("surge", &self.limits.surge),
             ("sway", &self.limits.sway),
@@ -269,12 +221,13 @@ impl Profile {
                 l.acceleration_mps2,
             )?;
         }
-        if self.limits.heave.excursion_m >= g.neutral_height_m {
+        if self.limits.heave.excursion_m >= g.neutral_height() {
             return err(
                 "limits.heave.excursion_m",
                 format!(
                     "{} m would put the platform through the floor (neutral height {} m)",
-                    self.limits.heave.excursion_m, g.neutral_height_m
+                    self.limits.heave.excursion_m,
+                    g.neutral_height()
                 ),
             );
         }
@@ -369,6 +322,183 @@ impl Profile {
         }
         Ok(())
     }
+}
+
+/// The geometry's checks: exactly one of its two forms, each value possible, and every leg
+/// within its stroke at the neutral pose.
+fn validate_geometry(g: &Geometry) -> Result<(), ProfileError> {
+    let err = |key: String, reason: String| Err(ProfileError { key, reason });
+    let given: Vec<&str> = SYMMETRIC_KEYS
+        .iter()
+        .zip(g.symmetric_values())
+        .filter_map(|(k, v)| v.map(|_| *k))
+        .collect();
+    positive("geometry.leg_min_m", g.leg_min_m)?;
+    positive("geometry.leg_max_m", g.leg_max_m)?;
+    if g.by_joints() {
+        if let Some(k) = given.first() {
+            return err(
+                format!("geometry.{k}"),
+                "give the geometry either by its joint coordinates (base_joints_m, \
+                 platform_joints_m) or in the symmetric form (base_radius_m, …), not both"
+                    .into(),
+            );
+        }
+        for (key, points) in [
+            ("base_joints_m", &g.base_joints_m),
+            ("platform_joints_m", &g.platform_joints_m),
+        ] {
+            let key = format!("geometry.{key}");
+            let Some(points) = points else {
+                return err(
+                    key,
+                    "missing: the joint-coordinate form needs both base_joints_m and \
+                     platform_joints_m, six [x, y, z] points each (m)"
+                        .into(),
+                );
+            };
+            check_points(&key, points)?;
+        }
+    } else {
+        let missing: Vec<&str> = SYMMETRIC_KEYS
+            .iter()
+            .zip(g.symmetric_values())
+            .filter_map(|(k, v)| v.is_none().then_some(*k))
+            .collect();
+        if let Some(k) = missing.first() {
+            return err(
+                format!("geometry.{k}"),
+                format!(
+                    "missing: give the symmetric form whole ({}), or the joint coordinates \
+                     (base_joints_m, platform_joints_m) instead",
+                    SYMMETRIC_KEYS.join(", ")
+                ),
+            );
+        }
+        let v = |k: Option<f64>| k.unwrap_or(f64::NAN);
+        positive("geometry.base_radius_m", v(g.base_radius_m))?;
+        positive("geometry.platform_radius_m", v(g.platform_radius_m))?;
+        positive("geometry.neutral_height_m", v(g.neutral_height_m))?;
+        for (key, v) in [
+            ("geometry.base_pair_spacing_deg", v(g.base_pair_spacing_deg)),
+            (
+                "geometry.platform_pair_spacing_deg",
+                v(g.platform_pair_spacing_deg),
+            ),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v < 120.0) {
+                return err(
+                    key.into(),
+                    format!("{v}°: the two joints of a pair must be between 0° and 120° apart"),
+                );
+            }
+        }
+        if !v(g.platform_rotation_deg).is_finite() {
+            return err(
+                "geometry.platform_rotation_deg".into(),
+                "must be a finite angle".into(),
+            );
+        }
+    }
+    if g.leg_min_m >= g.leg_max_m {
+        return err(
+            "geometry.leg_min_m".into(),
+            format!(
+                "{} m is not shorter than leg_max_m = {} m",
+                g.leg_min_m, g.leg_max_m
+            ),
+        );
+    }
+    let stewart = Stewart::new(g);
+    for (i, l) in stewart.neutral_lengths_m.iter().enumerate() {
+        if *l <= g.leg_min_m || *l >= g.leg_max_m {
+            let change = if g.by_joints() {
+                format!("base_joints_m[{i}] or platform_joints_m[{i}]")
+            } else {
+                "neutral_height_m or the joint radii".into()
+            };
+            return err(
+                "geometry".into(),
+                format!(
+                    "at the neutral pose leg {} is {l:.4} m, outside its stroke [{}, {}] m: \
+                     change {change}",
+                    i + 1,
+                    g.leg_min_m,
+                    g.leg_max_m
+                ),
+            );
+        }
+    }
+    if g.by_joints() {
+        // NaN fails too: is_nan or not above 0.
+        if g.neutral_height().is_nan() || g.neutral_height() <= 0.0 {
+            return err(
+                "geometry.base_joints_m".into(),
+                format!(
+                    "the base joints lie {:.4} m below the platform joints on average: \
+                     expected them below (z is down, so a larger z)",
+                    g.neutral_height()
+                ),
+            );
+        }
+        // Legs that cannot hold the platform in every DoF: no motion can be commanded
+        // through them (and the forward kinematics would not converge).
+        let j = stewart.jacobian(&nalgebra::Vector6::zeros());
+        let sv = j.singular_values();
+        if sv.min().is_nan() || sv.min() <= 1e-3 * sv.max() {
+            return err(
+                "geometry".into(),
+                "the legs do not hold the platform in all six DoF at the neutral pose (its \
+                 Jacobian is singular): check base_joints_m and platform_joints_m"
+                    .into(),
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Six distinct, finite [x, y, z] points.
+fn check_points(key: &str, points: &[Vec<f64>]) -> Result<(), ProfileError> {
+    let err = |key: String, reason: String| Err(ProfileError { key, reason });
+    if points.len() != 6 {
+        return err(
+            key.into(),
+            format!("expected 6 points, one per leg, found {}", points.len()),
+        );
+    }
+    for (i, p) in points.iter().enumerate() {
+        if p.len() != 3 {
+            return err(
+                format!("{key}[{i}]"),
+                format!("expected 3 numbers [x, y, z] (m), found {}", p.len()),
+            );
+        }
+        for (k, v) in p.iter().enumerate() {
+            if !v.is_finite() || v.abs() > 100.0 {
+                return err(
+                    format!("{key}[{i}][{k}]"),
+                    format!("{v}: expected a finite coordinate within 100 m"),
+                );
+            }
+        }
+        for (j, q) in points[..i].iter().enumerate() {
+            let d = p
+                .iter()
+                .zip(q)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            if d < 1e-3 {
+                return err(
+                    format!("{key}[{i}]"),
+                    format!(
+                        "the same point as {key}[{j}] (within 1 mm): expected six distinct joints"
+                    ),
+                );
+            }
+        }
+    }
+    Ok(())
 }
 
 /// `Ok` for a finite, strictly positive value, else an error naming the key.

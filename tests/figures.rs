@@ -134,8 +134,9 @@ fn plot_refuses_bad_inputs_clearly() {
     let cases: Vec<(std::process::Output, &[&str])> = vec![
         (plot(&missing, &["-o", o]), &["missing.mcap"]),
         (
-            plot(&mcap, &["--channels", "fx,pitch", "-o", o]),
-            &["unknown channel `pitch`", "fx, fy"],
+            // `pitch` is the platform's pitch; a pitch rate is `wy`.
+            plot(&mcap, &["--channels", "fx,pitchrate", "-o", o]),
+            &["unknown channel `pitchrate`", "fx, fy", "roll, pitch, yaw"],
         ),
         (
             plot(&mcap, &["--from", "4", "--to", "2", "-o", o]),

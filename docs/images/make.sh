@@ -23,6 +23,8 @@ hexcue plot "$tmp/horizontal-stall.mcap" --channels fx,fy \
     -o docs/images/horizontal-stall-fx-fy.png --force
 hexcue plot "$tmp/horizontal-stall.mcap" --channels legs \
     -o docs/images/horizontal-stall-legs.png --force
+hexcue plot "$tmp/horizontal-stall.mcap" --channels x,pitch,leg1,leg4 \
+    -o docs/images/horizontal-stall-pose-legs.png --force
 
 # The OMCT of every algorithm: docs/omct/omct.md, omct.json and one Bode plot per test.
 # --force: these replace the shipped figures (hexcue never overwrites without it).

@@ -10,27 +10,140 @@ use serde::{Deserialize, Serialize};
 
 use crate::G_MPS2;
 
-/// Joint layout of a hexapod: three pairs of joints on the base and on the platform, the
-/// platform's pairs rotated between the base's so that the legs cross (the 6-6 layout).
+/// Joint layout of a hexapod, in one of two forms (a profile gives exactly one):
+///
+/// - **symmetric**: three pairs of joints on the base and on the platform, the platform's
+///   pairs rotated between the base's so that the legs cross (the 6-6 layout), from radii,
+///   pair spacings, rotation and neutral height;
+/// - **joint coordinates**: the six base joints and the six platform joints as measured on a
+///   real hexapod, which is never perfectly symmetric. Leg i runs from `base_joints_m[i]` to
+///   `platform_joints_m[i]`. Both are in the geometry frame: the simulator inertial frame at
+///   the neutral pose (x forward, y right, z down, DESIGN §1), whose origin is the platform
+///   frame's; the platform joints are fixed in the platform frame, which coincides with it at
+///   neutral. The base joints therefore have z > 0 (below the platform).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Geometry {
     /// Radius of the circle through the base (floor) joints (m).
-    pub base_radius_m: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_radius_m: Option<f64>,
     /// Angle between the two joints of a base pair (deg).
-    pub base_pair_spacing_deg: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_pair_spacing_deg: Option<f64>,
     /// Radius of the circle through the platform joints (m).
-    pub platform_radius_m: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub platform_radius_m: Option<f64>,
     /// Angle between the two joints of a platform pair (deg).
-    pub platform_pair_spacing_deg: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub platform_pair_spacing_deg: Option<f64>,
     /// Rotation of the platform's pair centres from the base's (deg).
-    pub platform_rotation_deg: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub platform_rotation_deg: Option<f64>,
     /// Height of the platform joint plane above the base joint plane at neutral (m).
-    pub neutral_height_m: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub neutral_height_m: Option<f64>,
+    /// Joint-coordinate form: each leg's base joint [x, y, z], geometry frame (m). Read as
+    /// lists of lists so that a wrong count is reported with the key and index.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_joints_m: Option<Vec<Vec<f64>>>,
+    /// Joint-coordinate form: each leg's platform joint [x, y, z], platform frame (m).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub platform_joints_m: Option<Vec<Vec<f64>>>,
     /// Shortest leg length, joint to joint (m).
     pub leg_min_m: f64,
     /// Longest leg length, joint to joint (m).
     pub leg_max_m: f64,
+}
+
+/// The keys of the symmetric form, in the order of [`Geometry`].
+pub const SYMMETRIC_KEYS: [&str; 6] = [
+    "base_radius_m",
+    "base_pair_spacing_deg",
+    "platform_radius_m",
+    "platform_pair_spacing_deg",
+    "platform_rotation_deg",
+    "neutral_height_m",
+];
+
+impl Geometry {
+    /// The symmetric form's values in the order of [`SYMMETRIC_KEYS`] (`None` where absent).
+    pub fn symmetric_values(&self) -> [Option<f64>; 6] {
+        [
+            self.base_radius_m,
+            self.base_pair_spacing_deg,
+            self.platform_radius_m,
+            self.platform_pair_spacing_deg,
+            self.platform_rotation_deg,
+            self.neutral_height_m,
+        ]
+    }
+
+    /// Whether the joint-coordinate form is used (either of its keys is given).
+    pub fn by_joints(&self) -> bool {
+        self.base_joints_m.is_some() || self.platform_joints_m.is_some()
+    }
+
+    /// Height of the platform joints above the base joints at neutral (m): the symmetric
+    /// form's key, or the mean z of the base joints less that of the platform joints.
+    pub fn neutral_height(&self) -> f64 {
+        if self.by_joints() {
+            let mean_z = |p: &Option<Vec<Vec<f64>>>| {
+                let pts = p.as_deref().unwrap_or(&[]);
+                let zs: Vec<f64> = pts.iter().filter_map(|q| q.get(2).copied()).collect();
+                zs.iter().sum::<f64>() / zs.len().max(1) as f64
+            };
+            mean_z(&self.base_joints_m) - mean_z(&self.platform_joints_m)
+        } else {
+            self.neutral_height_m.unwrap_or(f64::NAN)
+        }
+    }
+
+    /// The joints of each leg: base joints in the inertial frame, platform joints in the
+    /// platform frame (m). Absent or malformed values become NaN: the profile's validation
+    /// refuses them, with their key, before any use.
+    pub fn joints(&self) -> ([Vector3<f64>; 6], [Vector3<f64>; 6]) {
+        if self.by_joints() {
+            let points = |p: &Option<Vec<Vec<f64>>>| -> [Vector3<f64>; 6] {
+                std::array::from_fn(|i| {
+                    let q = p.as_ref().and_then(|v| v.get(i));
+                    let c = |k: usize| q.and_then(|q| q.get(k)).copied().unwrap_or(f64::NAN);
+                    Vector3::new(c(0), c(1), c(2))
+                })
+            };
+            return (points(&self.base_joints_m), points(&self.platform_joints_m));
+        }
+        let nan = f64::NAN;
+        let place = |radius: f64, centre_deg: f64, spacing_deg: f64| -> [(f64, f64); 6] {
+            let mut out = [(0.0, 0.0); 6];
+            for pair in 0..3 {
+                let c = centre_deg + 120.0 * pair as f64;
+                for (j, side) in [-0.5, 0.5].iter().enumerate() {
+                    let a = (c + side * spacing_deg).to_radians();
+                    out[2 * pair + j] = (radius * a.cos(), radius * a.sin());
+                }
+            }
+            out
+        };
+        let base = place(
+            self.base_radius_m.unwrap_or(nan),
+            0.0,
+            self.base_pair_spacing_deg.unwrap_or(nan),
+        );
+        // Legs cross: base joint i is joined to the nearer joint of the neighbouring platform
+        // pair, which is platform joint i − 1 (mod 6) in the placement order.
+        let plat = place(
+            self.platform_radius_m.unwrap_or(nan),
+            self.platform_rotation_deg.unwrap_or(nan),
+            self.platform_pair_spacing_deg.unwrap_or(nan),
+        );
+        let h0 = self.neutral_height_m.unwrap_or(nan);
+        let base_joints_m = std::array::from_fn(|i| Vector3::new(base[i].0, base[i].1, h0));
+        let platform_joints_m = std::array::from_fn(|i| {
+            let j = (i + 5) % 6;
+            Vector3::new(plat[j].0, plat[j].1, 0.0)
+        });
+        (base_joints_m, platform_joints_m)
+    }
 }
 
 /// Error of the forward kinematics.
@@ -164,31 +277,7 @@ pub fn head_motion(
 
 impl Stewart {
     pub fn new(g: &Geometry) -> Self {
-        let place = |radius: f64, centre_deg: f64, spacing_deg: f64| -> [(f64, f64); 6] {
-            let mut out = [(0.0, 0.0); 6];
-            for pair in 0..3 {
-                let c = centre_deg + 120.0 * pair as f64;
-                for (j, side) in [-0.5, 0.5].iter().enumerate() {
-                    let a = (c + side * spacing_deg).to_radians();
-                    out[2 * pair + j] = (radius * a.cos(), radius * a.sin());
-                }
-            }
-            out
-        };
-        let base = place(g.base_radius_m, 0.0, g.base_pair_spacing_deg);
-        // Legs cross: base joint i is joined to the nearer joint of the neighbouring platform
-        // pair, which is platform joint i − 1 (mod 6) in the placement order.
-        let plat = place(
-            g.platform_radius_m,
-            g.platform_rotation_deg,
-            g.platform_pair_spacing_deg,
-        );
-        let base_joints_m =
-            std::array::from_fn(|i| Vector3::new(base[i].0, base[i].1, g.neutral_height_m));
-        let platform_joints_m = std::array::from_fn(|i| {
-            let j = (i + 5) % 6;
-            Vector3::new(plat[j].0, plat[j].1, 0.0)
-        });
+        let (base_joints_m, platform_joints_m) = g.joints();
         let mut s = Stewart {
             base_joints_m,
             platform_joints_m,
@@ -249,6 +338,19 @@ impl Stewart {
         })
     }
 
+    /// [`Stewart::usage`] with the leg's direction from neutral: positive where the leg is
+    /// longer than at neutral (extending), negative where it is shorter (retracting).
+    pub fn signed_usage(&self, lengths: &Vector6<f64>) -> Vector6<f64> {
+        let usage = self.usage(lengths);
+        Vector6::from_fn(|i, _| {
+            if lengths[i] >= self.neutral_lengths_m[i] {
+                usage[i]
+            } else {
+                -usage[i]
+            }
+        })
+    }
+
     pub fn fits(&self, pose: &Vector6<f64>, margin_m: f64) -> bool {
         self.margins(&self.leg_lengths(pose))
             .iter()
@@ -295,15 +397,68 @@ mod tests {
 
     pub(crate) fn full_flight() -> Geometry {
         Geometry {
-            base_radius_m: 2.3,
-            base_pair_spacing_deg: 15.0,
-            platform_radius_m: 1.8,
-            platform_pair_spacing_deg: 25.0,
-            platform_rotation_deg: 60.0,
-            neutral_height_m: 3.0,
+            base_radius_m: Some(2.3),
+            base_pair_spacing_deg: Some(15.0),
+            platform_radius_m: Some(1.8),
+            platform_pair_spacing_deg: Some(25.0),
+            platform_rotation_deg: Some(60.0),
+            neutral_height_m: Some(3.0),
+            base_joints_m: None,
+            platform_joints_m: None,
             leg_min_m: 2.5,
             leg_max_m: 4.5,
         }
+    }
+
+    /// The same hexapod given by its joint coordinates, as a profile would write them.
+    fn by_joints(g: &Geometry) -> Geometry {
+        let (base, plat) = g.joints();
+        let list = |p: [Vector3<f64>; 6]| Some(p.iter().map(|v| vec![v.x, v.y, v.z]).collect());
+        Geometry {
+            base_radius_m: None,
+            base_pair_spacing_deg: None,
+            platform_radius_m: None,
+            platform_pair_spacing_deg: None,
+            platform_rotation_deg: None,
+            neutral_height_m: None,
+            base_joints_m: list(base),
+            platform_joints_m: list(plat),
+            ..g.clone()
+        }
+    }
+
+    #[test]
+    fn joint_coordinates_equal_to_the_symmetric_form_give_the_same_legs_and_jacobian() {
+        let sym = Stewart::new(&full_flight());
+        let g = by_joints(&full_flight());
+        assert!((g.neutral_height() - 3.0).abs() < 1e-12);
+        let joints = Stewart::new(&g);
+        assert_eq!(joints.neutral_lengths_m, sym.neutral_lengths_m);
+        for p in [
+            Vector6::zeros(),
+            Vector6::new(0.3, -0.2, 0.1, 0.1, -0.15, 0.2),
+            Vector6::new(-1.0, 0.7, -0.4, -0.3, 0.2, 0.4),
+        ] {
+            assert!((joints.leg_lengths(&p) - sym.leg_lengths(&p)).amax() < 1e-12);
+            assert!((joints.jacobian(&p) - sym.jacobian(&p)).amax() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn an_asymmetric_hexapod_has_its_own_legs() {
+        // One platform joint 5 cm out of place: that leg alone changes at neutral, and the
+        // kinematics still invert.
+        let mut g = by_joints(&full_flight());
+        g.platform_joints_m.as_mut().unwrap()[3][0] += 0.05;
+        let s = Stewart::new(&g);
+        let sym = Stewart::new(&full_flight());
+        for i in 0..6 {
+            let moved = (s.neutral_lengths_m[i] - sym.neutral_lengths_m[i]).abs() > 1e-6;
+            assert_eq!(moved, i == 3, "leg {}", i + 1);
+        }
+        let p = Vector6::new(0.4, -0.3, 0.2, 0.1, -0.1, 0.2);
+        let back = s.forward(&s.leg_lengths(&p), &Vector6::zeros()).unwrap();
+        assert!((back - p).amax() < 1e-9);
     }
 
     /// Horizontal distance between a base joint and its platform joint: the pair centres are

@@ -3,7 +3,9 @@
 //! One panel per chosen channel, all on one time axis: the perceived reference and every
 //! recorded algorithm's perceived signal, in the units a pilot reads (m/s², °/s). The
 //! pseudo-channel `legs` is the workspace panel: each algorithm's leg usage (the largest of
-//! the six legs; 1 = an end stop). When an S-MPC lane was recorded, every panel is shaded
+//! the six legs; 1 = an end stop); `leg1` … `leg6` (`all-legs`) show each leg with its
+//! direction, and `x` … `yaw` (`pose`) the platform's commanded pose against the profile's
+//! limits. When an S-MPC lane was recorded, every panel is shaded
 //! with its active controller (COTC, free, blend, fallback).
 //!
 //! Long recordings are decimated while they are read (first, min, max and last sample of
@@ -28,7 +30,21 @@ pub enum Panel {
     Channel(usize),
     /// Leg usage of each algorithm (the workspace).
     Legs,
+    /// The platform's commanded pose, DoF 0..6: x, y, z, roll, pitch, yaw.
+    Pose(usize),
+    /// Leg 1..6 (index 0..6) of each algorithm: its usage with its direction.
+    Leg(usize),
 }
+
+const POSE_KEYS: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
+const POSE_NAMES: [&str; 6] = [
+    "platform surge (from neutral)",
+    "platform sway (from neutral)",
+    "platform heave (from neutral, z down)",
+    "platform roll",
+    "platform pitch",
+    "platform yaw",
+];
 
 const CHANNEL_KEYS: [&str; 6] = ["fx", "fy", "fz", "wx", "wy", "wz"];
 const CHANNEL_NAMES: [&str; 6] = [
@@ -49,22 +65,44 @@ impl Panel {
         if let Some(i) = CHANNEL_KEYS.iter().position(|c| *c == k) {
             return Ok(Panel::Channel(i));
         }
+        if let Some(i) = POSE_KEYS.iter().position(|c| *c == k) {
+            return Ok(Panel::Pose(i));
+        }
+        if let Some(i) = k
+            .strip_prefix("leg")
+            .and_then(|n| n.parse::<usize>().ok())
+            .filter(|n| (1..=6).contains(n))
+        {
+            return Ok(Panel::Leg(i - 1));
+        }
         if k == "legs" || k == "workspace" {
             return Ok(Panel::Legs);
         }
         bail!(
-            "--channels: unknown channel `{}`; expected one or more of {}, legs (alias workspace)",
+            "--channels: unknown channel `{}`; expected one or more of {}, legs (alias \
+             workspace), {}, pose (all six), leg1 … leg6, all-legs (all six)",
             key.trim(),
-            CHANNEL_KEYS.join(", ")
+            CHANNEL_KEYS.join(", "),
+            POSE_KEYS.join(", ")
         )
+    }
+
+    /// A key, or a group of them: `pose` is x … yaw, `all-legs` is leg1 … leg6.
+    fn parse_group(key: &str) -> Result<Vec<Panel>> {
+        match key.trim().to_ascii_lowercase().as_str() {
+            "pose" => Ok((0..6).map(Panel::Pose).collect()),
+            "all-legs" => Ok((0..6).map(Panel::Leg).collect()),
+            _ => Ok(vec![Panel::parse(key)?]),
+        }
     }
 
     pub fn parse_list(keys: &[String]) -> Result<Vec<Panel>> {
         let mut out = Vec::new();
         for key in keys.iter().filter(|k| !k.trim().is_empty()) {
-            let p = Panel::parse(key)?;
-            if !out.contains(&p) {
-                out.push(p);
+            for p in Panel::parse_group(key)? {
+                if !out.contains(&p) {
+                    out.push(p);
+                }
             }
         }
         if out.is_empty() {
@@ -73,10 +111,12 @@ impl Panel {
         Ok(out)
     }
 
-    pub fn key(self) -> &'static str {
+    pub fn key(self) -> String {
         match self {
-            Panel::Channel(i) => CHANNEL_KEYS[i],
-            Panel::Legs => "legs",
+            Panel::Channel(i) => CHANNEL_KEYS[i].into(),
+            Panel::Legs => "legs".into(),
+            Panel::Pose(i) => POSE_KEYS[i].into(),
+            Panel::Leg(i) => format!("leg{}", i + 1),
         }
     }
 
@@ -86,6 +126,15 @@ impl Panel {
             Panel::Legs => {
                 "legs: leg usage, the largest of the six (0 neutral, 1 end stop)".to_string()
             }
+            Panel::Pose(i) => format!(
+                "{}: {}, red: the profile's limit",
+                POSE_KEYS[i], POSE_NAMES[i]
+            ),
+            Panel::Leg(i) => format!(
+                "leg{}: usage of leg {} (+ extending, − retracting; ±1 end stop)",
+                i + 1,
+                i + 1
+            ),
         }
     }
 
@@ -93,16 +142,23 @@ impl Panel {
         match self {
             Panel::Channel(i) if i < 3 => "m/s²",
             Panel::Channel(_) => "°/s",
-            Panel::Legs => "fraction of stroke",
+            Panel::Legs | Panel::Leg(_) => "fraction of stroke",
+            Panel::Pose(i) if i < 3 => "m",
+            Panel::Pose(_) => "°",
         }
     }
 
     /// Recorded SI value to the unit shown.
     fn scale(self) -> f64 {
         match self {
-            Panel::Channel(i) if i >= 3 => 180.0 / std::f64::consts::PI,
+            Panel::Channel(i) | Panel::Pose(i) if i >= 3 => 180.0 / std::f64::consts::PI,
             _ => 1.0,
         }
+    }
+
+    /// Whether the panel has a line for the reference (the aircraft), not only algorithms.
+    fn has_reference(self) -> bool {
+        matches!(self, Panel::Channel(_))
     }
 }
 
@@ -296,6 +352,8 @@ pub struct Timeline {
     pub bands: Vec<Band>,
     /// Whether an S-MPC lane was recorded (its bands are shaded even if all one mode).
     pub shaded_by: Option<AlgorithmId>,
+    /// Each DoF's excursion limit in the unit shown (m, °), when the profile is known.
+    pub limits: Option<[f64; 6]>,
 }
 
 /// The lane whose controller modes are shaded: the S-MPC's, found by its key so that this
@@ -335,16 +393,24 @@ pub fn read_timeline(recording: &Recording, request: &PlotRequest) -> Result<Tim
         Some(to) => to,
         None => end,
     };
-    let stewart: Option<Stewart> = if request.panels.contains(&Panel::Legs) {
-        match &recording.profile {
-            Ok(p) => Some(p.stewart()),
-            Err(e) => bail!(
-                "{e}; without a valid profile the leg usage (panel `legs`) cannot be computed from {path}"
-            ),
-        }
-    } else {
-        None
+    let needs_legs = request
+        .panels
+        .iter()
+        .find(|p| matches!(p, Panel::Legs | Panel::Leg(_)));
+    let stewart: Option<Stewart> = match (needs_legs, &recording.profile) {
+        (None, _) => None,
+        (Some(_), Ok(p)) => Some(p.stewart()),
+        (Some(panel), Err(e)) => bail!(
+            "{e}; without a valid profile the leg usage (panel `{}`) cannot be computed from {path}",
+            panel.key()
+        ),
     };
+    // The pose panels draw the profile's limits when it loads.
+    let excursion = recording
+        .profile
+        .as_ref()
+        .ok()
+        .map(|p| p.limits.si().excursion);
     let columns = request.width_px.max(100) as usize;
     let algorithms = recording.algorithms.clone();
     let mut panels: Vec<(Panel, Vec<Line>)> = request
@@ -352,7 +418,7 @@ pub fn read_timeline(recording: &Recording, request: &PlotRequest) -> Result<Tim
         .iter()
         .map(|&panel| {
             let mut lines = Vec::new();
-            if let Panel::Channel(_) = panel {
+            if panel.has_reference() {
                 lines.push(Line {
                     label: "reference (aircraft)".to_string(),
                     color: REFERENCE_COLOR,
@@ -405,6 +471,23 @@ pub fn read_timeline(recording: &Recording, request: &PlotRequest) -> Result<Tim
                         }
                     }
                 }
+                Panel::Leg(i) => {
+                    if let Some(stewart) = &stewart {
+                        for (line, &a) in lines.iter_mut().zip(&algorithms) {
+                            if let Some(lane) = frame.lane(a) {
+                                line.signal
+                                    .push(t, stewart.signed_usage(&lane.legs.length_m)[i]);
+                            }
+                        }
+                    }
+                }
+                Panel::Pose(i) => {
+                    for (line, &a) in lines.iter_mut().zip(&algorithms) {
+                        if let Some(lane) = frame.lane(a) {
+                            line.signal.push(t, scale * lane.command.pose[i]);
+                        }
+                    }
+                }
             }
         }
         if let Some(lane) = shaded_by.and_then(|a| frame.lane(a)) {
@@ -430,6 +513,7 @@ pub fn read_timeline(recording: &Recording, request: &PlotRequest) -> Result<Tim
         panels,
         bands: modes.bands(from_s, to_s),
         shaded_by,
+        limits: excursion.map(|e| std::array::from_fn(|i| e[i] * Panel::Pose(i).scale())),
     })
 }
 
@@ -447,7 +531,7 @@ pub fn draw<DB: DrawingBackend>(root: &Area<DB>, tl: &Timeline) -> DrawResult<DB
     let (header, body) = root.split_vertically(HEADER_PX);
     header.draw(&Text::new(tl.title.clone(), (20, 10), font(19.0)))?;
     let mut entries: Vec<(String, ShapeStyle)> = Vec::new();
-    if tl.panels.iter().any(|(p, _)| *p != Panel::Legs) {
+    if tl.panels.iter().any(|(p, _)| p.has_reference()) {
         entries.push((
             "reference (aircraft)".to_string(),
             REFERENCE_COLOR.stroke_width(2),
@@ -456,8 +540,12 @@ pub fn draw<DB: DrawingBackend>(root: &Area<DB>, tl: &Timeline) -> DrawResult<DB
     for &a in &tl.algorithms {
         entries.push((a.label().to_string(), algorithm_color(a).stroke_width(2)));
     }
-    if tl.panels.iter().any(|(p, _)| *p == Panel::Legs) {
-        entries.push(("end stop".to_string(), RED.stroke_width(1)));
+    if tl
+        .panels
+        .iter()
+        .any(|(p, _)| matches!(p, Panel::Legs | Panel::Leg(_) | Panel::Pose(_)))
+    {
+        entries.push(("end stop / limit".to_string(), RED.stroke_width(1)));
     }
     if let Some(a) = tl.shaded_by {
         for (i, (_, name, _)) in SHADED.iter().enumerate() {
@@ -487,10 +575,21 @@ fn draw_panel<DB: DrawingBackend>(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (c, d)| {
             (a.min(c), b.max(d))
         });
+    // The red lines: end stops and limits, always in view so that the signal reads against
+    // them at a glance.
+    let stops: Vec<f64> = match panel {
+        Panel::Legs => vec![1.0],
+        Panel::Leg(_) => vec![-1.0, 1.0],
+        Panel::Pose(i) => tl.limits.map_or(Vec::new(), |l| vec![-l[i], l[i]]),
+        Panel::Channel(_) => Vec::new(),
+    };
     let (y0, y1) = match panel {
-        // The end stop is always in view, so that usage reads against it at a glance.
         Panel::Legs => (0.0, hi.max(1.0) * 1.08),
-        Panel::Channel(_) => padded(lo, hi),
+        _ => {
+            let lo = stops.iter().copied().fold(lo, f64::min);
+            let hi = stops.iter().copied().fold(hi, f64::max);
+            padded(lo, hi)
+        }
     };
     let mut chart = ChartBuilder::on(area)
         .caption(panel.caption(), font(16.0))
@@ -515,9 +614,9 @@ fn draw_panel<DB: DrawingBackend>(
             band_style(band.mode),
         )))?;
     }
-    if panel == Panel::Legs {
+    for y in stops {
         chart.draw_series(LineSeries::new(
-            [(tl.from_s, 1.0), (tl.to_s, 1.0)],
+            [(tl.from_s, y), (tl.to_s, y)],
             RED.stroke_width(1),
         ))?;
     }
@@ -627,6 +726,7 @@ mod tests {
             )],
             bands: modes.bands(0.0, 10.0),
             shaded_by: Some(id),
+            limits: None,
         };
         assert_eq!(tl.bands.len(), 4, "{:?}", tl.bands);
         crate::plot::register_font().unwrap();
@@ -650,5 +750,70 @@ mod tests {
         let e = Panel::parse("fq").unwrap_err().to_string();
         assert!(e.contains("`fq`") && e.contains("fx, fy"), "{e}");
         assert!(Panel::parse_list(&[" ".to_string()]).is_err());
+        // The pose and every leg, alone or as groups.
+        let keys: Vec<String> = ["pose", "all-legs", "roll", "leg3"]
+            .map(String::from)
+            .to_vec();
+        let panels = Panel::parse_list(&keys).unwrap();
+        assert_eq!(panels.len(), 12, "{panels:?}");
+        assert_eq!(panels[3], Panel::Pose(3));
+        assert_eq!(panels[8], Panel::Leg(2));
+        assert_eq!(panels[8].key(), "leg3");
+        let e = Panel::parse("leg7").unwrap_err().to_string();
+        assert!(e.contains("`leg7`") && e.contains("leg1 … leg6"), "{e}");
+    }
+
+    /// Pose and leg panels: no reference line, the limits and end stops drawn in red.
+    #[test]
+    fn pose_and_leg_panels_draw_against_their_limits() {
+        let id = AlgorithmId::ALL[0];
+        let line = |f: fn(f64) -> f64| {
+            let mut signal = Decimated::new(0.0, 10.0, 200);
+            for k in 0..1000 {
+                let t = k as f64 * 0.01;
+                signal.push(t, f(t));
+            }
+            vec![Line {
+                label: id.label().into(),
+                color: algorithm_color(id),
+                signal,
+            }]
+        };
+        let tl = Timeline {
+            title: "test".into(),
+            from_s: 0.0,
+            to_s: 10.0,
+            algorithms: vec![id],
+            panels: vec![
+                (Panel::Pose(0), line(|t| 0.1 * t.sin())),
+                (Panel::Leg(4), line(|t| -0.5 * t.sin())),
+            ],
+            bands: Vec::new(),
+            shaded_by: None,
+            limits: Some([1.7, 1.7, 0.8, 25.0, 25.0, 30.0]),
+        };
+        crate::plot::register_font().unwrap();
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, figure_size(800, 2)).into_drawing_area();
+            draw(&root, &tl).unwrap();
+            root.present().unwrap();
+        }
+        for word in [
+            "x: platform surge",
+            "leg5: usage of leg 5",
+            "end stop / limit",
+        ] {
+            assert!(svg.contains(word), "{word} missing");
+        }
+        assert!(
+            !svg.contains("reference (aircraft)"),
+            "no reference in these panels"
+        );
+        // The ±1.7 m limit is in view although the signal stays within ±0.1 m.
+        assert!(
+            svg.contains("1.5") || svg.contains("1.6"),
+            "axis does not reach the limit"
+        );
     }
 }

@@ -75,12 +75,19 @@ pub struct App {
     /// Index into [`CHANNELS`].
     pub channel: usize,
     pub help: bool,
+    /// The help's page, where it does not fit in one (`?` turns them).
+    pub help_page: usize,
     /// Playback was running when the help opened: closing it plays again.
     help_paused_playback: bool,
     /// The go-to-time prompt (`g`), with what has been typed.
     pub goto: Option<String>,
     pub theme: Theme,
     pub legs: LegScale,
+    /// Each DoF's excursion limit (m, rad; x, y, z, roll, pitch, yaw), for the pose panel.
+    pub pose_limits: [f64; 6],
+    /// The pose panel is shown (`p`): beside the leg gauges where there is room, in their
+    /// place where there is not.
+    pub pose: bool,
     /// A live session's header (`hexcue live`); `None` for playback and review.
     pub live: Option<super::live::LiveStatus>,
     quit: Option<&'static str>,
@@ -93,10 +100,13 @@ impl App {
             snapshot: Arc::new(Snapshot::empty(Vec::new(), 0, profile.rate_hz)),
             channel: 0,
             help: false,
+            help_page: 0,
             help_paused_playback: false,
             goto: None,
             theme,
             legs: LegScale::of(profile),
+            pose_limits: profile.limits.si().excursion.into(),
+            pose: false,
             live: None,
             quit: None,
         }
@@ -125,8 +135,14 @@ impl App {
             return self.quit_with("key");
         }
         if self.help {
-            // The overlay takes any key to close, so that a stray key is not also an action.
+            if matches!(key.code, KeyCode::Char('?') | KeyCode::F(1)) {
+                self.help_page += 1;
+                return None;
+            }
+            // The overlay takes any other key to close, so that a stray key is not also an
+            // action.
             self.help = false;
+            self.help_page = 0;
             let resume = std::mem::take(&mut self.help_paused_playback);
             return match key.code {
                 KeyCode::Char('q') => self.quit_with("key"),
@@ -168,6 +184,10 @@ impl App {
             KeyCode::Char('-') | KeyCode::Char('_') => Some(Command::Slower),
             KeyCode::Char('l') | KeyCode::Char('L') => Some(Command::ToggleLoop),
             KeyCode::Char('r') | KeyCode::Char('R') => Some(Command::ToggleRecord),
+            KeyCode::Char('p') | KeyCode::Char('P') => {
+                self.toggle_pose();
+                None
+            }
             KeyCode::Tab => {
                 self.channel = (self.channel + 1) % CHANNELS.len();
                 None
@@ -188,6 +208,11 @@ impl App {
             }
             _ => None,
         }
+    }
+
+    /// Shows or hides the pose panel (`p`).
+    pub fn toggle_pose(&mut self) {
+        self.pose = !self.pose;
     }
 
     fn quit_with(&mut self, why: &'static str) -> Option<Command> {

@@ -11,6 +11,8 @@
 //! The CLI calls [`run_live`] and [`run_review`]; see `docs/console.md` for the layout and keys.
 
 pub mod app;
+mod gauges;
+mod help;
 pub mod live;
 pub mod player;
 pub mod theme;
@@ -543,5 +545,7 @@ fn signal_name(sig: i32) -> &'static str {
     }
 }
 
+#[cfg(test)]
+mod render_tests;
 #[cfg(test)]
 mod tests;

@@ -93,6 +93,8 @@ pub struct WindowRow {
     pub t_s: f64,
     pub reference: [f32; 6],
     pub lanes: Vec<[f32; 6]>,
+    /// Each lane's leg lengths (m), for the gauges' peak hold over the window.
+    pub legs_m: Vec<[f32; 6]>,
 }
 
 impl WindowRow {
@@ -105,6 +107,11 @@ impl WindowRow {
                 .lanes
                 .iter()
                 .map(|l| f32s(l.perceived.channels()))
+                .collect(),
+            legs_m: frame
+                .lanes
+                .iter()
+                .map(|l| f32s(l.legs.length_m.into()))
                 .collect(),
         }
     }
@@ -155,6 +162,9 @@ pub struct Snapshot {
     pub last: Option<Frame>,
     pub summary: Option<Arc<Summary>>,
     pub notice: Option<Notice>,
+    /// Path of the last recording closed, so that where it went stays on screen after the
+    /// notice has gone.
+    pub last_saved: Option<String>,
 }
 
 impl Snapshot {
@@ -179,6 +189,7 @@ impl Snapshot {
             last: None,
             summary: None,
             notice: None,
+            last_saved: None,
         }
     }
 
@@ -272,6 +283,7 @@ pub struct Player {
     finished: Vec<String>,
     used_paths: Vec<PathBuf>,
     notice: Option<Notice>,
+    last_saved: Option<String>,
     version: u64,
     quit: bool,
 }
@@ -315,6 +327,7 @@ impl Player {
             finished: Vec::new(),
             used_paths: Vec::new(),
             notice: None,
+            last_saved: None,
             version: 0,
             quit: false,
         };
@@ -604,10 +617,20 @@ impl Player {
         };
         let path = rec.path.display().to_string();
         let line = match rec.sink.finish() {
-            Ok(line) => line,
-            Err(e) => format!("recording {path} could not be finished: {e:#}"),
+            Ok(line) => {
+                // The path first: a narrow footer cuts the end of a notice, and where the
+                // file went is what the operator needs from it.
+                let secs = rec.frames as f64 / self.rate_hz;
+                self.notify(format!("saved {path} ({secs:.1} s): {why}"), now);
+                self.last_saved = Some(path);
+                line
+            }
+            Err(e) => {
+                let line = format!("recording {path} could not be finished: {e:#}");
+                self.notify(format!("{why}: {line}"), now);
+                line
+            }
         };
-        self.notify(format!("{why}: {line}"), now);
         self.finished.push(line);
     }
 
@@ -726,6 +749,7 @@ impl Player {
             last: self.last.clone(),
             summary: self.summary_cache.clone(),
             notice: self.notice.clone(),
+            last_saved: self.last_saved.clone(),
         }
     }
 

@@ -3,24 +3,23 @@
 
 use std::time::Instant;
 
-use ratatui::layout::{Constraint, Flex, Layout, Rect};
-use ratatui::style::{Modifier, Style};
+use ratatui::layout::{Constraint, Layout, Rect};
+use ratatui::style::Modifier;
 use ratatui::symbols::Marker;
 use ratatui::text::{Line, Span};
-use ratatui::widgets::{Axis, Block, Borders, Chart, Clear, Dataset, GraphType, Paragraph};
+use ratatui::widgets::{Axis, Block, Borders, Chart, Dataset, GraphType, Paragraph};
 
 use crate::engine::LaneFrame;
 use crate::mca::{AlgorithmId, Mode};
 use crate::metrics::CHANNELS;
 
 use super::app::App;
+use super::gauges::{leg_lines, pose_lines, FULL_ROWS, PAIRED_ROWS};
 use super::player::{speed_label, Snapshot, WINDOW_S};
 use super::Theme;
 
 /// Narrowest useful algorithm column; narrower terminals show fewer columns.
 const MIN_COLUMN_W: u16 = 18;
-/// Longer gauge bars only spread the same information.
-const MAX_BAR_W: usize = 30;
 /// Rows a chart needs to be worth a second one below it.
 const CHART_ROWS_EACH: usize = 8;
 
@@ -32,7 +31,7 @@ pub fn render(app: &App, f: &mut ratatui::Frame, now: Instant) {
     if area.height < 5 || area.width < 20 {
         // Room for a status line only: what is playing and where.
         let w = usize::from(area.width);
-        let lines: Vec<Line> = vec![fit(status_line(app), w), fit(header_line2(app), w)];
+        let lines: Vec<Line> = vec![fit(status_line(app), w), fit(header_line2(app, w), w)];
         f.render_widget(Paragraph::new(lines), area);
         return;
     }
@@ -46,16 +45,17 @@ pub fn render(app: &App, f: &mut ratatui::Frame, now: Instant) {
     let w = usize::from(area.width);
     let mut head = vec![status_line(app)];
     if header_h > 1 {
-        head.push(header_line2(app));
+        head.push(header_line2(app, w));
     } else {
-        head[0].spans.extend(header_line2(app).spans);
+        let room = w.saturating_sub(head[0].width());
+        head[0].spans.extend(header_line2(app, room).spans);
     }
     let head: Vec<Line> = head.into_iter().map(|l| fit(l, w)).collect();
     f.render_widget(Paragraph::new(head), header);
     render_columns(app, f, body);
-    f.render_widget(Paragraph::new(fit(footer_line(app, now), w)), footer);
+    f.render_widget(Paragraph::new(fit(footer_line(app, now, w), w)), footer);
     if app.help {
-        render_help(app, f, area);
+        super::help::render_help(app, f, area);
     }
 }
 
@@ -127,8 +127,16 @@ fn status_line(app: &App) -> Line<'static> {
         format!("{sym} {word}"),
         style.add_modifier(Modifier::BOLD),
     )];
+    // A play mode, beside the play state: the second line has no room to spare at 80.
+    if s.looping {
+        spans.push(Span::styled(" ↻ loop", th.text()));
+    }
     if let Some(file) = &app.info.review_of {
-        spans.push(Span::styled(format!("  REVIEW {file}"), th.title()));
+        // The file's name: its folder is what a narrow terminal can do without.
+        spans.push(Span::styled(
+            format!("  REVIEW {}", short_path(file)),
+            th.title(),
+        ));
     }
     spans.push(Span::styled(
         format!("  {}", app.info.trace_name),
@@ -144,45 +152,164 @@ fn status_line(app: &App) -> Line<'static> {
     Line::from(spans)
 }
 
-fn header_line2(app: &App) -> Line<'static> {
+/// A piece of the header and how much it matters: the least important go first when the
+/// line is too long, so that a narrow terminal keeps what matters whole rather than cut the
+/// end of the line.
+struct Item {
+    /// 0 is never dropped; higher numbers are dropped first.
+    rank: u8,
+    spans: Vec<Span<'static>>,
+    /// Text shown after the spans in whatever room the line has left, cut at its start
+    /// (a file name's end is what tells recordings apart: the time stamp).
+    tail: Option<(String, ratatui::style::Style)>,
+}
+
+fn item(rank: u8, spans: Vec<Span<'static>>) -> Item {
+    Item {
+        rank,
+        spans,
+        tail: None,
+    }
+}
+
+/// The last `n` cells of `s`, with `…` in front when cut.
+fn truncate_front(s: &str, n: usize) -> String {
+    let count = s.chars().count();
+    if count <= n {
+        s.to_string()
+    } else if n == 0 {
+        String::new()
+    } else {
+        let mut t = String::from("…");
+        t.extend(s.chars().skip(count - (n - 1)));
+        t
+    }
+}
+
+/// The items in their order, without the least important ones until they fit in `width`.
+fn prioritised(mut items: Vec<Item>, width: usize) -> Line<'static> {
+    // A tail counts as its smallest useful piece while deciding what to drop, and gets
+    // whatever room is left afterwards.
+    let width_of = |items: &[Item]| -> usize {
+        items
+            .iter()
+            .map(|i| {
+                let tail = i
+                    .tail
+                    .as_ref()
+                    .map_or(0, |(t, _)| (t.chars().count() + 1).min(MIN_TAIL));
+                i.spans.iter().map(Span::width).sum::<usize>() + tail
+            })
+            .sum()
+    };
+    while width_of(&items) > width {
+        let Some(drop) = items
+            .iter()
+            .enumerate()
+            .filter(|(_, i)| i.rank > 0)
+            .max_by_key(|(k, i)| (i.rank, *k))
+            .map(|(k, _)| k)
+        else {
+            break;
+        };
+        items.remove(drop);
+    }
+    let fixed: usize = items
+        .iter()
+        .flat_map(|i| i.spans.iter())
+        .map(Span::width)
+        .sum();
+    let mut room = width.saturating_sub(fixed);
+    let mut spans = Vec::new();
+    for mut i in items {
+        if let Some((text, style)) = i.tail.take() {
+            // Too little room for a recognisable piece: nothing rather than "…z.mcap".
+            if room >= MIN_TAIL {
+                let shown = truncate_front(&text, room - 1);
+                room -= shown.chars().count() + 1;
+                i.spans.push(Span::styled(format!(" {shown}"), style));
+            }
+        }
+        spans.extend(i.spans);
+    }
+    Line::from(spans)
+}
+
+/// The least of a file name worth showing: "…053800Z.mcap", the recording's time stamp.
+const MIN_TAIL: usize = 14;
+
+fn header_line2(app: &App, width: usize) -> Line<'static> {
     if let Some(live) = &app.live {
         return super::live::header_line2(app, live);
     }
     let th = &app.theme;
     let s = &app.snapshot;
-    // Most important first: narrow terminals cut the end of the line.
-    let mut spans = vec![
-        Span::styled(
-            format!(" t {:6.2} / {:.2} s", s.t_s(), s.duration_s()),
-            th.text().add_modifier(Modifier::BOLD),
+    let mut items = vec![
+        item(
+            0,
+            vec![Span::styled(
+                format!(" t {:6.2}/{:.2} s", s.t_s(), s.duration_s()),
+                th.text().add_modifier(Modifier::BOLD),
+            )],
         ),
-        Span::styled(format!("  {}", speed_label(s.speed)), th.text()),
+        item(
+            1,
+            vec![Span::styled(
+                format!("  {}", speed_label(s.speed)),
+                th.text(),
+            )],
+        ),
     ];
     if let Some(a) = s.achieved_speed.filter(|_| !s.paused) {
         if super::player::SPEEDS[s.speed].is_none() {
-            spans.push(Span::styled(format!(" (×{a:.1})"), th.dim()));
+            items.push(item(5, vec![Span::styled(format!(" (×{a:.1})"), th.dim())]));
         }
     }
-    spans.push(Span::styled(
-        format!("  ch {}", channel_label(app.channel)),
-        th.key(),
+    items.push(item(
+        1,
+        vec![Span::styled(
+            format!("  ch {}", channel_label(app.channel)),
+            th.key(),
+        )],
     ));
-    spans.push(Span::styled(" •ref", th.reference()));
-    spans.push(Span::styled(" ⣿sim", th.perceived()));
+    items.push(item(
+        4,
+        vec![Span::styled(format!(" last {WINDOW_S:.0} s"), th.dim())],
+    ));
+    items.push(item(
+        3,
+        vec![
+            Span::styled(" •ref", th.reference()),
+            Span::styled(" ⣿sim", th.perceived()),
+        ],
+    ));
     if s.lagging {
         let a = s.achieved_speed.unwrap_or(0.0);
-        spans.push(Span::styled(format!("  ⚠ BEHIND ×{a:.2}"), th.crit()));
-    }
-    // Loop before the recording: a long file name must not push it off the line.
-    if s.looping {
-        spans.push(Span::styled("  ↻ loop", th.text()));
+        items.push(item(
+            0,
+            vec![Span::styled(format!("  ⚠ BEHIND ×{a:.2}"), th.crit())],
+        ));
     }
     match (&s.recording, s.can_record) {
-        (Some(r), _) => spans.push(Span::styled(
-            format!("  ● REC {} {}", r.frames, truncate(short_path(&r.path), 24)),
-            th.recording(),
-        )),
-        (None, true) => spans.push(Span::styled("  ○ rec off", th.dim())),
+        (Some(r), _) => {
+            // Recorded time, not frames: what an operator reads off a recorder.
+            let secs = r.frames as f64 / s.rate_hz.max(f64::MIN_POSITIVE);
+            items.push(item(
+                0,
+                vec![Span::styled(format!("  ● REC {secs:.1} s"), th.recording())],
+            ));
+            let mut name = item(2, Vec::new());
+            name.tail = Some((short_path(&r.path).to_string(), th.recording()));
+            items.push(name);
+        }
+        (None, true) => match &s.last_saved {
+            Some(p) => {
+                let mut saved = item(3, vec![Span::styled("  ○ saved", th.dim())]);
+                saved.tail = Some((short_path(p).to_string(), th.dim()));
+                items.push(saved);
+            }
+            None => items.push(item(6, vec![Span::styled("  ○ rec off", th.dim())])),
+        },
         (None, false) => {}
     }
     if let Some(clipped) = s.summary.as_ref().and_then(|sum| {
@@ -195,7 +322,10 @@ fn header_line2(app: &App) -> Line<'static> {
             .collect();
         (!parts.is_empty()).then(|| parts.join(" "))
     }) {
-        spans.push(Span::styled(format!("  ✂ clipped {clipped}"), th.warn()));
+        items.push(item(
+            2,
+            vec![Span::styled(format!("  ✂ clipped {clipped}"), th.warn())],
+        ));
     }
     let t = s.t_s();
     if let Some((et, name)) = app
@@ -204,16 +334,20 @@ fn header_line2(app: &App) -> Line<'static> {
         .iter()
         .rfind(|(et, _)| *et <= t && t - *et < 10.0)
     {
-        spans.push(Span::styled(format!("  ◆ {name} @{et:.1}s"), th.warn()));
+        // The trace's own account of what happens now: kept before the legend and names.
+        items.push(item(
+            1,
+            vec![Span::styled(format!("  ◆ {name} @{et:.1}s"), th.warn())],
+        ));
     }
-    Line::from(spans)
+    prioritised(items, width)
 }
 
 fn short_path(p: &str) -> &str {
     p.rsplit(['/', '\\']).next().unwrap_or(p)
 }
 
-fn footer_line(app: &App, now: Instant) -> Line<'static> {
+fn footer_line(app: &App, now: Instant, width: usize) -> Line<'static> {
     if let Some(live) = &app.live {
         return super::live::footer_line(app, live);
     }
@@ -226,29 +360,46 @@ fn footer_line(app: &App, now: Instant) -> Line<'static> {
         ]);
     }
     if let Some(n) = app.notice(now) {
-        return Line::from(vec![
+        // The notice whole before the reminder of the help: a saved file's path is in it.
+        let mut spans = vec![
             Span::styled("» ", th.key()),
             Span::styled(n.to_string(), th.text()),
-            Span::styled("   ? help", th.dim()),
-        ]);
+        ];
+        let hint = Span::styled("   ? help", th.dim());
+        if spans.iter().map(Span::width).sum::<usize>() + hint.width() <= width {
+            spans.push(hint);
+        }
+        return Line::from(spans);
     }
-    let mut keys: Vec<(&str, &str)> = vec![
-        ("spc", "pause"),
-        ("←→", "seek"),
-        ("g", "go to"),
-        ("+-", "speed"),
-        ("tab", "chan"),
+    // Rank as in the header: at 80 columns the least used keys give way, never help or quit.
+    let mut keys: Vec<(u8, &str, &str)> = vec![
+        (0, "spc", "pause"),
+        (1, "←→", "seek"),
+        (4, "g", "go to"),
+        (3, "+-", "speed"),
+        (2, "tab", "chan"),
+        (3, "p", "pose"),
     ];
     if app.snapshot.can_record {
-        keys.push(("r", "rec"));
+        keys.push((1, "r", "rec"));
     }
-    keys.extend([("l", "loop"), ("?", "help"), ("q", "quit")]);
-    let mut spans = Vec::new();
-    for (k, what) in keys {
-        spans.push(Span::styled(k.to_string(), th.key()));
-        spans.push(Span::styled(format!(" {what}  "), th.dim()));
-    }
-    Line::from(spans)
+    keys.extend([(4, "l", "loop"), (0, "?", "help"), (0, "q", "quit")]);
+    let items = keys
+        .into_iter()
+        .enumerate()
+        .map(|(n, (rank, k, what))| {
+            // "spc", the first, is never dropped: every other key has its gap before it.
+            let gap = if n == 0 { "" } else { "  " };
+            item(
+                rank,
+                vec![
+                    Span::styled(format!("{gap}{k}"), th.key()),
+                    Span::styled(format!(" {what}"), th.dim()),
+                ],
+            )
+        })
+        .collect();
+    prioritised(items, width)
 }
 
 /// Lanes in display order: the order of [`AlgorithmId::ALL`], whatever order the engine holds.
@@ -288,11 +439,42 @@ fn render_columns(app: &App, f: &mut ratatui::Frame, area: Rect) {
         })
         .max()
         .unwrap_or(1);
+    let ranges = shared_ranges(s, shown);
     for (i, (&lane, &col)) in shown.iter().zip(cols.iter()).enumerate() {
         // The last column says how many did not fit, rather than drop them silently.
         let more = if i + 1 == shown.len() { hidden } else { 0 };
-        render_column(app, f, col, lane, state_h, more);
+        render_column(app, f, col, lane, state_h, more, &ranges);
     }
+}
+
+/// One y-range per channel (in the unit shown), shared by every column on screen: the
+/// union of the window's reference and of every shown lane's perceived signal, so that the
+/// columns compare by eye (the same height is the same value in each).
+pub(crate) fn shared_ranges(s: &Snapshot, lanes: &[usize]) -> [(f64, f64); 6] {
+    std::array::from_fn(|ch| {
+        let (scale, _) = channel_scale(ch);
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for row in &s.window {
+            let lane_values = lanes
+                .iter()
+                .filter_map(|&l| row.lanes.get(l).map(|v| v[ch]));
+            for v in std::iter::once(row.reference[ch]).chain(lane_values) {
+                let v = f64::from(v) * scale;
+                if v.is_finite() {
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+        }
+        if !lo.is_finite() || !hi.is_finite() {
+            (lo, hi) = (-1.0, 1.0);
+        }
+        // A floor on the span so that noise around zero is not blown up into a signal.
+        let min_span = if ch < 3 { 0.5 } else { 2.0 };
+        let mid = 0.5 * (lo + hi);
+        let half = (0.5 * (hi - lo)).max(0.5 * min_span) * 1.1;
+        (mid - half, mid + half)
+    })
 }
 
 fn render_column(
@@ -302,6 +484,7 @@ fn render_column(
     lane: usize,
     state_h: usize,
     hidden_after: usize,
+    ranges: &[(f64, f64); 6],
 ) {
     let th = &app.theme;
     let s = &*app.snapshot;
@@ -341,19 +524,27 @@ fn render_column(
     let h = inner.height as usize;
     // Tiers of detail, richest first: full gauges and a chart, paired gauges, one summary line.
     // Gauge tiers have a title row: six legs, three rows of pairs.
-    let (legs_rows, state_rows, metric_rows) = if h >= 7 + state_h + 2 + 5 {
-        (7, state_h, 2)
-    } else if h >= 4 + state_h + 1 + 4 {
-        (4, state_h, 1)
+    let (gauge_rows, state_rows, metric_rows) = if h >= FULL_ROWS + state_h + 2 + 5 {
+        (FULL_ROWS, state_h, 2)
+    } else if h >= PAIRED_ROWS + state_h + 1 + 4 {
+        (PAIRED_ROWS, state_h, 1)
     } else {
         // Mode, metrics and the tightest leg: the chart gets what is left, if anything.
         (1, 1, 1)
     };
-    let chart_rows = h.saturating_sub(legs_rows + state_rows + metric_rows);
-    let [chart_a, state_a, metric_a, legs_a] = Layout::vertical([
+    // The pose panel goes beside the legs when a chart still fits, else in their place.
+    let both = app.pose && h >= 2 * FULL_ROWS + state_h + 2 + 5;
+    let (pose_rows, legs_rows) = match (app.pose, both) {
+        (true, true) => (FULL_ROWS, FULL_ROWS),
+        (true, false) => (gauge_rows, 0),
+        (false, _) => (0, gauge_rows),
+    };
+    let chart_rows = h.saturating_sub(pose_rows + legs_rows + state_rows + metric_rows);
+    let [chart_a, state_a, metric_a, pose_a, legs_a] = Layout::vertical([
         Constraint::Length(chart_rows as u16),
         Constraint::Length(state_rows as u16),
         Constraint::Length(metric_rows as u16),
+        Constraint::Length(pose_rows as u16),
         Constraint::Length(legs_rows as u16),
     ])
     .areas(inner);
@@ -363,7 +554,8 @@ fn render_column(
     if chart_rows >= 3 {
         let areas = Layout::vertical(vec![Constraint::Fill(1); charts]).split(chart_a);
         for (i, &a) in areas.iter().enumerate() {
-            render_chart(app, f, a, lane, s, (app.channel + i) % CHANNELS.len());
+            let ch = (app.channel + i) % CHANNELS.len();
+            render_chart(app, f, a, lane, s, ch, ranges[ch]);
         }
     }
     let metric_lines = if metric_rows >= 2 {
@@ -377,8 +569,14 @@ fn render_column(
     };
     f.render_widget(Paragraph::new(fitted(state)), state_a);
     f.render_widget(Paragraph::new(fitted(metric_lines)), metric_a);
-    let legs = leg_lines(app, frame_lane, legs_rows, w);
-    f.render_widget(Paragraph::new(fitted(legs)), legs_a);
+    if pose_rows > 0 {
+        let pose = pose_lines(app, frame_lane, pose_rows, w);
+        f.render_widget(Paragraph::new(fitted(pose)), pose_a);
+    }
+    if legs_rows > 0 {
+        let legs = leg_lines(app, lane, frame_lane, &s.window, legs_rows, w);
+        f.render_widget(Paragraph::new(fitted(legs)), legs_a);
+    }
 }
 
 /// Symbol and word of a controller mode, so that it reads without colour. The classical
@@ -593,104 +791,6 @@ fn compact_metrics(app: &App, lane: usize, frame: Option<&LaneFrame>, w: usize) 
     Line::from(spans)
 }
 
-/// `!!` critical, `!` warning, blank otherwise: the gauges' state without colour.
-fn leg_state(app: &App, margin_m: f64) -> (&'static str, Style) {
-    let th = &app.theme;
-    if !margin_m.is_finite() || margin_m < app.legs.crit_m {
-        ("!!", th.crit())
-    } else if margin_m < app.legs.warn_m {
-        (" !", th.warn())
-    } else {
-        ("  ", th.gauge())
-    }
-}
-
-fn bar(fraction: f64, width: usize) -> (String, String) {
-    let f = if fraction.is_finite() {
-        fraction.clamp(0.0, 1.0)
-    } else {
-        1.0
-    };
-    let full = ((f * width as f64).round() as usize).min(width);
-    ("█".repeat(full), "░".repeat(width - full))
-}
-
-/// A leg's usage in percent of its stroke from neutral to the nearer end stop.
-fn fmt_pct(usage: f64) -> String {
-    if usage.is_finite() {
-        format!("{:.0}%", (usage * 100.0).clamp(0.0, 999.0))
-    } else {
-        "?".into()
-    }
-}
-
-/// Title of the leg gauges, in the convention of `plot` and the summary.
-const LEGS_TITLE: &str = "legs: % of stroke used";
-
-fn leg_lines(app: &App, lane: Option<&LaneFrame>, rows: usize, w: usize) -> Vec<Line<'static>> {
-    let th = &app.theme;
-    let Some(lane) = lane else {
-        return vec![Line::styled("legs -", th.dim())];
-    };
-    let margins: [f64; 6] = std::array::from_fn(|i| lane.legs.margin_m[i]);
-    let usage = app.legs.stewart.usage(&lane.legs.length_m);
-    let title = || {
-        let text = [LEGS_TITLE, "legs % stroke used", "legs % stroke"]
-            .into_iter()
-            .find(|t| t.chars().count() <= w)
-            .unwrap_or("legs");
-        Line::styled(text, th.dim())
-    };
-    match rows {
-        r if r >= 7 => std::iter::once(title())
-            .chain((0..6).map(|i| {
-                // "1 ████░░░░  34% !!"
-                let bar_w = w.saturating_sub(2 + 5 + 2).min(MAX_BAR_W);
-                let (full, empty) = bar(usage[i], bar_w);
-                let (sym, style) = leg_state(app, margins[i]);
-                Line::from(vec![
-                    Span::styled(format!("{} ", i + 1), th.dim()),
-                    Span::styled(full, style),
-                    Span::styled(empty, th.dim()),
-                    Span::styled(format!(" {:>4}", fmt_pct(usage[i])), th.text()),
-                    Span::styled(sym, style),
-                ])
-            }))
-            .collect(),
-        r if r >= 4 => std::iter::once(title())
-            .chain((0..3).map(|row| {
-                let mut spans = Vec::new();
-                for i in [2 * row, 2 * row + 1] {
-                    // Two legs a line: "1███ 34%!! "
-                    let bar_w = (w / 2).saturating_sub(1 + 4 + 2 + 1).min(MAX_BAR_W / 2);
-                    let (full, empty) = bar(usage[i], bar_w);
-                    let (sym, style) = leg_state(app, margins[i]);
-                    spans.push(Span::styled(format!("{}", i + 1), th.dim()));
-                    spans.push(Span::styled(full, style));
-                    spans.push(Span::styled(empty, th.dim()));
-                    spans.push(Span::styled(format!("{:>4}", fmt_pct(usage[i])), th.text()));
-                    spans.push(Span::styled(format!("{sym} "), style));
-                }
-                Line::from(spans)
-            }))
-            .collect(),
-        _ => {
-            let (i, u) = usage
-                .iter()
-                .copied()
-                .enumerate()
-                .max_by(|a, b| a.1.total_cmp(&b.1))
-                .unwrap_or((0, f64::NAN));
-            let (sym, style) = leg_state(app, margins[i]);
-            vec![Line::from(vec![
-                Span::styled("leg max ", th.dim()),
-                Span::styled(format!("{} #{}", fmt_pct(u), i + 1), th.text()),
-                Span::styled(sym.trim().to_string(), style),
-            ])]
-        }
-    }
-}
-
 /// Perceived channels are shown in m/s² and °/s.
 fn channel_scale(ch: usize) -> (f64, &'static str) {
     if ch < 3 {
@@ -707,6 +807,7 @@ fn render_chart(
     lane: usize,
     s: &Snapshot,
     ch: usize,
+    (lo, hi): (f64, f64),
 ) {
     let th = &app.theme;
     let (scale, unit) = channel_scale(ch);
@@ -722,22 +823,6 @@ fn render_chart(
         .filter_map(|r| r.lanes.get(lane).map(|l| (r.t_s, f64::from(l[ch]) * scale)))
         .collect();
     let t_end = s.window.last().map_or(0.0, |r| r.t_s).max(WINDOW_S);
-    let (mut lo, mut hi) = reference
-        .iter()
-        .chain(&perceived)
-        .map(|p| p.1)
-        .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(v), b.max(v))
-        });
-    if !lo.is_finite() || !hi.is_finite() {
-        (lo, hi) = (-1.0, 1.0);
-    }
-    // A floor on the span so that noise around zero is not blown up into a signal.
-    let min_span = if ch < 3 { 0.5 } else { 2.0 };
-    let mid = 0.5 * (lo + hi);
-    let half = (0.5 * (hi - lo)).max(0.5 * min_span) * 1.1;
-    let (lo, hi) = (mid - half, mid + half);
     let datasets = vec![
         Dataset::default()
             .marker(Marker::Dot)
@@ -752,8 +837,9 @@ fn render_chart(
     ];
     // Axis labels cost a quarter of a narrow column: there the range goes in the caption.
     let wide = plot.width >= 40;
-    // What must be read stays whole: the channel, its range (on the axis when wide) and its
-    // unit; the legend (also in the header and the help) goes first when the column is narrow.
+    // What must be read stays whole: the channel, its range (on the axis when wide), its
+    // unit and the window's length; the legend (also in the header and the help) goes first
+    // when the column is narrow.
     let mut cap = vec![Span::styled(channel_label(ch).to_string(), th.key())];
     if !wide {
         cap.push(Span::styled(
@@ -762,6 +848,11 @@ fn render_chart(
         ));
     }
     cap.push(Span::styled(format!(" {unit}"), th.dim()));
+    let window = Span::styled(format!(" {WINDOW_S:.0} s"), th.dim());
+    let cap_w: usize = cap.iter().map(Span::width).sum();
+    if cap_w + window.width() <= usize::from(caption.width) {
+        cap.push(window);
+    }
     let legend = [
         Span::styled(" •ref", th.reference()),
         Span::styled(" ⣿sim", th.perceived()),
@@ -806,87 +897,4 @@ fn fmt_axis(v: f64) -> String {
     } else {
         format!("{v:.2}")
     }
-}
-
-/// One row of the help overlay: the key or word, and what it does or means.
-type HelpRow = (&'static str, &'static str);
-
-const HELP: &[HelpRow] = &[
-    ("space", "pause / play (at the end: from the start)"),
-    (". or →", "one step (when paused; → seeks while playing)"),
-    ("← → [ ]", "seek −5 s / +5 s"),
-    ("Home End", "to the start / to the end"),
-    ("g", "go to a time: type seconds, Enter"),
-    ("+ / -", "speed ×0.25 … ×16, max"),
-    ("l", "loop at the end"),
-    ("tab 1..6", "channel fx fy Δfz wx wy wz"),
-    ("r", "record on / off (a new file each time)"),
-    ("q Ctrl-C", "quit (recording finished)"),
-    ("?", "this help: paused while open; any key closes"),
-];
-
-/// What the screen's abbreviations mean.
-const LEGEND: &[(&str, &str)] = &[
-    ("•ref ⣿sim", "perceived in the aircraft / on the simulator"),
-    ("Δfz", "fz's change from 1 g (0 in level flight); m/s², °/s"),
-    ("RAE", "Σ|ref − sim| / Σ|ref| since the start; 0 is best"),
-    ("PC", "correlation of ref and sim; +1 is best"),
-    ("lim", "steps the workspace limiter changed; ▲ACTIVE: now"),
-    ("⇄n why", "controller switches (S-MPC) and the last reason"),
-    (
-        "legs",
-        "% of stroke used, neutral to end stop; ! low !! critical",
-    ),
-    ("✂ clipped", "samples cut by the profile's [input] limits"),
-];
-
-fn render_help(app: &App, f: &mut ratatui::Frame, area: Rect) {
-    let th = &app.theme;
-    let live = app.live.is_some();
-    let (keys, legend): (&[HelpRow], &[HelpRow]) = if live {
-        (super::live::HELP, super::live::LEGEND)
-    } else {
-        (HELP, LEGEND)
-    };
-    let kw = keys
-        .iter()
-        .chain(legend)
-        .map(|(k, _)| k.chars().count())
-        .max()
-        .unwrap_or(0)
-        .max(10);
-    let row = |(k, what): &(&str, &str)| {
-        Line::from(vec![
-            Span::styled(format!("{k:>kw$} "), th.key()),
-            Span::styled(what.to_string(), th.text()),
-        ])
-    };
-    let mut lines: Vec<Line> = keys.iter().map(row).collect();
-    lines.push(Line::from(""));
-    lines.extend(legend.iter().map(row));
-    if live {
-        // The columns are the playback's: their words mean the same.
-        lines.extend(LEGEND.iter().map(row));
-    }
-    lines.push(Line::styled(
-        "modes: ◆ COTC ◇ FREE ◐ BLEND w ● MPC ~ CWF ✖ FALLBACK",
-        th.dim(),
-    ));
-    let h = (lines.len() as u16 + 2).min(area.height);
-    let w = 72.min(area.width);
-    let [popup] = Layout::vertical([Constraint::Length(h)])
-        .flex(Flex::Center)
-        .areas(area);
-    let [popup] = Layout::horizontal([Constraint::Length(w)])
-        .flex(Flex::Center)
-        .areas(popup);
-    f.render_widget(Clear, popup);
-    f.render_widget(
-        Paragraph::new(lines).block(
-            Block::bordered()
-                .border_style(th.border())
-                .title(Span::styled(" keys ", th.title())),
-        ),
-        popup,
-    );
 }

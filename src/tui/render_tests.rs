@@ -1,0 +1,379 @@
+//! Render tests of what issue 24 asked of the console: columns that compare by eye (one
+//! scale per channel), what matters kept at 80×24, the pose and the legs' direction, peak
+//! and margin, and a help that explains every word on screen.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use ratatui::backend::TestBackend;
+use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
+use ratatui::Terminal;
+
+use super::player::{Command, Player, RecordingStatus};
+use super::tests::{draw, dressed_snapshot, engine, recording_opts, screen, settle, Counters};
+use super::*;
+
+/// The screen's rows without TestBackend's quotes.
+fn rows(text: &str) -> Vec<String> {
+    text.lines()
+        .map(|l| l.trim_matches('"').to_string())
+        .collect()
+}
+
+/// The pieces of a row between the columns' borders.
+fn cells(row: &str) -> Vec<String> {
+    row.split('│').map(|c| c.trim().to_string()).collect()
+}
+
+/// Every chart caption on screen, row by row: e.g. ["fx -1.20…4.31 m/s² 10 s", …].
+fn captions(text: &str) -> Vec<Vec<String>> {
+    rows(text)
+        .iter()
+        .map(|r| {
+            cells(r)
+                .into_iter()
+                .filter(|c| c.contains(" m/s²") || c.contains(" °/s"))
+                .collect::<Vec<_>>()
+        })
+        .filter(|c| !c.is_empty())
+        .collect()
+}
+
+/// The `lo…hi` of a caption, in the unit shown.
+fn bounds(caption: &str) -> (f64, f64) {
+    let range = caption
+        .split_whitespace()
+        .find(|w| w.contains('…'))
+        .unwrap_or_else(|| panic!("no range in {caption:?}"));
+    let (lo, hi) = range.split_once('…').unwrap();
+    (lo.parse().unwrap(), hi.parse().unwrap())
+}
+
+/// The dressed snapshot with three lanes that differ: twice the signal, half of it, and
+/// shifted, as three algorithms would.
+fn unequal_lanes() -> (App, Snapshot) {
+    let (mut app, mut s) = dressed_snapshot();
+    for row in &mut s.window {
+        for (k, lane) in row.lanes.iter_mut().enumerate() {
+            for v in lane.iter_mut() {
+                *v = *v * [2.0, 0.5, 1.0][k] + [0.0, 0.0, 0.3][k];
+            }
+        }
+    }
+    app.snapshot = Arc::new(s.clone());
+    (app, s)
+}
+
+#[test]
+fn columns_share_one_scale_per_channel() {
+    let (mut app, s) = unequal_lanes();
+    for (w, h) in [(80, 24), (120, 40), (100, 60)] {
+        for channel in [0, 3] {
+            app.channel = channel;
+            let text = screen(&draw(&app, w, h));
+            let caps = captions(&text);
+            assert!(!caps.is_empty(), "{w}×{h}: no caption in\n{text}");
+            for row in &caps {
+                // The issue's check: the printed bounds are the same in the three columns.
+                assert_eq!(row.len(), 3, "{w}×{h}: {row:?}\n{text}");
+                let first = bounds(&row[0]);
+                assert!(row.iter().all(|c| bounds(c) == first), "{w}×{h}: {row:?}");
+            }
+            // And they hold every column's signal and the reference: the union.
+            let ch = channel;
+            let (lo, hi) = bounds(&caps[0][0]);
+            let scale = if ch < 3 {
+                1.0
+            } else {
+                180.0 / std::f64::consts::PI
+            };
+            for r in &s.window {
+                for v in r.lanes.iter().map(|l| l[ch]).chain([r.reference[ch]]) {
+                    let v = f64::from(v) * scale;
+                    assert!(lo <= v + 0.01 && v - 0.01 <= hi, "{v} outside {lo}…{hi}");
+                }
+            }
+            // The window's length is on screen.
+            assert!(caps[0][0].contains(" 10 s"), "{caps:?}");
+        }
+    }
+    // Wide columns put the range on the axis: the same labels in every column.
+    let text = screen(&draw(&app, 200, 50));
+    let mut labelled = 0;
+    for row in rows(&text) {
+        let labels: Vec<String> = cells(&row)
+            .into_iter()
+            .filter(|c| !c.is_empty() && c.parse::<f64>().is_ok())
+            .collect();
+        if !labels.is_empty() {
+            labelled += 1;
+            assert_eq!(labels.len(), 3, "{row}");
+            assert!(labels.iter().all(|l| l == &labels[0]), "{row}");
+        }
+    }
+    assert!(labelled >= 2, "no axis labels in\n{text}");
+}
+
+#[test]
+fn the_shared_range_is_the_union_of_the_shown_lanes() {
+    let (_, s) = unequal_lanes();
+    let all = view::shared_ranges(&s, &[0, 1, 2]);
+    let half = view::shared_ranges(&s, &[1]);
+    for (ch, &(lo, hi)) in all.iter().enumerate() {
+        let scale = if ch < 3 {
+            1.0
+        } else {
+            180.0 / std::f64::consts::PI
+        };
+        for r in &s.window {
+            for v in r.lanes.iter().map(|l| l[ch]).chain([r.reference[ch]]) {
+                let v = f64::from(v) * scale;
+                assert!(lo <= v && v <= hi, "{ch}: {v} outside {lo}…{hi}");
+            }
+        }
+    }
+    // Lane 0 is twice the signal: a wider range than lane 1's half of it.
+    assert!(all[0].1 - all[0].0 > half[0].1 - half[0].0);
+}
+
+#[test]
+fn at_80x24_the_event_and_the_recording_stay_whole() {
+    let (mut app, mut s) = dressed_snapshot();
+    s.recording = Some(RecordingStatus {
+        path: "recordings/manoeuvre-full-flight-20261124T053800Z.mcap".into(),
+        frames: 1196,
+    });
+    app.snapshot = Arc::new(s.clone());
+    let text = screen(&draw(&app, 80, 24));
+    let line = &rows(&text)[1];
+    // Recorded time with its unit, the event, and the file's distinctive end.
+    assert!(line.contains("● REC 12.0 s"), "{text}");
+    assert!(line.contains("◆ bank 45° @12.0s"), "{text}");
+    assert!(line.contains("053800Z.mcap"), "{text}");
+    // Loop and clipped input as well: the event and the recording still stay.
+    s.looping = true;
+    app.snapshot = Arc::new(s);
+    let text = screen(&draw(&app, 80, 24));
+    let line = &rows(&text)[1];
+    assert!(
+        line.contains("● REC 12.0 s") && line.contains("◆ bank 45°"),
+        "{text}"
+    );
+    assert!(rows(&text)[0].contains("↻ loop"), "{text}");
+}
+
+#[test]
+fn the_saved_recordings_path_is_on_screen_at_80x24() {
+    let counters = Counters::default();
+    let dir = tempfile::tempdir().unwrap();
+    let (source, profile, info) = engine(&[AlgorithmId::Cwf]);
+    let mut p = Player::new(
+        source,
+        &profile,
+        &info,
+        recording_opts(&counters, dir.path()),
+    );
+    let now = Instant::now();
+    p.apply(Command::ToggleRecord, now);
+    p.apply(Command::SeekBy(2.0), now);
+    settle(&mut p);
+    p.apply(Command::ToggleRecord, now);
+    let s = p.snapshot(now);
+    let path = counters.opened.lock().unwrap()[0].display().to_string();
+    let mut app = App::new(Arc::new(info), &profile, Theme::ANSI16);
+    app.snapshot = Arc::new(s.clone());
+    let mut t = Terminal::new(TestBackend::new(80, 24)).unwrap();
+    t.draw(|f| view::render(&app, f, now)).unwrap();
+    let text = screen(&t);
+    let footer = rows(&text).pop().unwrap();
+    assert!(
+        footer.contains(&format!("saved {path} (2.0 s)")),
+        "{path}\n{text}"
+    );
+    // Once the notice has gone, the header still names the file (wide enough).
+    let mut s = s;
+    s.notice = None;
+    app.snapshot = Arc::new(s);
+    let file = std::path::Path::new(&path)
+        .file_name()
+        .unwrap()
+        .to_string_lossy()
+        .to_string();
+    let text = screen(&draw(&app, 140, 40));
+    assert!(
+        rows(&text)[1].contains(&format!("○ saved {file}")),
+        "{text}"
+    );
+}
+
+/// The dressed snapshot with a known pose on the first lane and a past leg excursion.
+fn posed() -> (App, Snapshot) {
+    let (mut app, mut s) = dressed_snapshot();
+    let lane = &mut s.last.as_mut().unwrap().lanes[0];
+    // Half of full-flight's ±1.7 m surge and ±25° roll, a fifth of its ±30° yaw, backwards.
+    lane.command.pose = nalgebra::Vector6::new(
+        0.85,
+        -0.17,
+        0.1,
+        12.5f64.to_radians(),
+        0.0,
+        (-6f64).to_radians(),
+    );
+    app.pose = true;
+    app.snapshot = Arc::new(s.clone());
+    (app, s)
+}
+
+#[test]
+fn the_pose_is_shown_in_numbers_with_its_share_of_the_limits() {
+    let (app, _) = posed();
+    // 120×40: the pose beside the legs.
+    let text = screen(&draw(&app, 120, 40));
+    let col: Vec<String> = rows(&text)
+        .iter()
+        .filter_map(|r| cells(r).get(1).cloned())
+        .collect();
+    let has = |want: &str| col.iter().any(|c| c.starts_with(want));
+    for want in [
+        "x   +850 mm  50%",
+        "y   -170 mm  10%",
+        "φ  +12.5 °   50%",
+        "ψ   -6.0 °   20%",
+    ] {
+        assert!(has(want), "missing {want:?} in\n{text}");
+    }
+    assert!(has("pose"), "{text}");
+    assert!(has("legs"), "{text}");
+    // 80×24: in place of the legs, and `p` brings them back.
+    let text = screen(&draw(&app, 80, 24));
+    assert!(text.contains("x   +850 mm  50%"), "{text}");
+    assert!(!text.contains("legs ±%"), "{text}");
+    let mut app = app;
+    app.on_key(KeyEvent::new(KeyCode::Char('p'), KeyModifiers::NONE));
+    let text = screen(&draw(&app, 80, 24));
+    assert!(
+        !text.contains("+850 mm") && text.contains("legs ±%"),
+        "{text}"
+    );
+    insta::assert_snapshot!("console_120x40_pose", screen(&draw(&posed().0, 120, 40)));
+}
+
+#[test]
+fn leg_gauges_show_direction_peak_and_margin() {
+    let (mut app, mut s) = dressed_snapshot();
+    let stewart = app.legs.stewart.clone();
+    // Leg 3 of the CWF column retracted 0.3 m; leg 1 reached its stop's neighbourhood
+    // earlier in the window, and is back near neutral now.
+    let last = s.last.as_mut().unwrap();
+    let legs = &mut last.lanes[2].legs;
+    legs.length_m[2] = stewart.neutral_lengths_m[2] - 0.3;
+    legs.length_m[0] = stewart.neutral_lengths_m[0] + 0.01;
+    legs.margin_m = stewart.margins(&legs.length_m);
+    s.window[0].legs_m[2][0] = (stewart.leg_max_m - 0.2) as f32;
+    app.snapshot = Arc::new(s.clone());
+    let text = screen(&draw(&app, 120, 40));
+    let col: Vec<String> = rows(&text)
+        .iter()
+        .filter_map(|r| cells(r).get(5).cloned())
+        .collect();
+    let leg = |i: usize| {
+        col.iter()
+            .find(|c| c.starts_with(&format!("{i} ")) && c.contains('%'))
+            .cloned()
+            .unwrap_or_else(|| panic!("no leg {i} in\n{text}"))
+    };
+    // Retracting: the minus sign, and 300 mm of it from neutral; margin in mm.
+    let neutral_margin = stewart.neutral_lengths_m[2] - stewart.leg_min_m;
+    let pct = (0.3 / neutral_margin * 100.0).round();
+    let mm = ((neutral_margin - 0.3) * 1000.0).round();
+    assert!(leg(3).contains(&format!("-{pct}%")), "{}", leg(3));
+    assert!(leg(3).contains(&format!(" {mm}")), "{}", leg(3));
+    // The peak 0.2 m from the stop is held as a mark beyond the bar's fill.
+    let l1 = leg(1);
+    assert!(l1.contains('|') && l1.contains("+1%"), "{l1}");
+    // At 1 cm from its stop: +99 %, 10 mm, critical.
+    assert!(
+        leg(5).contains("+99%") && leg(5).contains(" 10!!"),
+        "{}",
+        leg(5)
+    );
+}
+
+/// The help's text over all its pages at `w`×`h`, turning them with `?`.
+fn help_text(app: &mut App, w: u16, h: u16) -> String {
+    app.help = true;
+    app.help_page = 0;
+    let mut all = String::new();
+    for _ in 0..10 {
+        let text = screen(&draw(app, w, h));
+        all.push_str(&text);
+        if !text.contains("? next page")
+            || text.contains(&format!("page {0}/{0}", app.help_page + 1))
+        {
+            break;
+        }
+        app.on_key(KeyEvent::new(KeyCode::Char('?'), KeyModifiers::NONE));
+    }
+    all
+}
+
+#[test]
+fn every_word_on_screen_is_in_the_help() {
+    let (mut app, _) = dressed_snapshot();
+    let all = help_text(&mut app, 80, 24);
+    assert!(all.contains("page 1/"), "80×24 turns pages:\n{all}");
+    for want in [
+        "0it",
+        "standby",
+        "step",
+        "9it 900µs",
+        "ok(c)",
+        "infeas",
+        "timeout",
+        "⇄n",
+        "w=",
+        "why",
+        "RAE",
+        "PC",
+        "lim",
+        "▲ACT",
+        "•ref ⣿sim",
+        "10 s",
+        "Δfz",
+        "REC",
+        "○ saved",
+        "◆ event",
+        "✂ clipped",
+        "BEHIND",
+        "legs ±%",
+        "| mm",
+        "! !!",
+        "leg i: base joint i to platform joint i−1",
+        "pose",
+        "φ θ ψ",
+        "▸+n",
+        "FALLBACK",
+        "p ",
+        "quit",
+    ] {
+        assert!(all.contains(want), "missing {want:?} in\n{all}");
+    }
+    // `?` turns the page rather than close; another key closes.
+    assert!(app.help);
+    assert_eq!(
+        app.on_key(KeyEvent::new(KeyCode::Char('x'), KeyModifiers::NONE)),
+        None
+    );
+    assert!(!app.help && app.help_page == 0);
+}
+
+#[test]
+fn renders_at_120x40() {
+    let (mut app, mut s) = dressed_snapshot();
+    s.recording = Some(RecordingStatus {
+        path: "recordings/manoeuvre-full-flight-20261124T053800Z.mcap".into(),
+        frames: 1196,
+    });
+    app.snapshot = Arc::new(s);
+    insta::assert_snapshot!("console_120x40", screen(&draw(&app, 120, 40)));
+}
