@@ -5,8 +5,9 @@
 //! Each candidate is the base profile's TOML with the tuned keys replaced, read back by the
 //! same loader as any profile, run on every trace (a generation's candidates in parallel, with rayon) and scored as
 //! the mean of its per-trace scores. A candidate that puts a leg outside its stroke or makes
-//! the limiter act on more than [`LIMITER_TOLERANCE`] of a trace's steps is infeasible: it
-//! is penalised for the search and never kept as the result.
+//! the limiter act on more than [`LIMITER_TOLERANCE`] of a trace's steps (or than the base
+//! does, where the base leans on it more: [`limiter_bounds`]) is infeasible: it is penalised
+//! for the search and never kept as the result.
 
 pub mod keys;
 pub mod validate;
@@ -98,24 +99,45 @@ pub struct Candidate {
     pub outcomes: Vec<TraceOutcome>,
 }
 
+/// Per trace, the share of steps at which the limiter may act in a kept candidate:
+/// [`LIMITER_TOLERANCE`], or the base's own share where the base already leans on the limiter
+/// more (a violent flight can ask more of the platform than any tuning can give without it).
+/// The result then never makes the limiter act more often than the base does.
+pub fn limiter_bounds(base: &Candidate) -> Vec<f64> {
+    base.outcomes
+        .iter()
+        .map(|o| o.limiter_fraction.max(LIMITER_TOLERANCE))
+        .collect()
+}
+
 impl Candidate {
     pub fn mean_score(&self) -> f64 {
         self.outcomes.iter().map(|o| o.score).sum::<f64>() / self.outcomes.len().max(1) as f64
     }
 
+    /// Within [`LIMITER_TOLERANCE`] on every trace, every leg in stroke.
     pub fn feasible(&self) -> bool {
         self.outcomes.iter().all(TraceOutcome::feasible)
     }
 
+    /// Every leg in stroke, and the limiter within `bounds` (one a trace).
+    pub fn feasible_within(&self, bounds: &[f64]) -> bool {
+        self.outcomes
+            .iter()
+            .zip(bounds)
+            .all(|(o, b)| o.leg_violations == 0 && o.limiter_fraction <= *b)
+    }
+
     /// The objective the search minimises: the mean score, plus the penalty when infeasible.
-    fn objective(&self) -> f64 {
-        if self.feasible() {
+    fn objective(&self, bounds: &[f64]) -> f64 {
+        if self.feasible_within(bounds) {
             return self.mean_score();
         }
         let excess: f64 = self
             .outcomes
             .iter()
-            .map(|o| (o.limiter_fraction - LIMITER_TOLERANCE).max(0.0) + o.leg_violations as f64)
+            .zip(bounds)
+            .map(|(o, b)| (o.limiter_fraction - b).max(0.0) + o.leg_violations as f64)
             .sum();
         self.mean_score() + INFEASIBLE_PENALTY + 1000.0 * excess
     }
@@ -294,7 +316,9 @@ pub fn tune(
     };
     let mut validated: Vec<Validated> = Vec::new();
     let mut history = Vec::new();
-    let best: Mutex<Option<Candidate>> = Mutex::new(base.feasible().then(|| base.clone()));
+    let bounds = limiter_bounds(&base);
+    let best: Mutex<Option<Candidate>> =
+        Mutex::new(base.feasible_within(&bounds).then(|| base.clone()));
     let evaluations = AtomicUsize::new(1);
     let best_score = |b: &Option<Candidate>| b.as_ref().map(Candidate::mean_score);
     progress.scored(1, best_score(&best.lock().expect("not poisoned")));
@@ -315,10 +339,10 @@ pub fn tune(
             // Refused by the loader, or stopped: the generation is not used when stopped.
             return INVALID_SCORE;
         };
-        let score = c.objective() + 10.0 * out_of_box;
+        let score = c.objective(&bounds) + 10.0 * out_of_box;
         let count = evaluations.fetch_add(1, Ordering::SeqCst) + 1;
         let mut guard = best.lock().expect("not poisoned");
-        if c.feasible() && guard.as_ref().is_none_or(|b| c.better_than(b)) {
+        if c.feasible_within(&bounds) && guard.as_ref().is_none_or(|b| c.better_than(b)) {
             *guard = Some(c);
         }
         progress.scored(count, best_score(&guard));
@@ -377,7 +401,7 @@ pub fn tune(
         let chosen = validate::choose(&base_v, &validated).cloned();
         best = match &chosen {
             Some(c) => Some(c.candidate.clone()),
-            None => base.feasible().then(|| base.clone()),
+            None => base.feasible_within(&bounds).then(|| base.clone()),
         };
         ValidationOutcome {
             base: base_v,
@@ -637,7 +661,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     let Some(best) = &result.best else {
         bail!(
             "no candidate kept every leg in its stroke and the limiter within {} % of the \
-             steps on every trace; nothing written",
+             steps (or the base's share) on every trace; nothing written",
             100.0 * LIMITER_TOLERANCE
         );
     };
@@ -858,8 +882,11 @@ mod tests {
                 leg_violations: 0,
             }],
         };
+        let strict = [LIMITER_TOLERANCE];
         assert!(!c.feasible());
-        assert!(c.objective() > INFEASIBLE_PENALTY);
+        assert!(c.objective(&strict) > INFEASIBLE_PENALTY);
+        // Where the base itself leans on the limiter, its share bounds the candidates.
+        assert!(c.feasible_within(&[0.01]) && c.objective(&[0.01]) == 0.1);
         let ok = Candidate {
             values: vec![2.0],
             outcomes: vec![TraceOutcome {
@@ -868,7 +895,7 @@ mod tests {
                 leg_violations: 0,
             }],
         };
-        assert!(ok.feasible() && ok.objective() == 5.0);
+        assert!(ok.feasible() && ok.objective(&strict) == 5.0);
         let violating = Candidate {
             outcomes: vec![TraceOutcome {
                 leg_violations: 1,
@@ -881,7 +908,7 @@ mod tests {
     }
 
     #[test]
-    fn an_infeasible_base_is_never_the_result() {
+    fn the_result_never_makes_the_limiter_act_more_than_the_base() {
         // The engine's test manoeuvre steps its body rates, which asks for an infinite
         // angular acceleration: the limiter acts on the base, and on any CWF tuning.
         let mut t = crate::engine::tests::manoeuvre();
@@ -889,7 +916,10 @@ mod tests {
         let ev = evaluator(vec![Arc::new(t)]);
         let r = tune(&ev, None, 20, 1, &Quiet).unwrap();
         assert!(!r.base.feasible(), "{:?}", r.base.outcomes);
-        assert!(r.best.as_ref().is_none_or(Candidate::feasible));
+        let bounds = limiter_bounds(&r.base);
+        let best = r.best.unwrap();
+        assert!(best.feasible_within(&bounds), "{:?}", best.outcomes);
+        assert!(best.outcomes[0].limiter_fraction <= r.base.outcomes[0].limiter_fraction);
     }
 
     #[test]
