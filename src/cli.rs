@@ -212,8 +212,9 @@ pub struct PlayArgs {
 
 #[derive(Args, Debug)]
 pub struct CompareArgs {
-    /// Folder of traces (*.csv, with their sidecars). Default: the five shipped traces, which
-    /// are embedded in hexcue, so that this works from any directory.
+    /// Folder of traces (*.csv, with their sidecars). Default: the flight library
+    /// (recordings/traces/library, 23 flights), embedded in hexcue, so that this works from
+    /// any directory.
     #[arg(long, value_name = "DIR")]
     pub traces: Option<PathBuf>,
     /// Simulator profile (TOML). Default: the embedded profiles/full-flight.toml.
@@ -1135,7 +1136,7 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
                 .map(|p| load_trace(p, profile.rate_hz).map(|l| l.trace))
                 .collect::<Result<_, _>>()?
         }
-        None => crate::formats::trace::shipped_traces(profile.rate_hz)?,
+        None => crate::formats::library::library_traces(profile.rate_hz)?,
     };
     let stop = install_stop_flag()?;
     let mut results = Vec::new();

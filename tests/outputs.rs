@@ -158,7 +158,7 @@ fn compare_checks_every_trace_before_running_any() {
 }
 
 #[test]
-fn compare_finds_the_shipped_traces_from_any_directory() {
+fn compare_runs_the_flight_library_from_any_directory() {
     let dir = tempfile::tempdir().unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_hexcue"))
         .args(["compare", "--algorithms", "cwf"])
@@ -168,15 +168,25 @@ fn compare_finds_the_shipped_traces_from_any_directory() {
         .unwrap();
     assert!(out.status.success(), "{}", stderr(&out));
     let report = stdout(&out);
-    for name in [
-        "horizontal-stall",
-        "landing",
-        "steep-turn",
-        "takeoff",
-        "turbulence-cruise",
-    ] {
+    let library = repo().join("recordings/traces/library");
+    let mut names: Vec<String> = std::fs::read_dir(&library)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            e.file_name()
+                .to_str()?
+                .strip_suffix(".csv")
+                .map(String::from)
+        })
+        .collect();
+    names.sort();
+    assert!(names.len() >= 20, "{names:?}");
+    for name in &names {
         assert!(report.contains(&format!("## {name}")), "{name}: {report}");
     }
+    // Every flight of the library runs cleanly: no unit warning, nothing refused.
+    let err = stderr(&out);
+    assert!(!err.to_lowercase().contains("warning"), "{err}");
 }
 
 #[test]

@@ -257,3 +257,95 @@ fn the_shipped_tuned_profile_is_valid_and_says_how_it_was_made() {
         stdout(&run)
     );
 }
+
+/// Two short library flights to fit on, and one the search never sees.
+fn library(name: &str) -> PathBuf {
+    repo().join(format!("recordings/traces/library/{name}.csv"))
+}
+
+/// The rows of the "validation trace" table: (name, before, after).
+fn validation_rows(text: &str) -> Vec<(String, f64, f64)> {
+    text.lines()
+        .skip_while(|l| !l.starts_with("validation trace"))
+        .skip(1)
+        .take_while(|l| !l.starts_with("validation mean"))
+        .map(|l| {
+            let v: Vec<&str> = l.split_whitespace().collect();
+            (
+                v[0].to_string(),
+                v[1].parse().unwrap(),
+                v[2].parse().unwrap(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn a_validated_tune_is_never_worse_than_the_base_on_the_flights_it_did_not_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tuned.toml");
+    let train = format!(
+        "{},{}",
+        library("f16-pitch-doublet").display(),
+        library("f16-roll-doublet").display()
+    );
+    let validate = library("737-wake-encounter");
+    let run = hexcue(&[
+        "tune".as_ref(),
+        "--algorithm".as_ref(),
+        "cwf".as_ref(),
+        "--traces".as_ref(),
+        OsStr::new(&train),
+        "--validate".as_ref(),
+        validate.as_os_str(),
+        "--budget".as_ref(),
+        "24".as_ref(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    let (text, err) = (stdout(&run), stderr(&run));
+    assert!(run.status.success(), "{err}");
+    // Per generation: the training best and how it did on the validation flight.
+    assert!(
+        err.lines()
+            .any(|l| l.starts_with("generation ") && l.contains(", validation ")),
+        "{err}"
+    );
+    let rows = validation_rows(&text);
+    assert_eq!(rows.len(), 1, "{text}");
+    let (name, before, after) = &rows[0];
+    assert_eq!(name, "737-wake-encounter");
+    assert!(*after <= before * 1.02, "{before} -> {after}\n{text}");
+    let profile = std::fs::read_to_string(&out).unwrap();
+    let header = profile.lines().next().unwrap();
+    assert!(header.contains("--validate "), "{header}");
+    assert!(
+        header.contains("validation mean score") && header.contains("737-wake-encounter"),
+        "{header}"
+    );
+}
+
+#[test]
+fn a_validation_flight_that_is_also_a_training_flight_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tuned.toml");
+    let t = library("f16-roll-doublet");
+    let run = hexcue(&[
+        "tune".as_ref(),
+        "--algorithm".as_ref(),
+        "cwf".as_ref(),
+        "--traces".as_ref(),
+        t.as_os_str(),
+        "--validate".as_ref(),
+        t.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert!(!run.status.success());
+    assert!(
+        stderr(&run).contains("also a training trace"),
+        "{}",
+        stderr(&run)
+    );
+    assert!(!out.exists());
+}

@@ -45,10 +45,19 @@ pub const SHIPPED_TRACES: [(&str, &str, &str); 5] = [
 
 /// The shipped traces (embedded), in name order, at `target_rate_hz`, with their sidecars.
 pub fn shipped_traces(target_rate_hz: f64) -> Result<Vec<Trace>, TraceError> {
-    SHIPPED_TRACES
+    embedded_traces(&SHIPPED_TRACES, "recordings/traces", target_rate_hz)
+}
+
+/// Embedded traces, (name, CSV, sidecar JSON) of files in `folder`, read as files are.
+pub fn embedded_traces(
+    traces: &[(&str, &str, &str)],
+    folder: &str,
+    target_rate_hz: f64,
+) -> Result<Vec<Trace>, TraceError> {
+    traces
         .iter()
         .map(|(name, csv, json)| {
-            let source = format!("recordings/traces/{name}.csv (embedded)");
+            let source = format!("{folder}/{name}.csv (embedded)");
             let (mut trace, measured) = parse_measured(csv, &source, name, target_rate_hz)?;
             match parse_sidecar(json, &source) {
                 Ok(info) => attach_info(&mut trace, info, measured),

@@ -5,10 +5,12 @@
 //! Each candidate is the base profile's TOML with the tuned keys replaced, read back by the
 //! same loader as any profile, run on every trace (a generation's candidates in parallel, with rayon) and scored as
 //! the mean of its per-trace scores. A candidate that puts a leg outside its stroke or makes
-//! the limiter act on more than [`LIMITER_TOLERANCE`] of a trace's steps is infeasible: it
-//! is penalised for the search and never kept as the result.
+//! the limiter act on more than [`LIMITER_TOLERANCE`] of a trace's steps (or than the base
+//! does, where the base leans on it more: [`limiter_bounds`]) is infeasible: it is penalised
+//! for the search and never kept as the result.
 
 pub mod keys;
+pub mod validate;
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -30,6 +32,7 @@ use crate::summary::SummaryBuilder;
 use crate::trace::Trace;
 
 pub use keys::{tunable_keys, TunableKey};
+pub use validate::{GenerationRecord, Validated};
 
 /// Largest share of a trace's steps at which the limiter may act in a kept candidate: 0.1 %
 /// (5 steps of a 50 s trace at 100 Hz), a tenth of DESIGN §9's 1 % target for the MPCs.
@@ -52,6 +55,11 @@ pub struct TuneArgs {
     /// Traces to tune on: folders (every *.csv in them) or CSV files, comma-separated.
     #[arg(long, value_name = "DIR|FILE", value_delimiter = ',', required = true)]
     pub traces: Vec<PathBuf>,
+    /// Validation traces, never fitted on (folders or CSV files, comma-separated): each
+    /// generation's best is scored on them, and the result is the candidate that does best
+    /// there without being worse than the base on any of them (else the base is kept).
+    #[arg(long, value_name = "DIR|FILE", value_delimiter = ',')]
+    pub validate: Vec<PathBuf>,
     /// Base profile (TOML), whose other keys and comments the result keeps. Default: the
     /// embedded profiles/full-flight.toml.
     #[arg(long, value_name = "FILE")]
@@ -91,24 +99,45 @@ pub struct Candidate {
     pub outcomes: Vec<TraceOutcome>,
 }
 
+/// Per trace, the share of steps at which the limiter may act in a kept candidate:
+/// [`LIMITER_TOLERANCE`], or the base's own share where the base already leans on the limiter
+/// more (a violent flight can ask more of the platform than any tuning can give without it).
+/// The result then never makes the limiter act more often than the base does.
+pub fn limiter_bounds(base: &Candidate) -> Vec<f64> {
+    base.outcomes
+        .iter()
+        .map(|o| o.limiter_fraction.max(LIMITER_TOLERANCE))
+        .collect()
+}
+
 impl Candidate {
     pub fn mean_score(&self) -> f64 {
         self.outcomes.iter().map(|o| o.score).sum::<f64>() / self.outcomes.len().max(1) as f64
     }
 
+    /// Within [`LIMITER_TOLERANCE`] on every trace, every leg in stroke.
     pub fn feasible(&self) -> bool {
         self.outcomes.iter().all(TraceOutcome::feasible)
     }
 
+    /// Every leg in stroke, and the limiter within `bounds` (one a trace).
+    pub fn feasible_within(&self, bounds: &[f64]) -> bool {
+        self.outcomes
+            .iter()
+            .zip(bounds)
+            .all(|(o, b)| o.leg_violations == 0 && o.limiter_fraction <= *b)
+    }
+
     /// The objective the search minimises: the mean score, plus the penalty when infeasible.
-    fn objective(&self) -> f64 {
-        if self.feasible() {
+    fn objective(&self, bounds: &[f64]) -> f64 {
+        if self.feasible_within(bounds) {
             return self.mean_score();
         }
         let excess: f64 = self
             .outcomes
             .iter()
-            .map(|o| (o.limiter_fraction - LIMITER_TOLERANCE).max(0.0) + o.leg_violations as f64)
+            .zip(bounds)
+            .map(|(o, b)| (o.limiter_fraction - b).max(0.0) + o.leg_violations as f64)
             .sum();
         self.mean_score() + INFEASIBLE_PENALTY + 1000.0 * excess
     }
@@ -221,22 +250,44 @@ impl Evaluator {
 /// What a tune found.
 pub struct TuneResult {
     pub base: Candidate,
-    /// The best feasible candidate (the base if nothing beat it); `None` if none was.
+    /// The result: without validation, the best feasible training candidate (the base if
+    /// nothing beat it); with it, the accepted validated candidate, else the base. `None` if
+    /// no candidate was feasible.
     pub best: Option<Candidate>,
     pub evaluations: usize,
     pub interrupted: bool,
+    /// One line a generation: training best and its validation.
+    pub history: Vec<GenerationRecord>,
+    /// With validation flights: the base's outcomes there and the chosen candidate's.
+    pub validation: Option<ValidationOutcome>,
+}
+
+/// How the base and the result did on the validation flights.
+pub struct ValidationOutcome {
+    pub base: Vec<TraceOutcome>,
+    /// The accepted candidate, or `None` when the base was kept.
+    pub chosen: Option<Validated>,
+    /// Every candidate validated, in the order the search found them.
+    pub validated: Vec<Validated>,
+}
+
+impl ValidationOutcome {
+    pub fn base_mean(&self) -> f64 {
+        self.base.iter().map(|o| o.score).sum::<f64>() / self.base.len().max(1) as f64
+    }
 }
 
 /// Progress of a tune: candidates scored and the best feasible mean score so far.
 pub trait Progress: Sync {
     fn scored(&self, evaluations: usize, best: Option<f64>);
     /// A generation of the search is complete.
-    fn generation(&self, _generation: usize, _evaluations: usize, _best: Option<f64>) {}
+    fn generation(&self, _record: &GenerationRecord) {}
 }
 
 /// The search: the base first, then CMA-ES generations while the budget allows.
 pub fn tune(
     evaluator: &Evaluator,
+    validation: Option<&Evaluator>,
     budget: usize,
     seed: u64,
     progress: &dyn Progress,
@@ -256,7 +307,18 @@ pub fn tune(
         values: base_values.clone(),
         outcomes: base_outcomes,
     };
-    let best: Mutex<Option<Candidate>> = Mutex::new(base.feasible().then(|| base.clone()));
+    let base_validation = match validation {
+        Some(v) => match v.run(&base_profile)? {
+            Some(o) => Some(o),
+            None => bail!("interrupted before the base profile was validated; nothing written"),
+        },
+        None => None,
+    };
+    let mut validated: Vec<Validated> = Vec::new();
+    let mut history = Vec::new();
+    let bounds = limiter_bounds(&base);
+    let best: Mutex<Option<Candidate>> =
+        Mutex::new(base.feasible_within(&bounds).then(|| base.clone()));
     let evaluations = AtomicUsize::new(1);
     let best_score = |b: &Option<Candidate>| b.as_ref().map(Candidate::mean_score);
     progress.scored(1, best_score(&best.lock().expect("not poisoned")));
@@ -277,10 +339,10 @@ pub fn tune(
             // Refused by the loader, or stopped: the generation is not used when stopped.
             return INVALID_SCORE;
         };
-        let score = c.objective() + 10.0 * out_of_box;
+        let score = c.objective(&bounds) + 10.0 * out_of_box;
         let count = evaluations.fetch_add(1, Ordering::SeqCst) + 1;
         let mut guard = best.lock().expect("not poisoned");
-        if c.feasible() && guard.as_ref().is_none_or(|b| c.better_than(b)) {
+        if c.feasible_within(&bounds) && guard.as_ref().is_none_or(|b| c.better_than(b)) {
             *guard = Some(c);
         }
         progress.scored(count, best_score(&guard));
@@ -299,22 +361,61 @@ pub fn tune(
                 interrupted = true;
                 break;
             }
-            progress.generation(
-                cmaes.generation(),
-                evaluations.load(Ordering::SeqCst),
-                best_score(&best.lock().expect("not poisoned")),
-            );
+            let current = best.lock().expect("not poisoned").clone();
+            let mut record = GenerationRecord {
+                generation: cmaes.generation(),
+                evaluations: evaluations.load(Ordering::SeqCst),
+                training: best_score(&current),
+                validation: None,
+            };
+            if let (Some(v), Some(c), Some(base_v)) = (validation, &current, &base_validation) {
+                // Only a new best is scored again: the validation costs one candidate's
+                // run of the validation flights a generation at most.
+                let known = validated.iter().find(|x| x.candidate.values == c.values);
+                let entry = match known {
+                    Some(k) => Some(k.clone()),
+                    None if c.values == base.values => None,
+                    None => v.run(&v.profile(&c.values)?)?.map(|o| Validated {
+                        candidate: c.clone(),
+                        validation: o,
+                    }),
+                };
+                if let Some(e) = entry {
+                    let accepted = validate::rejection(base_v, &e.validation).is_none();
+                    record.validation = Some((e.mean(), accepted));
+                    if known.is_none() {
+                        validated.push(e);
+                    }
+                }
+            }
+            progress.generation(&record);
+            history.push(record);
             if done.is_some() {
                 break;
             }
         }
     }
     let evaluations = evaluations.load(Ordering::SeqCst);
+    let mut best = best.into_inner().expect("not poisoned");
+    let validation = base_validation.map(|base_v| {
+        let chosen = validate::choose(&base_v, &validated).cloned();
+        best = match &chosen {
+            Some(c) => Some(c.candidate.clone()),
+            None => base.feasible_within(&bounds).then(|| base.clone()),
+        };
+        ValidationOutcome {
+            base: base_v,
+            chosen,
+            validated,
+        }
+    });
     Ok(TuneResult {
         base,
-        best: best.into_inner().expect("not poisoned"),
+        best,
         evaluations,
         interrupted,
+        history,
+        validation,
     })
 }
 
@@ -365,14 +466,25 @@ impl Progress for Bar {
         });
     }
 
-    fn generation(&self, generation: usize, evaluations: usize, best: Option<f64>) {
-        // Where the bar is not drawn (stderr not a terminal: logs, scripts, tests), a line
-        // per generation says how far the search is.
+    fn generation(&self, r: &GenerationRecord) {
+        // A line per generation says how far the search is and whether what it fits holds on
+        // the flights it does not see: above the bar on a terminal, on stderr elsewhere.
+        let line = format!(
+            "generation {}: {} candidates, training best {}{}",
+            r.generation,
+            r.evaluations,
+            r.training
+                .map_or("none yet".to_string(), |b| format!("{b:.4}")),
+            match r.validation {
+                Some((v, true)) => format!(", validation {v:.4} (accepted)"),
+                Some((v, false)) => format!(", validation {v:.4} (not accepted)"),
+                None => String::new(),
+            }
+        );
         if self.bar.is_hidden() {
-            eprintln!(
-                "generation {generation}: {evaluations} candidates, best score {}",
-                best.map_or("none yet".to_string(), |b| format!("{b:.4}"))
-            );
+            eprintln!("{line}");
+        } else {
+            self.bar.println(line);
         }
     }
 }
@@ -385,8 +497,20 @@ fn command_line(args: &TuneArgs, algorithm: AlgorithmId, budget: usize) -> Strin
         .map(|t| t.display().to_string())
         .collect();
     format!(
-        "hexcue tune --algorithm {algorithm} --traces {}{} --budget {budget} --seed {} --out {}",
+        "hexcue tune --algorithm {algorithm} --traces {}{}{} --budget {budget} --seed {} --out {}",
         traces.join(","),
+        if args.validate.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " --validate {}",
+                args.validate
+                    .iter()
+                    .map(|t| t.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(",")
+            )
+        },
         args.profile
             .as_ref()
             .map(|p| format!(" --profile {}", p.display()))
@@ -466,10 +590,25 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     }
     keys::check_table(&keys, &base).with_context(|| source.clone())?;
     let traces = load_traces(&args.traces, profile.rate_hz)?;
-    for t in &traces {
+    let validation_traces = if args.validate.is_empty() {
+        Vec::new()
+    } else {
+        load_traces(&args.validate, profile.rate_hz).context("--validate")?
+    };
+    for t in traces.iter().chain(&validation_traces) {
         for notice in &t.notices {
             eprintln!("note: {}: {notice}", t.name);
         }
+    }
+    if let Some(t) = validation_traces
+        .iter()
+        .find(|v| traces.iter().any(|t| t.name == v.name))
+    {
+        bail!(
+            "--validate: {} is also a training trace; validation flights must be flights the \
+             search does not fit on",
+            t.name
+        );
     }
 
     let stop = Arc::new(AtomicBool::new(false));
@@ -477,6 +616,13 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         signal_hook::flag::register(sig, stop.clone())
             .context("cannot install the signal handlers")?;
     }
+    let validator = (!validation_traces.is_empty()).then(|| Evaluator {
+        algorithm,
+        keys: keys.clone(),
+        base: base.clone(),
+        traces: validation_traces,
+        stop: stop.clone(),
+    });
     let evaluator = Evaluator {
         algorithm,
         keys: keys.clone(),
@@ -485,10 +631,14 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         stop: stop.clone(),
     };
     eprintln!(
-        "tuning {} ({} keys) on {} traces, budget {budget} candidates, seed {}",
+        "tuning {} ({} keys) on {} traces{}, budget {budget} candidates, seed {}",
         algorithm.label(),
         keys.len(),
         evaluator.traces.len(),
+        validator.as_ref().map_or(String::new(), |v| format!(
+            ", validated on {} others",
+            v.traces.len()
+        )),
         args.seed
     );
     let bar = indicatif::ProgressBar::new(budget as u64);
@@ -504,31 +654,46 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         start: Mutex::new(None),
     };
     let started = std::time::Instant::now();
-    let result = tune(&evaluator, budget, args.seed, &progress)?;
+    let result = tune(&evaluator, validator.as_ref(), budget, args.seed, &progress)?;
     progress.bar.finish_and_clear();
     let wall = started.elapsed().as_secs_f64();
 
     let Some(best) = &result.best else {
         bail!(
             "no candidate kept every leg in its stroke and the limiter within {} % of the \
-             steps on every trace; nothing written",
+             steps (or the base's share) on every trace; nothing written",
             100.0 * LIMITER_TOLERANCE
         );
     };
-    let header = format!(
+    let names = |e: &Evaluator| {
+        e.traces
+            .iter()
+            .map(|t| t.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut header = format!(
         "# tuned: `{}` (hexcue {}): {} mean score {:.4} -> {:.4} on {}",
         command_line(args, algorithm, budget),
         env!("CARGO_PKG_VERSION"),
         algorithm.label(),
         result.base.mean_score(),
         best.mean_score(),
-        evaluator
-            .traces
-            .iter()
-            .map(|t| t.name.as_str())
-            .collect::<Vec<_>>()
-            .join(", ")
+        names(&evaluator)
     );
+    if let (Some(v), Some(val)) = (&validator, &result.validation) {
+        header.push_str(&format!(
+            "; validation mean score {:.4} -> {:.4} on {}{}",
+            val.base_mean(),
+            val.chosen.as_ref().map_or(val.base_mean(), Validated::mean),
+            names(v),
+            if val.chosen.is_none() {
+                " (base kept: no candidate beat it there)"
+            } else {
+                ""
+            }
+        ));
+    }
     let tuned = add_header(&evaluator.document(&best.values)?, &header);
     // The same loader and validation as any profile, then scored again from that text.
     let shown = args.out.display().to_string();
@@ -577,6 +742,35 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         result.base.mean_score(),
         best.mean_score()
     ));
+    if let (Some(v), Some(val)) = (&validator, &result.validation) {
+        out.push_str(&format!(
+            "{:<24} {:>10} {:>10}\n",
+            "validation trace", "before", "after"
+        ));
+        let after = val.chosen.as_ref().map_or(&val.base, |c| &c.validation);
+        for ((t, b), a) in v.traces.iter().zip(&val.base).zip(after) {
+            out.push_str(&format!(
+                "{:<24} {:>10.4} {:>10.4}\n",
+                t.name, b.score, a.score
+            ));
+        }
+        out.push_str(&format!(
+            "{:<24} {:>10.4} {:>10.4}\n",
+            "validation mean",
+            val.base_mean(),
+            val.chosen.as_ref().map_or(val.base_mean(), Validated::mean)
+        ));
+        out.push_str(&match &val.chosen {
+            Some(_) => "(the tuned profile: the best validation mean of the candidates not \
+                        worse than the base on any validation trace)\n\n"
+                .to_string(),
+            None => format!(
+                "(base kept: none of the {} candidates validated beat it on every validation \
+                 trace)\n\n",
+                val.validated.len()
+            ),
+        });
+    }
     out.push_str(&format!("{:<40} {:>10} {:>10}\n", "key", "base", "tuned"));
     for ((k, b), v) in keys.iter().zip(&result.base.values).zip(&best.values) {
         out.push_str(&format!("{:<40} {:>10} {:>10}\n", k.name(), b, v));
@@ -654,7 +848,7 @@ mod tests {
     #[test]
     fn the_base_scores_as_its_summary_and_the_search_never_worsens_it() {
         let ev = evaluator(vec![short_manoeuvre()]);
-        let r = tune(&ev, 20, 3, &Quiet).unwrap();
+        let r = tune(&ev, None, 20, 3, &Quiet).unwrap();
         let p = full_flight();
         let mut engine = Engine::new(&p, short_manoeuvre(), &[AlgorithmId::Cwf]).unwrap();
         let mut s = SummaryBuilder::new(&p, "m");
@@ -681,8 +875,11 @@ mod tests {
                 leg_violations: 0,
             }],
         };
+        let strict = [LIMITER_TOLERANCE];
         assert!(!c.feasible());
-        assert!(c.objective() > INFEASIBLE_PENALTY);
+        assert!(c.objective(&strict) > INFEASIBLE_PENALTY);
+        // Where the base itself leans on the limiter, its share bounds the candidates.
+        assert!(c.feasible_within(&[0.01]) && c.objective(&[0.01]) == 0.1);
         let ok = Candidate {
             values: vec![2.0],
             outcomes: vec![TraceOutcome {
@@ -691,7 +888,7 @@ mod tests {
                 leg_violations: 0,
             }],
         };
-        assert!(ok.feasible() && ok.objective() == 5.0);
+        assert!(ok.feasible() && ok.objective(&strict) == 5.0);
         let violating = Candidate {
             outcomes: vec![TraceOutcome {
                 leg_violations: 1,
@@ -704,22 +901,25 @@ mod tests {
     }
 
     #[test]
-    fn an_infeasible_base_is_never_the_result() {
+    fn the_result_never_makes_the_limiter_act_more_than_the_base() {
         // The engine's test manoeuvre steps its body rates, which asks for an infinite
         // angular acceleration: the limiter acts on the base, and on any CWF tuning.
         let mut t = crate::engine::tests::manoeuvre();
         t.samples.truncate(1200);
         let ev = evaluator(vec![Arc::new(t)]);
-        let r = tune(&ev, 20, 1, &Quiet).unwrap();
+        let r = tune(&ev, None, 20, 1, &Quiet).unwrap();
         assert!(!r.base.feasible(), "{:?}", r.base.outcomes);
-        assert!(r.best.as_ref().is_none_or(Candidate::feasible));
+        let bounds = limiter_bounds(&r.base);
+        let best = r.best.unwrap();
+        assert!(best.feasible_within(&bounds), "{:?}", best.outcomes);
+        assert!(best.outcomes[0].limiter_fraction <= r.base.outcomes[0].limiter_fraction);
     }
 
     #[test]
     fn a_stop_before_the_start_scores_nothing() {
         let ev = evaluator(vec![short_manoeuvre()]);
         ev.stop.store(true, Ordering::Relaxed);
-        assert!(tune(&ev, 20, 1, &Quiet).is_err());
+        assert!(tune(&ev, None, 20, 1, &Quiet).is_err());
     }
 
     #[test]
