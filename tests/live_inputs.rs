@@ -368,10 +368,12 @@ fn flightgear_datagrams_built_from_the_shipped_protocol_are_recorded_as_sent() {
             f.t_s
         );
     }
+    // The recording keeps the aircraft's arrays in single precision (docs/recordings.md):
+    // as sent to within f32's rounding of the SI values (≈ 6e-8 relative).
     for f in &frames[first..] {
         let a = &f.aircraft;
-        assert!((a.specific_force_mps2 - want_f).amax() < 1e-9, "{a:?}");
-        assert!((a.angular_velocity_radps - want_w).amax() < 1e-9, "{a:?}");
+        assert!((a.specific_force_mps2 - want_f).amax() < 2e-6, "{a:?}");
+        assert!((a.angular_velocity_radps - want_w).amax() < 1e-7, "{a:?}");
         assert!((a.attitude_rad - want_att).amax() < 1e-6, "{a:?}");
     }
     // The roll rate is FlightGear's own: 0.43 rad/s, not 0.43°/s.
