@@ -145,6 +145,27 @@ pub fn open_output(
 
 /// A non-blocking UDP socket on an ephemeral port of the peer's address family, for the
 /// command outputs: a step must never wait on the network.
+/// Sends one datagram from a [`sender_socket`]. Nobody listening yet (ICMP port unreachable)
+/// or a full buffer is not an error: the next step sends again.
+pub(crate) fn send_datagram(
+    socket: &std::net::UdpSocket,
+    bytes: &[u8],
+    peer: std::net::SocketAddr,
+) -> std::io::Result<()> {
+    match socket.send_to(bytes, peer) {
+        Ok(_) => Ok(()),
+        Err(e)
+            if matches!(
+                e.kind(),
+                std::io::ErrorKind::ConnectionRefused | std::io::ErrorKind::WouldBlock
+            ) =>
+        {
+            Ok(())
+        }
+        Err(e) => Err(e),
+    }
+}
+
 pub(crate) fn sender_socket(peer: std::net::SocketAddr) -> std::io::Result<std::net::UdpSocket> {
     let any: std::net::SocketAddr = if peer.is_ipv4() {
         (std::net::Ipv4Addr::UNSPECIFIED, 0).into()

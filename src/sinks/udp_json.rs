@@ -54,19 +54,7 @@ impl UdpJson {
 impl CommandSink for UdpJson {
     fn send(&mut self, out: &PlatformOutput) -> std::io::Result<()> {
         self.buf = encode(out);
-        match self.socket.send_to(&self.buf, self.peer) {
-            Ok(_) => Ok(()),
-            // Nobody listening yet (ICMP port unreachable) or a full buffer: send next step.
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::ConnectionRefused | std::io::ErrorKind::WouldBlock
-                ) =>
-            {
-                Ok(())
-            }
-            Err(e) => Err(e),
-        }
+        super::send_datagram(&self.socket, &self.buf, self.peer)
     }
 
     fn describe(&self) -> String {

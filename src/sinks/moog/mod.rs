@@ -76,21 +76,11 @@ impl Moog {
     }
 
     fn send_dofs(&self, word: u32, dofs: &protocol::MoogDofs) -> std::io::Result<()> {
-        match self
-            .socket
-            .send_to(&protocol::encode_command(word, dofs), self.peer)
-        {
-            Ok(_) => Ok(()),
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::ConnectionRefused | std::io::ErrorKind::WouldBlock
-                ) =>
-            {
-                Ok(())
-            }
-            Err(e) => Err(e),
-        }
+        super::send_datagram(
+            &self.socket,
+            &protocol::encode_command(word, dofs),
+            self.peer,
+        )
     }
 
     /// The status, with the way out's outcome once there is one.
