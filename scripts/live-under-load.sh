@@ -50,7 +50,7 @@ echo "before: $(uptime)" > "$OUT/$TAG.machine.txt"
 HEX=$!
 sleep 1
 # JSBSim outlives the session by 8 s: the e-stop's washout (≤ 5 s) runs on fresh input.
-${SIM_FIFO:+chrt -f "$SIM_FIFO"} "$PY" scripts/jsbsim-flight.py "$PWD/$OUT/directive.xml" "$((SECONDS_RUN + 8))" \
+${SIM_FIFO:+chrt -f "$SIM_FIFO"} "$PY" tests/jsbsim_flight.py "$PWD/$OUT/directive.xml" "$((SECONDS_RUN + 8))" repeat \
     > /dev/null 2> "$OUT/$TAG.jsbsim" &
 FLIGHT=$!
 PIDS="$PIDS $FLIGHT"
