@@ -26,6 +26,12 @@ hexcue plot "$tmp/horizontal-stall.mcap" --channels legs \
 hexcue plot "$tmp/horizontal-stall.mcap" --channels x,pitch,leg1,leg4 \
     -o docs/images/horizontal-stall-pose-legs.png --force
 
+# The S-MPC's supervisor, blend and fallback: a flight where it leaves COTC.
+hexcue play --headless --trace recordings/traces/library/737-rejected-takeoff.csv \
+    --record "$tmp/737-rejected-takeoff.mcap" > "$tmp/737-rejected-takeoff.txt"
+hexcue plot "$tmp/737-rejected-takeoff.mcap" --channels fx,pitch \
+    -o docs/images/737-rejected-takeoff-smpc.png --force
+
 # The OMCT of every algorithm: docs/omct/omct.md, omct.json and one Bode plot per test.
 # --force: these replace the shipped figures (hexcue never overwrites without it).
 hexcue omct --frequencies "${OMCT_FREQUENCIES:-12}" --out docs/omct --force
