@@ -1058,6 +1058,23 @@ enum SourceError {
 }
 
 impl RecordSource {
+    /// A read error as the reader's error: I/O as such, anything else as damage after the
+    /// bytes read so far.
+    fn error(&self, path: &str, e: SourceError) -> RecordingError {
+        match e {
+            SourceError::Io(error) => RecordingError::Io {
+                path: path.to_string(),
+                action: "read the recording",
+                error,
+            },
+            SourceError::Mcap(error) => RecordingError::Damaged {
+                path: path.to_string(),
+                bytes: self.bytes,
+                error,
+            },
+        }
+    }
+
     fn open(path: &Path) -> Result<Self, RecordingError> {
         let file = File::open(path).map_err(|error| RecordingError::Io {
             path: shown(path),
@@ -1559,18 +1576,7 @@ impl Iterator for JsonMessages {
                 Some(Err(_)) if !self.finished => self.done = true,
                 Some(Err(e)) => {
                     self.done = true;
-                    return Some(Err(match e {
-                        SourceError::Io(error) => RecordingError::Io {
-                            path: self.path.clone(),
-                            action: "read the recording",
-                            error,
-                        },
-                        SourceError::Mcap(error) => RecordingError::Damaged {
-                            path: self.path.clone(),
-                            bytes: self.source.bytes,
-                            error,
-                        },
-                    }));
+                    return Some(Err(self.source.error(&self.path, e)));
                 }
                 Some(Ok(Record::Channel(c))) if c.message_encoding == "json" => {
                     self.channels.insert(c.id, c.topic);
@@ -1780,18 +1786,7 @@ impl Iterator for Frames {
                 None => return self.last(),
                 Some(Err(e)) if self.finished => {
                     self.done = true;
-                    return Some(Err(match e {
-                        SourceError::Io(error) => RecordingError::Io {
-                            path: self.path.clone(),
-                            action: "read the recording",
-                            error,
-                        },
-                        SourceError::Mcap(error) => RecordingError::Damaged {
-                            path: self.path.clone(),
-                            bytes: self.source.bytes,
-                            error,
-                        },
-                    }));
+                    return Some(Err(self.source.error(&self.path, e)));
                 }
                 // Where an unfinished file's data ends, as `Recording::open` found.
                 Some(Err(_)) => return self.last(),
