@@ -670,11 +670,7 @@ pub fn run_live_headless(args: &LiveArgs) -> Result<Summary> {
         },
         |report| {
             for event in &report.events {
-                let level = match event.level {
-                    crate::live::EventLevel::Info => "",
-                    crate::live::EventLevel::Warning => "warning: ",
-                    crate::live::EventLevel::Error => "error: ",
-                };
+                let level = event.level.prefix();
                 eprintln!("live: t {:.2} s: {level}{}", event.t_s, event.text);
             }
         },

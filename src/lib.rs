@@ -9,6 +9,7 @@ pub mod cli;
 pub mod compare;
 pub mod console;
 pub mod engine;
+pub mod events;
 pub mod export;
 pub mod formats;
 pub mod foxglove;

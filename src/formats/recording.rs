@@ -23,9 +23,9 @@ use serde_json::{json, Value};
 use sha2::{Digest, Sha256};
 
 use crate::engine::{Frame, LaneFrame, Legs};
+use crate::events::EventLevel;
 use crate::formats::profile::{parse_profile, ProfileLoadError};
 use crate::foxglove::record::{SceneChannels, SceneWriteError};
-use crate::foxglove::EventLevel;
 use crate::mca::{AlgorithmId, AlgorithmState, Mode, PlatformCommand, SolverReport};
 use crate::model::vestibular::Perceived;
 use crate::profile::Profile;

@@ -10,5 +10,5 @@ pub mod record;
 pub mod scene;
 pub mod server;
 
-pub use scene::{EventLevel, SceneBuilder};
+pub use scene::SceneBuilder;
 pub use server::{FoxgloveServer, ServerError, DEFAULT_ADDR};

@@ -10,8 +10,9 @@ use ::foxglove::Encode;
 use mcap::records::MessageHeader;
 use mcap::McapError;
 
-use super::scene::{self, EventLevel, SceneBuilder};
+use super::scene::{self, SceneBuilder};
 use crate::engine::Frame;
+use crate::events::EventLevel;
 use crate::mca::AlgorithmId;
 use crate::profile::Profile;
 
@@ -411,7 +412,7 @@ mod tests {
         rec.record(&frames[0]).unwrap();
         rec.event(
             0.0,
-            super::EventLevel::Warning,
+            crate::events::EventLevel::Warning,
             "live",
             "input lost: washout",
         )

@@ -18,6 +18,7 @@ use ::foxglove::messages::{
 use nalgebra::{UnitQuaternion, Vector3, Vector6};
 
 use crate::engine::{Frame, LaneFrame};
+use crate::events::EventLevel;
 use crate::mca::{AlgorithmId, Mode};
 use crate::model::stewart::Stewart;
 use crate::profile::Profile;
@@ -55,33 +56,12 @@ pub fn eye_frame(id: AlgorithmId) -> String {
     format!("{}/eye", id.key())
 }
 
-/// How much an event matters; the levels of `foxglove.Log`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum EventLevel {
-    Debug,
-    Info,
-    Warning,
-    Error,
-}
-
-impl From<crate::live::EventLevel> for EventLevel {
-    fn from(level: crate::live::EventLevel) -> Self {
-        match level {
-            crate::live::EventLevel::Info => EventLevel::Info,
-            crate::live::EventLevel::Warning => EventLevel::Warning,
-            crate::live::EventLevel::Error => EventLevel::Error,
-        }
-    }
-}
-
-impl EventLevel {
-    fn foxglove(self) -> log::Level {
-        match self {
-            EventLevel::Debug => log::Level::Debug,
-            EventLevel::Info => log::Level::Info,
-            EventLevel::Warning => log::Level::Warning,
-            EventLevel::Error => log::Level::Error,
-        }
+fn foxglove_level(level: EventLevel) -> log::Level {
+    match level {
+        EventLevel::Debug => log::Level::Debug,
+        EventLevel::Info => log::Level::Info,
+        EventLevel::Warning => log::Level::Warning,
+        EventLevel::Error => log::Level::Error,
     }
 }
 
@@ -89,7 +69,7 @@ impl EventLevel {
 pub fn event(log_time_ns: u64, level: EventLevel, source: &str, text: &str) -> Log {
     Log {
         timestamp: Some(timestamp(log_time_ns)),
-        level: level.foxglove() as i32,
+        level: foxglove_level(level) as i32,
         message: text.to_string(),
         name: source.to_string(),
         file: String::new(),

@@ -19,8 +19,9 @@ use ::foxglove::{
     WebSocketServerHandle,
 };
 
-use super::scene::{self, EventLevel, SceneBuilder, SESSION_SOURCE};
+use super::scene::{self, SceneBuilder, SESSION_SOURCE};
 use crate::engine::Frame;
+use crate::events::EventLevel;
 use crate::formats::recording::{json_messages, json_schemas};
 use crate::mca::AlgorithmId;
 use crate::profile::Profile;
@@ -258,8 +259,8 @@ impl crate::sinks::FrameSink for FoxgloveServer {
         self.restart();
     }
 
-    fn event(&mut self, event: &crate::live::LiveEvent) -> anyhow::Result<()> {
-        FoxgloveServer::event(self, event.level.into(), &event.text);
+    fn event(&mut self, event: &crate::events::Event) -> anyhow::Result<()> {
+        FoxgloveServer::event(self, event.level, &event.text);
         Ok(())
     }
 }

@@ -10,7 +10,8 @@ use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 
 use anyhow::Result;
 
-use super::{LiveEvent, StepReport};
+use super::StepReport;
+use crate::events::Event;
 use crate::sinks::FrameSink;
 
 /// Seconds of steps the channel holds: far longer than an MCAP chunk's compression or a
@@ -22,7 +23,7 @@ pub struct Handoff {
     tx: SyncSender<StepReport>,
     dropped: u64,
     /// Events of dropped reports, for the next report that gets through.
-    carry: Vec<LiveEvent>,
+    carry: Vec<Event>,
 }
 
 /// What became of an offered report.
@@ -142,7 +143,7 @@ mod tests {
             stats: LiveCounters::default(),
             events: events
                 .iter()
-                .map(|t| LiveEvent {
+                .map(|t| Event {
                     t_s: 0.0,
                     level: EventLevel::Info,
                     text: t.to_string(),
@@ -173,7 +174,7 @@ mod tests {
             self.seen.lock().unwrap().push((frame.k, Vec::new()));
             Ok(())
         }
-        fn event(&mut self, event: &LiveEvent) -> Result<()> {
+        fn event(&mut self, event: &Event) -> Result<()> {
             if let Some(last) = self.seen.lock().unwrap().last_mut() {
                 last.1.push(event.text.clone());
             }

@@ -4,7 +4,7 @@
 //! session that waits in silence looks like one that works. Pure: the live loop gives it the
 //! counters each step, it gives back the events.
 
-use super::{EventLevel, LiveEvent};
+use crate::events::{Event, EventLevel};
 
 /// Without any sample this long after the start, the operator is told where hexcue listens.
 pub const NO_INPUT_NOTICE_S: f64 = 2.0;
@@ -52,7 +52,7 @@ impl InputWatch {
     }
 
     /// The events this step brings, if any.
-    pub fn step(&mut self, now: InputCounts) -> Vec<LiveEvent> {
+    pub fn step(&mut self, now: InputCounts) -> Vec<Event> {
         let mut events = Vec::new();
         if let Some(e) = self.no_input(now) {
             events.push(e);
@@ -63,7 +63,7 @@ impl InputWatch {
         events
     }
 
-    fn no_input(&mut self, now: InputCounts) -> Option<LiveEvent> {
+    fn no_input(&mut self, now: InputCounts) -> Option<Event> {
         if now.samples_in > 0 || now.t_s < NO_INPUT_NOTICE_S {
             return None;
         }
@@ -78,7 +78,7 @@ impl InputWatch {
             0 => "nothing has arrived".to_string(),
             n => format!("{n} datagrams arrived but none decoded"),
         };
-        Some(LiveEvent {
+        Some(Event {
             t_s: now.t_s,
             level: EventLevel::Warning,
             text: format!(
@@ -89,7 +89,7 @@ impl InputWatch {
         })
     }
 
-    fn malformed(&mut self, now: InputCounts) -> Option<LiveEvent> {
+    fn malformed(&mut self, now: InputCounts) -> Option<Event> {
         let new = now.malformed.saturating_sub(self.malformed_told);
         if new == 0
             || self
@@ -105,7 +105,7 @@ impl InputWatch {
         self.malformed_told = now.malformed;
         self.malformed_told_s = Some(now.t_s);
         let why = now.last_malformed.unwrap_or("no reason given");
-        Some(LiveEvent {
+        Some(Event {
             t_s: now.t_s,
             level: EventLevel::Warning,
             text: format!(
@@ -132,7 +132,7 @@ mod tests {
     }
 
     /// Steps the watch at 100 Hz from 0 to `until_s` with counters from `counts`.
-    fn run(until_s: f64, counts: impl Fn(f64) -> (u64, u64)) -> Vec<LiveEvent> {
+    fn run(until_s: f64, counts: impl Fn(f64) -> (u64, u64)) -> Vec<Event> {
         let mut w = InputWatch::new(
             "flightgear://127.0.0.1:5139",
             "FlightGear, UDP listening on 127.0.0.1:5139",

@@ -25,6 +25,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 
 use crate::engine::{Engine, Frame};
+use crate::events::{Event, EventLevel};
 use crate::formats::trace::{UnitNames, UnitStats};
 use crate::mca::limiter::WorkspaceLimiter;
 use crate::mca::AlgorithmId;
@@ -67,24 +68,6 @@ pub enum Control {
 /// ones: an operator hears of a mistake before the flight gets going).
 pub const UNIT_CHECK_S: f64 = 10.0;
 
-/// How much an event matters to the operator.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum EventLevel {
-    Info,
-    Warning,
-    Error,
-}
-
-/// Something the operator should know, as it happened: a safety state entered, the input
-/// lost or back, a unit or sign mistake suspected in the input.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LiveEvent {
-    /// Session time of the step (s).
-    pub t_s: f64,
-    pub level: EventLevel,
-    pub text: String,
-}
-
 /// One step as it happened: what the frame sinks, the console and the tests get. Owned, so
 /// that it moves to the sink thread without a copy of the frame.
 pub struct StepReport {
@@ -98,7 +81,7 @@ pub struct StepReport {
     pub stats: LiveCounters,
     /// What happened at this step (usually nothing), and at steps whose report was dropped
     /// on the way to the sinks.
-    pub events: Vec<LiveEvent>,
+    pub events: Vec<Event>,
     /// What the platform says of itself (the first output that answers: a Moog base).
     pub platform: Option<PlatformStatus>,
 }
@@ -217,7 +200,7 @@ pub struct LiveSession {
     units: Option<UnitStats>,
     /// Says so while no input arrives, or malformed input does.
     watch: InputWatch,
-    events: Vec<LiveEvent>,
+    events: Vec<Event>,
     /// Each output's phase at the last step (`None`: it does not say), for the events.
     platform_phases: Vec<Option<PlatformPhase>>,
     /// What the first answering output said at the last step.
@@ -378,7 +361,7 @@ impl LiveSession {
                 SafetyState::Washout => EventLevel::Warning,
                 _ => EventLevel::Info,
             };
-            self.events.push(LiveEvent { t_s, level, text });
+            self.events.push(Event { t_s, level, text });
         }
         if plan.reset_algorithms {
             self.engine.reset_lanes();
@@ -513,7 +496,7 @@ impl LiveSession {
         } else {
             return;
         };
-        self.events.push(LiveEvent { t_s, level, text });
+        self.events.push(Event { t_s, level, text });
     }
 
     /// What entering `state` means, for the operator.
@@ -567,7 +550,7 @@ impl LiveSession {
                 self.input.url()
             );
             self.stats.unit_warning = Some(text.clone());
-            self.events.push(LiveEvent {
+            self.events.push(Event {
                 t_s: frame.t_s,
                 level: EventLevel::Warning,
                 text,
@@ -605,7 +588,7 @@ impl LiveSession {
             if status.phase == PlatformPhase::Fault && self.stats.platform_fault.is_none() {
                 self.stats.platform_fault = Some(format!("{}: {}", out.describe(), status.detail));
             }
-            lines.push(format!("live: {}{}", level_prefix(event.level), event.text));
+            lines.push(format!("live: {}{}", event.level.prefix(), event.text));
             events.push(event);
         }
         self.input.close();
@@ -623,17 +606,8 @@ impl LiveSession {
     }
 }
 
-/// `warning: ` and `error: ` before an event's text on stderr.
-pub fn level_prefix(level: EventLevel) -> &'static str {
-    match level {
-        EventLevel::Info => "",
-        EventLevel::Warning => "warning: ",
-        EventLevel::Error => "error: ",
-    }
-}
-
 /// A platform's change of phase, for the operator.
-fn platform_event(t_s: f64, output: &str, status: &PlatformStatus) -> LiveEvent {
+fn platform_event(t_s: f64, output: &str, status: &PlatformStatus) -> Event {
     let (level, what) = match status.phase {
         PlatformPhase::Connecting => (EventLevel::Info, "connecting"),
         PlatformPhase::Engaging => (
@@ -645,7 +619,7 @@ fn platform_event(t_s: f64, output: &str, status: &PlatformStatus) -> LiveEvent 
         PlatformPhase::Parked => (EventLevel::Info, "parked"),
         PlatformPhase::Fault => (EventLevel::Error, "FAULT: no more poses"),
     };
-    LiveEvent {
+    Event {
         t_s,
         level,
         text: format!("{output}: base {what}: {}", status.detail),
@@ -691,7 +665,7 @@ pub fn run(
             };
             session.stats.realtime = guard.summary().clone();
             if let Some(text) = guard.warning() {
-                session.events.push(LiveEvent {
+                session.events.push(Event {
                     t_s: 0.0,
                     level: EventLevel::Warning,
                     text,
@@ -810,7 +784,7 @@ mod tests {
 
     /// Steps a session for `steps` with one JSBSim line (fz in ft/s² as JSBSim sends it)
     /// before each step; returns every event.
-    fn fly(fz_ft_s2: f64, steps: usize) -> (Vec<LiveEvent>, Summary) {
+    fn fly(fz_ft_s2: f64, steps: usize) -> (Vec<Event>, Summary) {
         let (mut s, addr) = session();
         let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
         let mut events = Vec::new();
@@ -828,7 +802,7 @@ mod tests {
         let steps = (UNIT_CHECK_S * 100.0) as usize + 50;
         // z up: +1 g on fz at rest.
         let (events, summary) = fly(32.17, steps);
-        let warnings: Vec<&LiveEvent> = events
+        let warnings: Vec<&Event> = events
             .iter()
             .filter(|e| e.level == EventLevel::Warning)
             .collect();
@@ -908,7 +882,7 @@ mod tests {
             self.0.lock().unwrap().push((thread, frame.k));
             Ok(())
         }
-        fn event(&mut self, event: &LiveEvent) -> Result<()> {
+        fn event(&mut self, event: &Event) -> Result<()> {
             self.0
                 .lock()
                 .unwrap()
@@ -926,7 +900,7 @@ mod tests {
         let seen = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
         s.add_frame_sink(Box::new(Witness(seen.clone())));
         // As a refused real-time request is told: before the first step.
-        s.events.push(LiveEvent {
+        s.events.push(Event {
             t_s: 0.0,
             level: EventLevel::Warning,
             text: "told before the first step".into(),

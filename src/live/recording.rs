@@ -83,12 +83,12 @@ impl FrameSink for LiveRecording {
         .with_context(|| format!("{}: cannot write", self.input_log_path.display()))
     }
 
-    fn event(&mut self, event: &crate::live::LiveEvent) -> Result<()> {
+    fn event(&mut self, event: &crate::events::Event) -> Result<()> {
         // On `/events` as `foxglove.Log`, beside the S-MPC's and the limiter's, as Foxglove
         // shows them live.
         Ok(self.recorder.event(
             event.t_s,
-            event.level.into(),
+            event.level,
             crate::foxglove::scene::SESSION_SOURCE,
             &event.text,
         )?)

@@ -24,7 +24,7 @@ pub trait FrameSink: Send {
     fn rewound(&mut self) {}
     /// An event of a live session (input lost, e-stop, washout, …) at session time `t_s`;
     /// sinks that have nowhere to put it ignore it.
-    fn event(&mut self, _event: &crate::live::LiveEvent) -> anyhow::Result<()> {
+    fn event(&mut self, _event: &crate::events::Event) -> anyhow::Result<()> {
         Ok(())
     }
     /// A fact about the whole session known only at its end (the platform's fault), under
