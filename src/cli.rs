@@ -1,6 +1,6 @@
 //! The command line: thin glue from arguments to the engine, the formats and the console.
 
-use std::io::{IsTerminal, Write};
+use std::io::IsTerminal;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -10,13 +10,15 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 
+use crate::app::common::{
+    check_session_outputs, headless_or_console, inputs, print_stdout, stop_flag,
+};
 use crate::engine::Engine;
 use crate::formats::profile::{default_profile, load_profile, DEFAULT_PROFILE_TOML};
 use crate::formats::recording::{Recorder, Recording, RecordingMeta};
 use crate::formats::trace::{default_trace, load_trace, LoadedTrace};
 use crate::foxglove::FoxgloveServer;
 use crate::mca::AlgorithmId;
-use crate::metrics::CHANNELS;
 use crate::profile::Profile;
 use crate::summary::{Summary, SummaryBuilder};
 
@@ -308,7 +310,7 @@ fn key_form(name: &str) -> String {
 }
 
 pub use crate::outputs::check_output;
-use crate::outputs::{check_distinct, check_output_of, check_writable_dir, Input};
+use crate::outputs::{check_output_of, check_writable_dir, Input};
 
 /// Parses a comma-separated option into known values, in the order given and without
 /// repeats; an unknown name is refused with the list of known ones.
@@ -446,21 +448,6 @@ pub fn recording_meta(session: &Session) -> RecordingMeta {
     }
 }
 
-/// Set by SIGINT, SIGTERM or SIGHUP so that a headless run stops cleanly and finishes its
-/// recording.
-fn install_stop_flag() -> Result<Arc<AtomicBool>> {
-    let flag = Arc::new(AtomicBool::new(false));
-    for sig in [
-        signal_hook::consts::SIGINT,
-        signal_hook::consts::SIGTERM,
-        signal_hook::consts::SIGHUP,
-    ] {
-        signal_hook::flag::register(sig, flag.clone())
-            .context("cannot install the signal handlers")?;
-    }
-    Ok(flag)
-}
-
 pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
     let (profile, profile_toml, algorithms) = load_play(args)?;
     let play = open_play_source(args, profile.rate_hz)?;
@@ -522,7 +509,7 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
         .foxglove
         .and(headless_pace(&args.start))
         .map(Pacer::new);
-    let stop = install_stop_flag()?;
+    let stop = stop_flag()?;
     let mut interrupted = false;
     while let Some(frame) = engine.step() {
         summary.push(&frame);
@@ -642,7 +629,7 @@ pub fn run_live_headless(args: &LiveArgs) -> Result<Summary> {
         profile,
         mut session,
     } = live_setup(args)?;
-    let stop = install_stop_flag()?;
+    let stop = stop_flag()?;
     let outputs = if args.output.is_empty() {
         "no output".to_string()
     } else {
@@ -751,7 +738,7 @@ pub fn review_served(path: &Path, addr: SocketAddr, speed: Option<f64>) -> Resul
     let mut server = start_foxglove(addr, profile, &recording.algorithms)?;
     let mut builder = SummaryBuilder::new(profile, &recording.trace_name);
     let mut pacer = speed.map(Pacer::new);
-    let stop = install_stop_flag()?;
+    let stop = stop_flag()?;
     for frame in recording.frames()? {
         let frame = frame?;
         if let Some(pacer) = pacer.as_mut() {
@@ -765,176 +752,6 @@ pub fn review_served(path: &Path, addr: SocketAddr, speed: Option<f64>) -> Resul
     }
     server.stop();
     Ok(builder.finish())
-}
-
-/// The metrics table printed by headless runs: one row per algorithm and channel, then a
-/// workspace line per algorithm.
-pub fn format_table(s: &Summary) -> String {
-    let mut out = String::new();
-    out.push_str(&format!(
-        "trace {}  profile {}  {} steps at {} Hz\n\n",
-        s.trace, s.profile, s.steps, s.rate_hz
-    ));
-    out.push_str(&format!(
-        "{:<6} {:<4} {:<5} {:>9} {:>7} {:>7} {:>7} {:>7} {:>7} {:>9} {:>8}\n",
-        "alg", "ch", "unit", "AAD", "NAAD", "AAS", "RAE", "PC", "ED s", "RMSE", "false s"
-    ));
-    let mut at_bound = false;
-    for (name, alg) in &s.algorithms {
-        for ch in CHANNELS {
-            if let Some(m) = alg.metrics.get(ch) {
-                // AAD and RMSE in the channel's unit as the console and the plots show it
-                // (°/s for rates); the JSON summary keeps SI (rad/s).
-                let (unit, scale) = if ch.starts_with('f') {
-                    ("m/s²", 1.0)
-                } else {
-                    ("°/s", 180.0 / std::f64::consts::PI)
-                };
-                let ed = if m.ed_at_bound {
-                    at_bound = true;
-                    format!("{}{:.2}", if m.ed_s > 0.0 { ">" } else { "<" }, m.ed_s)
-                } else {
-                    format!("{:.2}", m.ed_s)
-                };
-                out.push_str(&format!(
-                    "{:<6} {:<4} {:<5} {:>9} {:>7} {:>7.3} {:>7.3} {:>7.3} {:>7} {:>9} {:>8.2}\n",
-                    name,
-                    ch,
-                    unit,
-                    sig(m.aad * scale),
-                    sig(m.naad),
-                    m.aas,
-                    m.rae,
-                    m.pc,
-                    ed,
-                    sig(m.rmse * scale),
-                    m.false_cue_s
-                ));
-            }
-        }
-    }
-    out.push_str(
-        "\nAAD and RMSE in the unit shown (fz as the change from 1 g); NAAD, AAS, RAE and PC \
-         have none; ED and false in s. Usage and excursions in % of the limit. The JSON \
-         summary (--summary) keeps SI: rad/s, m and fractions.\n",
-    );
-    if at_bound {
-        out.push_str(&format!(
-            "ED >{0:.2} or <-{0:.2}: the best lag is at the edge of the ±{0:.2} s searched, so the \
-             delay is at least that, if the signals are related at all.\n",
-            crate::summary::MAX_LAG_S
-        ));
-    }
-    out.push('\n');
-    for (name, alg) in &s.algorithms {
-        out.push_str(&format!(
-            "{:<6} score {:.3}, limiter {:.2} % of steps ({}), max leg usage {:.1} %, min margin {:.1} mm, leg violations {}, \
-             step median {:.1} µs p99 {:.1} µs max {:.1} µs\n",
-            name,
-            alg.score,
-            100.0 * alg.limiter_fraction,
-            alg.limiter_steps,
-            100.0 * alg.max_leg_usage,
-            1000.0 * alg.min_leg_margin_m,
-            alg.leg_violations,
-            alg.step_time_us.median,
-            alg.step_time_us.p99,
-            alg.step_time_us.max
-        ));
-        let dofs: Vec<String> = crate::summary::DOFS
-            .iter()
-            .map(|d| {
-                format!(
-                    "{d} {:.0} %",
-                    100.0 * alg.max_dof_usage.get(*d).copied().unwrap_or(0.0)
-                )
-            })
-            .collect();
-        out.push_str(&format!(
-            "{:<6} peak excursion / limit: {}\n",
-            name,
-            dofs.join(", ")
-        ));
-    }
-    if let Some(l) = &s.live {
-        out.push_str(&format!(
-            "\nlive: {} samples in, {} commands out, {} deadline misses, step median {:.3} ms p99 {:.3} ms, \
-             latency median {:.3} ms p99 {:.3} ms (new samples: p99 {:.3} ms), {} stale steps, \
-             input lost {:.2} s, {} malformed\n",
-            l.samples_in,
-            l.commands_out,
-            l.deadline_misses,
-            l.step_ms.median,
-            l.step_ms.p99,
-            l.latency_ms.median,
-            l.latency_ms.p99,
-            l.new_sample_latency_ms.p99,
-            l.stale_steps,
-            l.input_lost_s,
-            l.malformed
-        ));
-        if let Some(w) = &l.unit_warning {
-            out.push_str(&format!("live: warning: {w}\n"));
-        }
-        if let Some(f) = &l.platform_fault {
-            out.push_str(&format!("live: error: platform fault: {f}\n"));
-        }
-        if let Some(none) = s.no_input_line() {
-            out.push_str(&format!("live: NOT A CLEAN SESSION: {none}\n"));
-        }
-        out.push_str(&format!("live: {}\n", realtime_line(l)));
-    }
-    out
-}
-
-/// How the stepping thread ran, and what its sinks missed.
-fn realtime_line(l: &crate::summary::LiveSummary) -> String {
-    let rt = &l.realtime;
-    let mut parts = vec![match (rt.requested, rt.sched_fifo) {
-        (false, _) => "normal priority (--no-realtime)".to_string(),
-        (true, true) => format!("SCHED_FIFO priority {}", rt.priority),
-        (true, false) => "normal priority (SCHED_FIFO refused)".to_string(),
-    }];
-    if rt.requested {
-        parts.push(
-            if rt.memory_locked {
-                "memory locked"
-            } else {
-                "memory not locked"
-            }
-            .into(),
-        );
-    }
-    parts.push(format!(
-        "{} frames dropped on the way to the recording and console",
-        l.frames_dropped
-    ));
-    format!("stepping thread: {}", parts.join(", "))
-}
-
-/// Four decimals, or three significant digits for values too small to show that way
-/// (yaw-rate errors of a few µrad/s are real information, not zero).
-fn sig(v: f64) -> String {
-    if v != 0.0 && v.abs() < 1e-3 {
-        format!("{v:.2e}")
-    } else {
-        format!("{v:.4}")
-    }
-}
-
-fn write_summary(path: &Path, summary: &Summary) -> Result<()> {
-    let json = serde_json::to_string_pretty(summary)?;
-    std::fs::write(path, json + "\n")
-        .with_context(|| format!("{}: cannot write the summary", path.display()))
-}
-
-fn print_stdout(text: &str) -> Result<()> {
-    let mut out = std::io::stdout().lock();
-    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
-        // A closed pipe (`| head`) is the reader's choice, not an error of the run.
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        other => other.context("cannot write to stdout"),
-    }
 }
 
 pub fn review_summary(path: &Path) -> Result<Summary> {
@@ -960,54 +777,6 @@ pub fn review_summary(path: &Path) -> Result<Summary> {
         builder.push(&frame?);
     }
     Ok(builder.finish())
-}
-
-/// Headless: compute the summary, write it where `--summary` says and print the table.
-/// Otherwise the console, which has no use for `--summary`.
-fn headless_or_console(
-    headless: bool,
-    summary_path: Option<&Path>,
-    summarise: impl FnOnce() -> Result<Summary>,
-    console: impl FnOnce() -> Result<()>,
-) -> Result<()> {
-    if !headless {
-        if summary_path.is_some() {
-            bail!("--summary goes with --headless");
-        }
-        return console();
-    }
-    let summary = summarise()?;
-    if let Some(path) = summary_path {
-        write_summary(path, &summary)?;
-    }
-    print_stdout(&format_table(&summary))
-}
-
-/// A session's --record and --summary (the summary only when headless), checked before
-/// anything runs: a long run, or a live flight, must not end in a refusal.
-fn check_session_outputs(
-    record: Option<&Path>,
-    summary: Option<&Path>,
-    headless: bool,
-    force: bool,
-    inputs: &[Input],
-) -> Result<()> {
-    check_distinct(record, summary, "--record and --summary")?;
-    if let Some(path) = record {
-        check_output_of(path, force, "--record", inputs)?;
-    }
-    if let (Some(path), true) = (summary, headless) {
-        check_output_of(path, force, "--summary", inputs)?;
-    }
-    Ok(())
-}
-
-/// The files a command reads, as [`check_output_of`] takes them.
-fn inputs<'a>(named: &[(Option<&'a Path>, &'a str)]) -> Vec<Input<'a>> {
-    named
-        .iter()
-        .filter_map(|(path, option)| path.map(|p| Input::new(p, option)))
-        .collect()
 }
 
 pub fn run(cli: Cli) -> Result<()> {
@@ -1134,7 +903,7 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
         }
         None => crate::formats::library::library_traces(profile.rate_hz)?,
     };
-    let stop = install_stop_flag()?;
+    let stop = stop_flag()?;
     let mut results = Vec::new();
     for trace in traces {
         let trace = Arc::new(trace);

@@ -187,7 +187,7 @@ pub fn run_live_session(args: &crate::cli::LiveArgs) -> Result<()> {
     for line in &outcome.lines {
         eprintln!("{line}");
     }
-    eprint!("{}", crate::cli::format_table(&outcome.summary));
+    eprint!("{}", crate::app::common::format_table(&outcome.summary));
     if let Some(fault) = outcome
         .summary
         .live

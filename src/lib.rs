@@ -5,6 +5,7 @@
 //! `tui` adapt it to files, sockets, the terminal and Foxglove. Frames and units: DESIGN.md §1 and
 //! `docs/design.md`.
 
+pub mod app;
 pub mod cli;
 pub mod compare;
 pub mod console;

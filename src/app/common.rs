@@ -1,0 +1,247 @@
+//! What every command sets up the same way: the stop flag for signals, the summary table
+//! and file, stdout that tolerates a closed pipe, and the checks on output paths made before
+//! anything runs.
+
+use std::io::Write;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use anyhow::{bail, Context, Result};
+
+use crate::metrics::CHANNELS;
+use crate::outputs::{check_distinct, check_output_of, Input};
+use crate::summary::Summary;
+
+/// Set by SIGINT, SIGTERM or SIGHUP so that a headless run stops cleanly and finishes its
+/// recording.
+pub fn stop_flag() -> Result<Arc<AtomicBool>> {
+    let flag = Arc::new(AtomicBool::new(false));
+    for sig in [
+        signal_hook::consts::SIGINT,
+        signal_hook::consts::SIGTERM,
+        signal_hook::consts::SIGHUP,
+    ] {
+        signal_hook::flag::register(sig, flag.clone())
+            .context("cannot install the signal handlers")?;
+    }
+    Ok(flag)
+}
+
+/// The metrics table printed by headless runs: one row per algorithm and channel, then a
+/// workspace line per algorithm.
+pub fn format_table(s: &Summary) -> String {
+    let mut out = String::new();
+    out.push_str(&format!(
+        "trace {}  profile {}  {} steps at {} Hz\n\n",
+        s.trace, s.profile, s.steps, s.rate_hz
+    ));
+    out.push_str(&format!(
+        "{:<6} {:<4} {:<5} {:>9} {:>7} {:>7} {:>7} {:>7} {:>7} {:>9} {:>8}\n",
+        "alg", "ch", "unit", "AAD", "NAAD", "AAS", "RAE", "PC", "ED s", "RMSE", "false s"
+    ));
+    let mut at_bound = false;
+    for (name, alg) in &s.algorithms {
+        for ch in CHANNELS {
+            if let Some(m) = alg.metrics.get(ch) {
+                // AAD and RMSE in the channel's unit as the console and the plots show it
+                // (°/s for rates); the JSON summary keeps SI (rad/s).
+                let (unit, scale) = if ch.starts_with('f') {
+                    ("m/s²", 1.0)
+                } else {
+                    ("°/s", 180.0 / std::f64::consts::PI)
+                };
+                let ed = if m.ed_at_bound {
+                    at_bound = true;
+                    format!("{}{:.2}", if m.ed_s > 0.0 { ">" } else { "<" }, m.ed_s)
+                } else {
+                    format!("{:.2}", m.ed_s)
+                };
+                out.push_str(&format!(
+                    "{:<6} {:<4} {:<5} {:>9} {:>7} {:>7.3} {:>7.3} {:>7.3} {:>7} {:>9} {:>8.2}\n",
+                    name,
+                    ch,
+                    unit,
+                    sig(m.aad * scale),
+                    sig(m.naad),
+                    m.aas,
+                    m.rae,
+                    m.pc,
+                    ed,
+                    sig(m.rmse * scale),
+                    m.false_cue_s
+                ));
+            }
+        }
+    }
+    out.push_str(
+        "\nAAD and RMSE in the unit shown (fz as the change from 1 g); NAAD, AAS, RAE and PC \
+         have none; ED and false in s. Usage and excursions in % of the limit. The JSON \
+         summary (--summary) keeps SI: rad/s, m and fractions.\n",
+    );
+    if at_bound {
+        out.push_str(&format!(
+            "ED >{0:.2} or <-{0:.2}: the best lag is at the edge of the ±{0:.2} s searched, so the \
+             delay is at least that, if the signals are related at all.\n",
+            crate::summary::MAX_LAG_S
+        ));
+    }
+    out.push('\n');
+    for (name, alg) in &s.algorithms {
+        out.push_str(&format!(
+            "{:<6} score {:.3}, limiter {:.2} % of steps ({}), max leg usage {:.1} %, min margin {:.1} mm, leg violations {}, \
+             step median {:.1} µs p99 {:.1} µs max {:.1} µs\n",
+            name,
+            alg.score,
+            100.0 * alg.limiter_fraction,
+            alg.limiter_steps,
+            100.0 * alg.max_leg_usage,
+            1000.0 * alg.min_leg_margin_m,
+            alg.leg_violations,
+            alg.step_time_us.median,
+            alg.step_time_us.p99,
+            alg.step_time_us.max
+        ));
+        let dofs: Vec<String> = crate::summary::DOFS
+            .iter()
+            .map(|d| {
+                format!(
+                    "{d} {:.0} %",
+                    100.0 * alg.max_dof_usage.get(*d).copied().unwrap_or(0.0)
+                )
+            })
+            .collect();
+        out.push_str(&format!(
+            "{:<6} peak excursion / limit: {}\n",
+            name,
+            dofs.join(", ")
+        ));
+    }
+    if let Some(l) = &s.live {
+        out.push_str(&format!(
+            "\nlive: {} samples in, {} commands out, {} deadline misses, step median {:.3} ms p99 {:.3} ms, \
+             latency median {:.3} ms p99 {:.3} ms (new samples: p99 {:.3} ms), {} stale steps, \
+             input lost {:.2} s, {} malformed\n",
+            l.samples_in,
+            l.commands_out,
+            l.deadline_misses,
+            l.step_ms.median,
+            l.step_ms.p99,
+            l.latency_ms.median,
+            l.latency_ms.p99,
+            l.new_sample_latency_ms.p99,
+            l.stale_steps,
+            l.input_lost_s,
+            l.malformed
+        ));
+        if let Some(w) = &l.unit_warning {
+            out.push_str(&format!("live: warning: {w}\n"));
+        }
+        if let Some(f) = &l.platform_fault {
+            out.push_str(&format!("live: error: platform fault: {f}\n"));
+        }
+        if let Some(none) = s.no_input_line() {
+            out.push_str(&format!("live: NOT A CLEAN SESSION: {none}\n"));
+        }
+        out.push_str(&format!("live: {}\n", realtime_line(l)));
+    }
+    out
+}
+
+/// How the stepping thread ran, and what its sinks missed.
+fn realtime_line(l: &crate::summary::LiveSummary) -> String {
+    let rt = &l.realtime;
+    let mut parts = vec![match (rt.requested, rt.sched_fifo) {
+        (false, _) => "normal priority (--no-realtime)".to_string(),
+        (true, true) => format!("SCHED_FIFO priority {}", rt.priority),
+        (true, false) => "normal priority (SCHED_FIFO refused)".to_string(),
+    }];
+    if rt.requested {
+        parts.push(
+            if rt.memory_locked {
+                "memory locked"
+            } else {
+                "memory not locked"
+            }
+            .into(),
+        );
+    }
+    parts.push(format!(
+        "{} frames dropped on the way to the recording and console",
+        l.frames_dropped
+    ));
+    format!("stepping thread: {}", parts.join(", "))
+}
+
+/// Four decimals, or three significant digits for values too small to show that way
+/// (yaw-rate errors of a few µrad/s are real information, not zero).
+fn sig(v: f64) -> String {
+    if v != 0.0 && v.abs() < 1e-3 {
+        format!("{v:.2e}")
+    } else {
+        format!("{v:.4}")
+    }
+}
+
+pub fn write_summary(path: &Path, summary: &Summary) -> Result<()> {
+    let json = serde_json::to_string_pretty(summary)?;
+    std::fs::write(path, json + "\n")
+        .with_context(|| format!("{}: cannot write the summary", path.display()))
+}
+
+pub fn print_stdout(text: &str) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
+        // A closed pipe (`| head`) is the reader's choice, not an error of the run.
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        other => other.context("cannot write to stdout"),
+    }
+}
+
+/// Headless: compute the summary, write it where `--summary` says and print the table.
+/// Otherwise the console, which has no use for `--summary`.
+pub fn headless_or_console(
+    headless: bool,
+    summary_path: Option<&Path>,
+    summarise: impl FnOnce() -> Result<Summary>,
+    console: impl FnOnce() -> Result<()>,
+) -> Result<()> {
+    if !headless {
+        if summary_path.is_some() {
+            bail!("--summary goes with --headless");
+        }
+        return console();
+    }
+    let summary = summarise()?;
+    if let Some(path) = summary_path {
+        write_summary(path, &summary)?;
+    }
+    print_stdout(&format_table(&summary))
+}
+
+/// A session's --record and --summary (the summary only when headless), checked before
+/// anything runs: a long run, or a live flight, must not end in a refusal.
+pub fn check_session_outputs(
+    record: Option<&Path>,
+    summary: Option<&Path>,
+    headless: bool,
+    force: bool,
+    inputs: &[Input],
+) -> Result<()> {
+    check_distinct(record, summary, "--record and --summary")?;
+    if let Some(path) = record {
+        check_output_of(path, force, "--record", inputs)?;
+    }
+    if let (Some(path), true) = (summary, headless) {
+        check_output_of(path, force, "--summary", inputs)?;
+    }
+    Ok(())
+}
+
+/// The files a command reads, as [`check_output_of`] takes them.
+pub fn inputs<'a>(named: &[(Option<&'a Path>, &'a str)]) -> Vec<Input<'a>> {
+    named
+        .iter()
+        .filter_map(|(path, option)| path.map(|p| Input::new(p, option)))
+        .collect()
+}

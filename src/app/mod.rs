@@ -1,0 +1,4 @@
+//! The commands, one room each (issue 22): `cli` parses the arguments, and what a command
+//! does lives here. Set-ups every command shares are in `common`.
+
+pub mod common;
