@@ -17,22 +17,57 @@ def strip_tests(s):
     return s if i<0 else s[:i]
 edges=collections.defaultdict(set)
 mods=set(files)
+
+def expand(path):
+    """`a::{b, c::{d, e}}` -> [a::b, a::c::d, a::c::e]"""
+    i=path.find('{')
+    if i<0: return [path]
+    depth=0
+    for j in range(i,len(path)):
+        if path[j]=='{': depth+=1
+        elif path[j]=='}':
+            depth-=1
+            if depth==0: break
+    head,body,tail=path[:i],path[i+1:j],path[j+1:]
+    parts=[];depth=0;cur=''
+    for ch in body:
+        if ch==',' and depth==0: parts.append(cur);cur='';continue
+        depth+= (ch=='{')-(ch=='}'); cur+=ch
+    parts.append(cur)
+    out=[]
+    for q in parts:
+        q=q.strip()
+        if q: out+= [x for x in expand(head+q+tail)]
+    return out
+
+def resolve(m,path):
+    """The module (file) a path names, seen from module m, or None."""
+    path=re.sub(r'\s+','',path)
+    parts=path.split('::')
+    if parts[0]=='crate': base=[]; parts=parts[1:]
+    elif parts[0] in ('super','self'):
+        base=m.split('::') if m!='crate' else []
+        while parts and parts[0] in ('super','self'):
+            if parts[0]=='super': base=base[:-1]
+            parts=parts[1:]
+    else: return None
+    full=base+parts
+    for k in range(len(full),0,-1):
+        c='::'.join(full[:k])
+        if c in mods: return c
+    return None
+
 for m,s in files.items():
     s=strip_tests(s)
-    for mm in re.findall(r'crate::([a-z_]+(?:::[a-z_]+)*)',s):
-        parts=mm.split('::')
-        # longest prefix that is a module
-        best=None
-        for k in range(len(parts),0,-1):
-            c='::'.join(parts[:k])
-            if c in mods: best=c;break
-        if best and best!=m: edges[m].add(best)
-    # super:: usage
-    for mm in re.findall(r'super::([a-z_]+)',s):
-        parent='::'.join(m.split('::')[:-1]) if not files.get(m) is None else m
-        base=parent if parent else ''
-        c=(base+'::'+mm) if base else mm
-        if c in mods and c!=m: edges[m].add(c)
+    s=re.sub(r'//[^\n]*','',s)
+    paths=[]
+    for u in re.findall(r'\buse\s+([^;]+);',s,re.S):
+        paths+=expand(u.split(' as ')[0] if '{' not in u else u)
+    paths+=re.findall(r'\b(?:crate|super|self)(?:::[A-Za-z_][A-Za-z0-9_]*)+',s)
+    for pth in paths:
+        pth=re.sub(r'\s+as\s+\w+$','',pth.strip())
+        r=resolve(m,pth)
+        if r and r!=m: edges[m].add(r)
 # cycles among files via tarjan
 idx={};low={};st=[];on=set();res=[];i=[0]
 sys.setrecursionlimit(10000)
