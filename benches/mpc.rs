@@ -99,7 +99,7 @@ fn bench(terminal: Terminal) {
         Terminal::Cotc => profile.cotc_params(),
         Terminal::Free => profile.mpc.clone(),
     };
-    let mut mpc = match Mpc::new(&params, &profile, terminal) {
+    let mut mpc = match Mpc::new(&params, &profile.setting(), terminal) {
         Ok(m) => m,
         Err(e) => {
             eprintln!("cannot build the MPC: {e}");

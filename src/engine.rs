@@ -203,7 +203,7 @@ impl Engine {
             .iter()
             .map(|&id| {
                 Ok(Lane {
-                    algorithm: mca::build(id, profile)?,
+                    algorithm: profile.algorithm(id)?,
                     limiter: WorkspaceLimiter::new(
                         stewart.clone(),
                         profile.limits.si(),

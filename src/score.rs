@@ -17,7 +17,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::metrics::CHANNELS;
-use crate::profile::ProfileError;
+use crate::vocab::ProfileError;
 
 /// The profile's `[score]` section: the weights of the score's terms.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

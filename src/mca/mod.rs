@@ -10,7 +10,22 @@ pub mod washout;
 use nalgebra::{Vector3, Vector6};
 use serde::Serialize;
 
-use crate::profile::Profile;
+use crate::model::platform::Platform;
+use crate::model::vestibular::VestibularParams;
+
+/// What every algorithm is built for besides its own tuning: the platform it drives, where
+/// the pilot's head sits on it, the pilot's vestibular system and the step. The profile
+/// composes it from its sections; the algorithms never see the profile itself.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Setting {
+    /// The step every algorithm runs at (s).
+    pub dt_s: f64,
+    pub platform: Platform,
+    /// Pilot's head relative to the centre of the platform joint plane, platform frame
+    /// (x forward, y right, z down) (m).
+    pub eye_point_m: Vector3<f64>,
+    pub vestibular: VestibularParams,
+}
 
 /// The algorithms hexcue can run, in the order the console shows them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
@@ -220,7 +235,7 @@ impl std::fmt::Debug for AlgorithmSnapshot {
     }
 }
 
-/// Error building an algorithm from a profile.
+/// Error building an algorithm.
 #[derive(Debug, thiserror::Error)]
 pub enum BuildError {
     #[error("profile `{profile}` has no [{section}] section, which {algorithm} needs")]
@@ -234,21 +249,4 @@ pub enum BuildError {
         algorithm: AlgorithmId,
         reason: String,
     },
-}
-
-/// Builds the algorithm `id` as the profile tunes it.
-pub fn build(id: AlgorithmId, profile: &Profile) -> Result<Box<dyn MotionCueing>, BuildError> {
-    let setup = |e: mpc::MpcError| BuildError::Setup {
-        algorithm: id,
-        reason: e.to_string(),
-    };
-    match id {
-        AlgorithmId::Smpc => smpc::Smpc::new(profile)
-            .map(|m| Box::new(m) as Box<dyn MotionCueing>)
-            .map_err(setup),
-        AlgorithmId::Mpc => mpc::Mpc::new(&profile.mpc, profile, mpc::Terminal::Free)
-            .map(|m| Box::new(m) as Box<dyn MotionCueing>)
-            .map_err(setup),
-        AlgorithmId::Cwf => Ok(Box::new(washout::Washout::new(&profile.cwf, profile))),
-    }
 }

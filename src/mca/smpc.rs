@@ -8,13 +8,13 @@
 //! are solved every step, on the two cores in parallel: the supervisor needs COTC's status
 //! to return, and the mixer blends two commands that start from the same pose.
 
+use super::mpc::MpcParams;
 use super::mpc::{Mpc, MpcError, MpcOutcome, Terminal};
 use super::switching::{
-    AdaptiveWeightRegulator, Controller, Supervisor, SupervisorInput, SwitchMixer,
+    AdaptiveWeightRegulator, Controller, Supervisor, SupervisorInput, SwitchMixer, SwitchingParams,
 };
-use super::{AlgorithmId, AlgorithmState, CueInput, Mode, MotionCueing, PlatformCommand};
+use super::{AlgorithmId, AlgorithmState, CueInput, Mode, MotionCueing, PlatformCommand, Setting};
 use crate::model::stewart::Stewart;
-use crate::profile::Profile;
 
 pub struct Smpc {
     cotc: Mpc,
@@ -44,14 +44,21 @@ struct SmpcState {
 }
 
 impl Smpc {
-    pub fn new(profile: &Profile) -> Result<Self, MpcError> {
+    /// `free` tunes the MPC without terminal conditions, `cotc` the one with them (the
+    /// profile's `[mpc]` with the overrides of `[smpc.cotc]`).
+    pub fn new(
+        free: &MpcParams,
+        cotc: &MpcParams,
+        switching: &SwitchingParams,
+        setting: &Setting,
+    ) -> Result<Self, MpcError> {
         Ok(Smpc {
-            cotc: Mpc::new(&profile.cotc_params(), profile, Terminal::Cotc)?,
-            free: Mpc::new(&profile.mpc, profile, Terminal::Free)?,
-            supervisor: Supervisor::new(&profile.smpc),
-            mixer: SwitchMixer::new(&profile.smpc),
-            regulator: AdaptiveWeightRegulator::new(&profile.smpc),
-            stewart: profile.stewart(),
+            cotc: Mpc::new(cotc, setting, Terminal::Cotc)?,
+            free: Mpc::new(free, setting, Terminal::Free)?,
+            supervisor: Supervisor::new(switching),
+            mixer: SwitchMixer::new(switching),
+            regulator: AdaptiveWeightRegulator::new(switching),
+            stewart: setting.platform.stewart.clone(),
             outgoing: Controller::Cotc,
             mode: Mode::Cotc,
             time_in_mode_s: 0.0,
@@ -446,7 +453,13 @@ mod tests {
         let mut profile = full_flight();
         // A zero time budget: every QP of both MPCs ends max_time.
         profile.mpc.time_limit_ms = 1e-9;
-        let mut smpc = super::Smpc::new(&profile).unwrap();
+        let mut smpc = super::Smpc::new(
+            &profile.mpc,
+            &profile.cotc_params(),
+            &profile.smpc,
+            &profile.setting(),
+        )
+        .unwrap();
         let displaced = PlatformCommand {
             pose: nalgebra::Vector6::new(0.5, -0.3, 0.1, 0.05, 0.08, 0.1),
             ..Default::default()
@@ -477,7 +490,13 @@ mod tests {
     fn a_nan_in_the_reference_never_reaches_the_platform() {
         use crate::mca::{CueSample, PlatformCommand};
         let profile = full_flight();
-        let mut smpc = super::Smpc::new(&profile).unwrap();
+        let mut smpc = super::Smpc::new(
+            &profile.mpc,
+            &profile.cotc_params(),
+            &profile.smpc,
+            &profile.setting(),
+        )
+        .unwrap();
         let mut samples = vec![
             CueSample {
                 delta_f_mps2: Vector3::new(2.0, 1.0, 0.0),

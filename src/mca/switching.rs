@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use super::mpc::CotcOverrides;
 use super::PlatformCommand;
-use crate::profile::{positive, ProfileError};
+use crate::vocab::{positive, ProfileError};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -25,12 +25,12 @@ use self::params::ReferenceMode;
 pub use self::params::{CotcOverrides, MpcParams};
 use self::qp::{CscPattern, Triplets};
 use super::{
-    AlgorithmId, AlgorithmState, CueInput, CueSample, Mode, MotionCueing, PlatformCommand,
+    AlgorithmId, AlgorithmState, CueInput, CueSample, Mode, MotionCueing, PlatformCommand, Setting,
     SolverReport,
 };
 use crate::model::lti::{DiscreteStateSpace, StateSpace};
+use crate::model::platform::DofLimits;
 use crate::model::stewart::Stewart;
-use crate::profile::{DofLimits, Profile};
 use crate::qp::{QpSettings, QpStatus};
 
 /// Terminal conditions of the MPC.
@@ -266,12 +266,12 @@ fn total_rates(u: &[f64]) -> Vector3<f64> {
 impl Mpc {
     pub fn new(
         params: &MpcParams,
-        profile: &Profile,
+        setting: &Setting,
         terminal: Terminal,
     ) -> Result<Self, MpcError> {
-        let dt_s = profile.dt_s();
+        let dt_s = setting.dt_s;
         let grid = params.grid();
-        let model = PredictionModel::new(&profile.vestibular);
+        let model = PredictionModel::new(&setting.vestibular);
         let mut lengths: Vec<f64> = Vec::new();
         let interval_model: Vec<usize> = grid
             .iter()
@@ -287,17 +287,17 @@ impl Mpc {
             .collect();
         let discrete: Vec<DiscreteStateSpace> =
             lengths.iter().map(|h| model.discretise(*h)).collect();
-        let lever_jump = model.lever_arm_jump(&profile.eye_point());
+        let lever_jump = model.lever_arm_jump(&setting.eye_point_m);
         let trace_model = model.discretise(dt_s);
         let trace_e = &trace_model.a * &lever_jump;
-        let ref_model = profile.vestibular.perception_model();
+        let ref_model = setting.vestibular.perception_model();
         let ref_discrete = lengths
             .iter()
             .map(|h| ref_model.discretise_zoh(*h))
             .collect();
-        let thresholds = profile.vestibular.canal_threshold_radps();
-        let margin = profile.limiter.leg_margin_m;
-        let limits = profile.limits.si();
+        let thresholds = setting.vestibular.canal_threshold_radps();
+        let margin = setting.platform.leg_margin_m;
+        let limits = setting.platform.limits;
         let mut mpc = Mpc {
             params: params.clone(),
             terminal,
@@ -318,11 +318,11 @@ impl Mpc {
             ref_continuous: ref_model,
             perceived_c: model.perceived_rows(),
             model,
-            stewart: profile.stewart(),
+            stewart: setting.platform.stewart.clone(),
             limits,
             tilt_rate_max_radps: [thresholds.x, thresholds.y],
             thresholds: {
-                let f = profile.vestibular.otolith_threshold_mps2;
+                let f = setting.vestibular.otolith_threshold_mps2;
                 [f[0], f[1], f[2], thresholds.x, thresholds.y, thresholds.z]
             },
             tilt_bound_rad: vec![[limits.excursion[3], limits.excursion[4]]; grid.len()],
@@ -331,8 +331,8 @@ impl Mpc {
                 .collect(),
             false_cue_ahead: Vec::new(),
             ref_rate_radps: vec![[0.0; 2]; grid.len()],
-            leg_lo_m: profile.geometry.leg_min_m + margin,
-            leg_hi_m: profile.geometry.leg_max_m - margin,
+            leg_lo_m: setting.platform.stewart.leg_min_m + margin,
+            leg_hi_m: setting.platform.stewart.leg_max_m - margin,
             terminal_weight: None,
             washout_gain: 1.0,
             run: Running {
