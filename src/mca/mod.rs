@@ -12,6 +12,7 @@ use serde::Serialize;
 
 use crate::model::platform::Platform;
 use crate::model::vestibular::VestibularParams;
+pub use crate::vocab::{AlgorithmId, SolveStatus};
 
 /// What every algorithm is built for besides its own tuning: the platform it drives, where
 /// the pilot's head sits on it, the pilot's vestibular system and the step. The profile
@@ -25,51 +26,6 @@ pub struct Setting {
     /// (x forward, y right, z down) (m).
     pub eye_point_m: Vector3<f64>,
     pub vestibular: VestibularParams,
-}
-
-/// The algorithms hexcue can run, in the order the console shows them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum AlgorithmId {
-    Smpc,
-    Mpc,
-    Cwf,
-}
-
-impl AlgorithmId {
-    pub const ALL: &'static [AlgorithmId] =
-        &[AlgorithmId::Smpc, AlgorithmId::Mpc, AlgorithmId::Cwf];
-
-    /// Short name used on the command line, in topics (`/cwf/...`) and summaries.
-    pub fn key(self) -> &'static str {
-        match self {
-            AlgorithmId::Smpc => "smpc",
-            AlgorithmId::Mpc => "mpc",
-            AlgorithmId::Cwf => "cwf",
-        }
-    }
-
-    /// Name shown to people.
-    pub fn label(self) -> &'static str {
-        match self {
-            AlgorithmId::Smpc => "S-MPC",
-            AlgorithmId::Mpc => "MPC",
-            AlgorithmId::Cwf => "CWF",
-        }
-    }
-
-    pub fn from_key(key: &str) -> Option<Self> {
-        Self::ALL
-            .iter()
-            .copied()
-            .find(|a| a.key() == key.trim().to_ascii_lowercase())
-    }
-}
-
-impl std::fmt::Display for AlgorithmId {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.key())
-    }
 }
 
 /// The aircraft motion an algorithm cues, after input limiting: Δf = f − (0, 0, −g) and ω at
@@ -164,8 +120,8 @@ pub struct SolverReport {
     /// Which QP: `mpc`, `cotc`, `free`. Owned so that a report read back from a recording
     /// is the same type as a live one.
     pub name: String,
-    /// Solver status in words, e.g. `solved`, `primal_infeasible`, `max_time`.
-    pub status: String,
+    /// How the solve ended; recordings store its word, e.g. `solved`, `primal_infeasible`.
+    pub status: SolveStatus,
     pub iterations: u32,
     pub solve_time_us: f64,
 }
@@ -178,6 +134,7 @@ pub struct AlgorithmState {
     pub blend: Option<f64>,
     pub time_in_mode_s: f64,
     pub switch_count: u32,
+    /// The text of the supervisor's last [`crate::vocab::SwitchReason`], as recordings store it.
     pub last_switch_reason: Option<String>,
     pub solvers: Vec<SolverReport>,
 }

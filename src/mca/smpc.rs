@@ -142,7 +142,7 @@ impl MotionCueing for Smpc {
         let decision = self.supervisor.update(
             &SupervisorInput {
                 cotc_solved: cotc.feasible,
-                cotc_status: &cotc.report.status,
+                cotc_status: cotc.report.status,
                 error_x_mps2: error.x,
                 error_y_mps2: error.y,
             },
@@ -196,7 +196,7 @@ impl MotionCueing for Smpc {
             blend: self.mixer.weight(),
             time_in_mode_s: self.time_in_mode_s,
             switch_count: self.supervisor.switch_count(),
-            last_switch_reason: self.supervisor.last_reason().map(str::to_string),
+            last_switch_reason: self.supervisor.last_reason().map(|r| r.to_string()),
             solvers: self.reports.to_vec(),
         }
     }

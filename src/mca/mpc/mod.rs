@@ -26,7 +26,7 @@ pub use self::params::{CotcOverrides, MpcParams};
 use self::qp::{CscPattern, Triplets};
 use super::{
     AlgorithmId, AlgorithmState, CueInput, CueSample, Mode, MotionCueing, PlatformCommand, Setting,
-    SolverReport,
+    SolveStatus, SolverReport,
 };
 use crate::model::lti::{DiscreteStateSpace, StateSpace};
 use crate::model::platform::DofLimits;
@@ -122,21 +122,21 @@ pub struct MpcOutcome {
     pub reference_f_mps2: Vector3<f64>,
 }
 
-/// Solver status in words, for reports and recordings.
-pub fn status_word(s: &SolverStatus) -> &'static str {
+/// Clarabel's status as hexcue's reports name it.
+pub fn solve_status(s: &SolverStatus) -> SolveStatus {
     match s {
-        SolverStatus::Unsolved => "unsolved",
-        SolverStatus::Solved => "solved",
-        SolverStatus::PrimalInfeasible => "primal_infeasible",
-        SolverStatus::DualInfeasible => "dual_infeasible",
-        SolverStatus::AlmostSolved => "almost_solved",
-        SolverStatus::AlmostPrimalInfeasible => "almost_primal_infeasible",
-        SolverStatus::AlmostDualInfeasible => "almost_dual_infeasible",
-        SolverStatus::MaxIterations => "max_iterations",
-        SolverStatus::MaxTime => "max_time",
-        SolverStatus::NumericalError => "numerical_error",
-        SolverStatus::InsufficientProgress => "insufficient_progress",
-        SolverStatus::CallbackTerminated => "callback_terminated",
+        SolverStatus::Unsolved => SolveStatus::Unsolved,
+        SolverStatus::Solved => SolveStatus::Solved,
+        SolverStatus::PrimalInfeasible => SolveStatus::PrimalInfeasible,
+        SolverStatus::DualInfeasible => SolveStatus::DualInfeasible,
+        SolverStatus::AlmostSolved => SolveStatus::AlmostSolved,
+        SolverStatus::AlmostPrimalInfeasible => SolveStatus::AlmostPrimalInfeasible,
+        SolverStatus::AlmostDualInfeasible => SolveStatus::AlmostDualInfeasible,
+        SolverStatus::MaxIterations => SolveStatus::MaxIterations,
+        SolverStatus::MaxTime => SolveStatus::MaxTime,
+        SolverStatus::NumericalError => SolveStatus::NumericalError,
+        SolverStatus::InsufficientProgress => SolveStatus::InsufficientProgress,
+        SolverStatus::CallbackTerminated => SolveStatus::CallbackTerminated,
     }
 }
 
@@ -347,7 +347,7 @@ impl Mpc {
                 plan: Plan::default(),
                 report: SolverReport {
                     name: terminal.name().to_string(),
-                    status: "unsolved".into(),
+                    status: SolveStatus::Unsolved,
                     iterations: 0,
                     solve_time_us: 0.0,
                 },
@@ -440,7 +440,7 @@ impl Mpc {
                 return;
             }
             self.solver = None;
-            self.run.report.status = "update_error".into();
+            self.run.report.status = SolveStatus::UpdateError;
         }
     }
 
@@ -1224,7 +1224,7 @@ impl Mpc {
     /// Writes this step's values into the solver and solves; the first move when solved.
     fn solve_qp(&mut self, terminal_tilt_rad: [f64; 2]) -> Option<DVector<f64>> {
         if !self.run.x.iter().all(|v| v.is_finite()) {
-            self.run.report.status = "non_finite_state".into();
+            self.run.report.status = SolveStatus::NonFiniteState;
             self.run.report.iterations = 0;
             self.run.report.solve_time_us = 0.0;
             return None;
@@ -1252,7 +1252,7 @@ impl Mpc {
             active_set_us = started.elapsed().as_secs_f64() * 1e6;
             self.run.report.solve_time_us = active_set_us;
             self.run.report.iterations = c.iterations();
-            self.run.report.status = status.word().into();
+            self.run.report.status = status.into();
             match status {
                 QpStatus::Solved => {
                     let z = c.z();
@@ -1264,7 +1264,7 @@ impl Mpc {
             }
         }
         let Some(solver) = self.solver.as_mut() else {
-            self.run.report.status = "setup_error".into();
+            self.run.report.status = SolveStatus::SetupError;
             self.run.report.iterations = 0;
             self.run.report.solve_time_us = 0.0;
             return None;
@@ -1274,7 +1274,7 @@ impl Mpc {
             || solver.update_b(&self.b).is_err()
             || solver.update_q(&self.q).is_err()
         {
-            self.run.report.status = "update_error".into();
+            self.run.report.status = SolveStatus::UpdateError;
             self.run.report.iterations = 0;
             self.run.report.solve_time_us = 0.0;
             return None;
@@ -1290,8 +1290,8 @@ impl Mpc {
         let sol = &solver.solution;
         self.run.report.status = match (&sol.status, self.condensed.is_some()) {
             // Clarabel solved what the active set could not: docs/recordings.md.
-            (SolverStatus::Solved, true) => "solved_clarabel".into(),
-            (s, _) => status_word(s).into(),
+            (SolverStatus::Solved, true) => SolveStatus::SolvedClarabel,
+            (s, _) => solve_status(s),
         };
         self.run.report.iterations = sol.iterations;
         let ok = matches!(
@@ -1412,7 +1412,7 @@ impl Mpc {
         self.run.terminal_tilt_rad = leader.run.terminal_tilt_rad;
         self.run.last_command = leader.run.last_command;
         self.run.plan.clone_from(&leader.run.plan);
-        self.run.report.status = "standby".into();
+        self.run.report.status = SolveStatus::Standby;
         self.run.report.iterations = 0;
         self.run.report.solve_time_us = 0.0;
     }
@@ -1432,7 +1432,7 @@ impl Mpc {
         self.run.plan = Plan::default();
         self.run.mode = self.solved_mode();
         self.run.time_in_mode_s = 0.0;
-        self.run.report.status = "unsolved".into();
+        self.run.report.status = SolveStatus::Unsolved;
         self.run.report.iterations = 0;
         self.run.report.solve_time_us = 0.0;
     }

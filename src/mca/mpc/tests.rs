@@ -658,7 +658,7 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
         };
         let out = mpc.solve(&input);
         applied = out.command;
-        let status = out.report.status.clone();
+        let status = out.report.status;
         let z_as = mpc.condensed.as_ref().unwrap().z().to_vec();
         let (cs, zc, fc) = clarabel_reference(&mut mpc);
         let at = format!("{name} {terminal:?} step {k}");
