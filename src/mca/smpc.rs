@@ -8,6 +8,9 @@
 //! are solved every step, on the two cores in parallel: the supervisor needs COTC's status
 //! to return, and the mixer blends two commands that start from the same pose.
 
+use std::sync::Arc;
+
+use super::mpc::cache::PredictionCache;
 use super::mpc::MpcParams;
 use super::mpc::{Mpc, MpcError, MpcOutcome, Terminal};
 use super::switching::{
@@ -52,9 +55,12 @@ impl Smpc {
         switching: &SwitchingParams,
         setting: &Setting,
     ) -> Result<Self, MpcError> {
+        // One model and one set of discretisations for both: the grids differ in their coarse
+        // intervals only.
+        let cache = Arc::new(PredictionCache::new(setting, &[&free.grid(), &cotc.grid()]));
         Ok(Smpc {
-            cotc: Mpc::new(cotc, setting, Terminal::Cotc)?,
-            free: Mpc::new(free, setting, Terminal::Free)?,
+            cotc: Mpc::with_cache(cotc, setting, Terminal::Cotc, cache.clone())?,
+            free: Mpc::with_cache(free, setting, Terminal::Free, cache)?,
             supervisor: Supervisor::new(switching),
             mixer: SwitchMixer::new(switching),
             regulator: AdaptiveWeightRegulator::new(switching),
@@ -279,6 +285,19 @@ mod tests {
             info: None,
             notices: vec![],
         }
+    }
+
+    #[test]
+    fn both_controllers_share_one_prediction_cache() {
+        let profile = full_flight();
+        let smpc = super::Smpc::new(
+            &profile.mpc,
+            &profile.cotc_params(),
+            &profile.smpc,
+            &profile.setting(),
+        )
+        .unwrap();
+        assert!(Arc::ptr_eq(smpc.cotc.cache(), smpc.free.cache()));
     }
 
     #[test]

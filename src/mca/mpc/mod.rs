@@ -6,6 +6,7 @@
 //! overwrite the QP's values in the solver (the structure was built once) and solve. On any
 //! outcome other than a solution the previous plan is followed, then a smooth washout.
 
+pub mod cache;
 pub mod condensed;
 pub mod model;
 pub mod params;
@@ -13,14 +14,16 @@ pub mod qp;
 pub mod reference;
 pub mod riccati;
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 use nalgebra::{DMatrix, DVector, Matrix6, Vector3, Vector6};
 
+use self::cache::PredictionCache;
 use self::condensed::{CondensedQp, Layout, Var};
-use self::model::{input, pose_of, state, PredictionModel, NU, NX, POSE_STATE};
+use self::model::{input, pose_of, state, NU, NX, POSE_STATE};
 use self::params::ReferenceMode;
 pub use self::params::{CotcOverrides, MpcParams};
 use self::qp::{CscPattern, Triplets};
@@ -28,7 +31,7 @@ use super::{
     AlgorithmId, AlgorithmState, CueInput, CueSample, Mode, MotionCueing, PlatformCommand, Setting,
     SolveStatus, SolverReport,
 };
-use crate::model::lti::{DiscreteStateSpace, StateSpace};
+use crate::model::lti::DiscreteStateSpace;
 use crate::model::platform::DofLimits;
 use crate::model::stewart::Stewart;
 use crate::qp::{QpSettings, QpStatus};
@@ -60,6 +63,8 @@ pub enum MpcError {
     Riccati(#[from] riccati::RiccatiError),
     #[error("QP setup rejected by the solver: {0}")]
     Solver(String),
+    #[error("the shared prediction cache lacks an interval length of this MPC's grid")]
+    Cache,
 }
 
 /// The last solved plan: inputs per prediction interval and the predicted poses.
@@ -169,25 +174,16 @@ pub struct Mpc {
     terminal: Terminal,
     dt_s: f64,
     grid: Vec<f64>,
-    model: PredictionModel,
-    /// Discretisation for each interval of the grid (shared between equal lengths).
+    /// The model and its discretisations, fixed by the setting and the grid.
+    cache: Arc<PredictionCache>,
+    /// For each interval of the grid, its discretisation in the cache (shared between equal
+    /// lengths).
     interval_model: Vec<usize>,
-    discrete: Vec<DiscreteStateSpace>,
-    /// Nonzero entries of each discrete A and B, fixed so that the pattern never changes.
-    a_entries: Vec<Vec<(usize, usize, f64)>>,
-    b_entries: Vec<Vec<(usize, usize, f64)>>,
-    /// Lever-arm jump of the state for a rate change at a boundary (`lever_arm_jump`), and its
-    /// nonzeros propagated over each interval (Φ·E: the jump happens at the interval's start).
-    lever_jump: DMatrix<f64>,
-    e_entries: Vec<Vec<(usize, usize, f64)>>,
     /// Φ·E over one trace step, for the MPC's own state.
     trace_e: DMatrix<f64>,
     trace_model: DiscreteStateSpace,
-    /// Aircraft reference perception model: per grid interval and per trace step.
-    ref_discrete: Vec<DiscreteStateSpace>,
+    /// Aircraft reference perception model over one trace step.
     ref_trace: DiscreteStateSpace,
-    ref_continuous: StateSpace,
-    perceived_c: DMatrix<f64>,
     stewart: Stewart,
     limits: DofLimits,
     tilt_rate_max_radps: [f64; 2],
@@ -227,18 +223,6 @@ pub struct Mpc {
     condensed: Option<CondensedQp>,
 }
 
-fn nonzeros(m: &DMatrix<f64>) -> Vec<(usize, usize, f64)> {
-    let mut out = Vec::new();
-    for c in 0..m.ncols() {
-        for r in 0..m.nrows() {
-            if m[(r, c)] != 0.0 {
-                out.push((r, c, m[(r, c)]));
-            }
-        }
-    }
-    out
-}
-
 fn finite_or_zero(v: f64) -> f64 {
     if v.is_finite() {
         v
@@ -269,32 +253,23 @@ impl Mpc {
         setting: &Setting,
         terminal: Terminal,
     ) -> Result<Self, MpcError> {
+        let cache = PredictionCache::new(setting, &[&params.grid()]);
+        Self::with_cache(params, setting, terminal, Arc::new(cache))
+    }
+
+    /// An MPC on a cache built for (at least) its grid's interval lengths, which other MPCs
+    /// in the same setting may share.
+    pub fn with_cache(
+        params: &MpcParams,
+        setting: &Setting,
+        terminal: Terminal,
+        cache: Arc<PredictionCache>,
+    ) -> Result<Self, MpcError> {
         let dt_s = setting.dt_s;
         let grid = params.grid();
-        let model = PredictionModel::new(&setting.vestibular);
-        let mut lengths: Vec<f64> = Vec::new();
-        let interval_model: Vec<usize> = grid
-            .iter()
-            .map(|h| {
-                lengths
-                    .iter()
-                    .position(|l| (l - h).abs() < 1e-12)
-                    .unwrap_or_else(|| {
-                        lengths.push(*h);
-                        lengths.len() - 1
-                    })
-            })
-            .collect();
-        let discrete: Vec<DiscreteStateSpace> =
-            lengths.iter().map(|h| model.discretise(*h)).collect();
-        let lever_jump = model.lever_arm_jump(&setting.eye_point_m);
-        let trace_model = model.discretise(dt_s);
-        let trace_e = &trace_model.a * &lever_jump;
-        let ref_model = setting.vestibular.perception_model();
-        let ref_discrete = lengths
-            .iter()
-            .map(|h| ref_model.discretise_zoh(*h))
-            .collect();
+        let interval_model = cache.intervals(&grid).ok_or(MpcError::Cache)?;
+        let trace_model = cache.model.discretise(dt_s);
+        let trace_e = &trace_model.a * &cache.lever_jump;
         let thresholds = setting.vestibular.canal_threshold_radps();
         let margin = setting.platform.leg_margin_m;
         let limits = setting.platform.limits;
@@ -302,22 +277,11 @@ impl Mpc {
             params: params.clone(),
             terminal,
             dt_s,
-            a_entries: discrete.iter().map(|d| nonzeros(&d.a)).collect(),
-            b_entries: discrete.iter().map(|d| nonzeros(&d.b)).collect(),
-            e_entries: discrete
-                .iter()
-                .map(|d| nonzeros(&(&d.a * &lever_jump)))
-                .collect(),
-            lever_jump,
             trace_e,
-            discrete,
             interval_model,
             trace_model,
-            ref_discrete,
-            ref_trace: ref_model.discretise_zoh(dt_s),
-            ref_continuous: ref_model,
-            perceived_c: model.perceived_rows(),
-            model,
+            ref_trace: cache.ref_continuous.discretise_zoh(dt_s),
+            cache,
             stewart: setting.platform.stewart.clone(),
             limits,
             tilt_rate_max_radps: [thresholds.x, thresholds.y],
@@ -387,6 +351,11 @@ impl Mpc {
         self.terminal
     }
 
+    /// The model and discretisations this MPC predicts with, perhaps shared with another.
+    pub fn cache(&self) -> &Arc<PredictionCache> {
+        &self.cache
+    }
+
     pub fn params(&self) -> &MpcParams {
         &self.params
     }
@@ -452,7 +421,7 @@ impl Mpc {
     /// weight (perceived and washout terms at the nominal gain) and input weight w·S + R.
     fn terminal_riccati_data(&self) -> (&DiscreteStateSpace, DMatrix<f64>, DMatrix<f64>) {
         let n = self.grid.len();
-        let last = &self.discrete[self.interval_model[n - 1]];
+        let last = &self.cache.discrete[self.interval_model[n - 1]];
         let w = self.stage_weight(n - 1);
         let qx = self.stage_hessian(1.0) * w;
         let r = DMatrix::from_diagonal(&(self.input_weight() * w + self.input_change_weight()));
@@ -504,7 +473,7 @@ impl Mpc {
             q[(i, i)] = q_f[i];
             q[(3 + i, 3 + i)] = q_w[i];
         }
-        let c = &self.perceived_c;
+        let c = &self.cache.perceived_c;
         let mut h = c.transpose() * q * c;
         let [pos, vel, tilt, rot] = washout;
         for i in 0..3 {
@@ -633,7 +602,7 @@ impl Mpc {
                 qy[a] = p.specific_force_weight[a] * self.y_ref[i][a];
                 qy[3 + a] = p.angular_velocity_weight[a] * self.y_ref[i][3 + a];
             }
-            let lin = self.perceived_c.tr_mul(&qy) * (-2.0 * w);
+            let lin = self.cache.perceived_c.tr_mul(&qy) * (-2.0 * w);
             let xc = Self::x_col(i);
             for (k, v) in lin.iter().enumerate() {
                 self.q[xc + k] = *v;
@@ -660,22 +629,22 @@ impl Mpc {
             }
             if i > 0 {
                 let prev = Self::x_col(i - 1);
-                for &(r, c, v) in &self.a_entries[m] {
+                for &(r, c, v) in &self.cache.a_entries[m] {
                     t.push(row + r, prev + c, -v);
                 }
             }
-            for &(r, c, v) in &self.b_entries[m] {
+            for &(r, c, v) in &self.cache.b_entries[m] {
                 t.push(row + r, uc + c, -v);
             }
-            for &(r, c, v) in &self.e_entries[m] {
+            for &(r, c, v) in &self.cache.e_entries[m] {
                 t.push(row + r, uc + c, -v);
                 if i > 0 {
                     t.push(row + r, Self::u_col(i - 1) + c, v);
                 }
             }
             if i == 0 {
-                let mut ax0 = &self.discrete[m].a * d.x0;
-                for &(r, c, v) in &self.e_entries[m] {
+                let mut ax0 = &self.cache.discrete[m].a * d.x0;
+                for &(r, c, v) in &self.cache.e_entries[m] {
                     ax0[r] -= v * d.u_prev[c];
                 }
                 b.extend(ax0.iter());
@@ -815,8 +784,8 @@ impl Mpc {
         // further against that direction than it is now. Without it the plan was free to
         // jolt the wrong way just before a reversal that it then met in time (#24 item 9).
         let felt = |r: f64, th: f64| if r.abs() > th { r.signum() } else { 0.0 };
-        let y_now = &self.ref_discrete[0].c * &self.run.ref_x;
-        let sim_now = &self.perceived_c * &self.run.x;
+        let y_now = &self.cache.ref_discrete[0].c * &self.run.ref_x;
+        let sim_now = &self.cache.perceived_c * &self.run.x;
         let mut carried: Vec<f64> = self
             .false_cue_channels
             .iter()
@@ -856,7 +825,7 @@ impl Mpc {
                 }
                 let col = self.slack_col(i, j);
                 for k in 0..NX {
-                    let v = self.perceived_c[(c, k)];
+                    let v = self.cache.perceived_c[(c, k)];
                     if v != 0.0 {
                         t.push(row, xc + k, -sign * v);
                     }
@@ -1036,8 +1005,8 @@ impl Mpc {
         }
         if self.run.started {
             if (dt_s - self.trace_model.dt_s).abs() > 1e-12 {
-                self.trace_model = self.model.discretise(dt_s);
-                self.trace_e = &self.trace_model.a * &self.lever_jump;
+                self.trace_model = self.cache.model.discretise(dt_s);
+                self.trace_e = &self.trace_model.a * &self.cache.lever_jump;
             }
             let jump = &self.run.u_last - &self.run.u_before;
             self.run.x = &self.trace_model.a * &self.run.x
@@ -1102,7 +1071,7 @@ impl Mpc {
                 }
             }
             self.ref_rate_radps[i] = [u[3], u[4]];
-            let d = &self.ref_discrete[self.interval_model[i]];
+            let d = &self.cache.ref_discrete[self.interval_model[i]];
             xr = &d.a * &xr + &d.b * &u;
             self.y_ref[i] = &d.c * &xr;
             t_start += h;
@@ -1141,7 +1110,7 @@ impl Mpc {
 
     fn advance_reference(&mut self, sample: &CueSample, dt_s: f64) {
         if (dt_s - self.ref_trace.dt_s).abs() > 1e-12 {
-            self.ref_trace = self.ref_continuous.discretise_zoh(dt_s);
+            self.ref_trace = self.cache.ref_continuous.discretise_zoh(dt_s);
         }
         let u = DVector::from_row_slice(&[
             finite_or_zero(sample.delta_f_mps2.x),
@@ -1162,10 +1131,10 @@ impl Mpc {
             self.dt_s
         };
         self.sync_and_advance(input.applied, dt_s);
-        let f_ref_now = (&self.ref_discrete[0].c * &self.run.ref_x)
+        let f_ref_now = (&self.cache.ref_discrete[0].c * &self.run.ref_x)
             .fixed_rows::<3>(0)
             .into_owned();
-        let perceived_now = (&self.perceived_c * &self.run.x)
+        let perceived_now = (&self.cache.perceived_c * &self.run.x)
             .fixed_rows::<3>(0)
             .into_owned();
         // COTC carries the *sustained* cue by tilt: the aircraft's Δf low-passed, so that a
