@@ -3,6 +3,8 @@
 use super::*;
 use crate::profile::tests::full_flight;
 use crate::profile::Profile;
+use clarabel::solver::{IPSolver, SolverStatus};
+use nalgebra::Vector6;
 
 fn step(mpc: &mut Mpc, k: usize, sample: CueSample, applied: &PlatformCommand) -> MpcOutcome {
     let input = CueInput {
