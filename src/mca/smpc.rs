@@ -84,19 +84,17 @@ impl Smpc {
         self.regulator.scale()
     }
 
-    /// Both QPs on the two cores: the free MPC on a scoped thread, COTC here.
+    /// Both QPs on the two cores: the free MPC on rayon's pool (long-lived threads, none
+    /// started per step), COTC here. A panic in the free solve is a bug; the scope carries it
+    /// to this thread rather than continue with one controller silently missing.
     fn solve_both(&mut self, input: &CueInput) -> (MpcOutcome, MpcOutcome) {
         let (cotc, free) = (&mut self.cotc, &mut self.free);
-        std::thread::scope(|scope| {
-            let worker = scope.spawn(|| free.solve(input));
-            let c = cotc.solve(input);
-            // A panic in the solver thread is a bug; carry it to this thread rather than
-            // continue with one controller silently missing.
-            let f = worker
-                .join()
-                .unwrap_or_else(|e| std::panic::resume_unwind(e));
-            (c, f)
-        })
+        let mut f = None;
+        let c = rayon::in_place_scope(|scope| {
+            scope.spawn(|_| f = Some(free.solve(input)));
+            cotc.solve(input)
+        });
+        (c, f.expect("the scope ran the free solve"))
     }
 }
 
