@@ -99,7 +99,7 @@ fn bench(terminal: Terminal) {
         Terminal::Cotc => profile.cotc_params(),
         Terminal::Free => profile.mpc.clone(),
     };
-    let mut mpc = match Mpc::new(&params, &profile, terminal) {
+    let mut mpc = match Mpc::new(&params, &profile.setting(), terminal) {
         Ok(m) => m,
         Err(e) => {
             eprintln!("cannot build the MPC: {e}");
@@ -133,7 +133,9 @@ fn bench(terminal: Terminal) {
             cpu_us.push(b.saturating_sub(a) as f64 * 1e-3);
         }
         solved += usize::from(out.feasible);
-        *statuses.entry(out.report.status.clone()).or_insert(0usize) += 1;
+        *statuses
+            .entry(out.report.status.to_string())
+            .or_insert(0usize) += 1;
         iterations += u64::from(out.report.iterations);
         qp_us.push(out.report.solve_time_us);
         applied = out.command;

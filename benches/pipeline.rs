@@ -9,7 +9,7 @@ use hexcue::engine::Engine;
 use hexcue::formats::profile::default_profile;
 use hexcue::formats::recording::{Recorder, RecordingMeta};
 use hexcue::formats::trace::load_trace;
-use hexcue::mca::{self, AlgorithmId, CueInput, PlatformCommand};
+use hexcue::mca::{AlgorithmId, CueInput, PlatformCommand};
 use hexcue::metrics::TimeHistogram;
 use hexcue::summary::SummaryBuilder;
 
@@ -28,7 +28,7 @@ fn main() {
         load_trace(&repo("recordings/traces/landing.csv"), profile.rate_hz).expect("shipped trace");
 
     // 1. The CWF step alone, over the stall's inputs, 20 passes.
-    let mut cwf = mca::build(AlgorithmId::Cwf, &profile).expect("cwf builds");
+    let mut cwf = profile.algorithm(AlgorithmId::Cwf).expect("cwf builds");
     let inputs: Vec<_> = stall
         .trace
         .samples

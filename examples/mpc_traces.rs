@@ -77,7 +77,8 @@ fn main() {
             .collect();
         let algs: Vec<(&str, Box<StepFn>)> = vec![
             ("mpc", {
-                let mut m = Mpc::new(&profile.mpc, &profile, Terminal::Free).expect("mpc");
+                let mut m =
+                    Mpc::new(&profile.mpc, &profile.setting(), Terminal::Free).expect("mpc");
                 Box::new(move |i: &CueInput| {
                     let o = m.solve(i);
                     if !o.feasible && std::env::var("MPC_TRACE_STATUS").is_ok() {
@@ -90,15 +91,15 @@ fn main() {
                 })
             }),
             ("cotc", {
-                let mut m =
-                    Mpc::new(&profile.cotc_params(), &profile, Terminal::Cotc).expect("cotc");
+                let mut m = Mpc::new(&profile.cotc_params(), &profile.setting(), Terminal::Cotc)
+                    .expect("cotc");
                 Box::new(move |i: &CueInput| {
                     let o = m.solve(i);
                     (o.command, o.feasible)
                 })
             }),
             ("cwf", {
-                let mut w = Washout::new(&profile.cwf, &profile);
+                let mut w = Washout::new(&profile.cwf, &profile.setting());
                 Box::new(move |i: &CueInput| (w.step(i), true))
             }),
         ];

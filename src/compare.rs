@@ -6,6 +6,7 @@ use std::fmt::Write;
 
 use crate::metrics::{ChannelMetrics, CHANNELS};
 use crate::summary::{AlgorithmSummary, Summary};
+use crate::vocab::{AlgorithmId, Channel};
 
 /// One trace's results with what the report says about the trace.
 pub struct TraceResult {
@@ -14,30 +15,33 @@ pub struct TraceResult {
     pub description: Option<String>,
 }
 
-/// Algorithms in the order the report shows them.
-const ORDER: [&str; 3] = ["smpc", "mpc", "cwf"];
-
+/// An algorithm's name for people; a key this version does not know, as it is.
 fn label(key: &str) -> &str {
-    match key {
-        "smpc" => "S-MPC",
-        "mpc" => "MPC",
-        "cwf" => "CWF",
-        other => other,
+    match known(key) {
+        Some(id) => id.label(),
+        None => key,
     }
 }
 
+/// The algorithm a summary's key names exactly.
+fn known(key: &str) -> Option<AlgorithmId> {
+    AlgorithmId::ALL.iter().copied().find(|id| id.key() == key)
+}
+
+/// The summary's algorithms in the order the report shows them ([`AlgorithmId::ALL`]), keys
+/// this version does not know last.
 fn ordered(summary: &Summary) -> Vec<(&str, &AlgorithmSummary)> {
-    let mut v: Vec<(&str, &AlgorithmSummary)> = ORDER
+    let mut v: Vec<(&str, &AlgorithmSummary)> = AlgorithmId::ALL
         .iter()
-        .filter_map(|k| {
+        .filter_map(|id| {
             summary
                 .algorithms
-                .get_key_value(*k)
+                .get_key_value(id.key())
                 .map(|(k, a)| (k.as_str(), a))
         })
         .collect();
     for (k, a) in &summary.algorithms {
-        if !ORDER.contains(&k.as_str()) {
+        if known(k).is_none() {
             v.push((k.as_str(), a));
         }
     }
@@ -48,16 +52,12 @@ fn metric(a: &AlgorithmSummary, ch: &str, f: fn(&crate::metrics::ChannelMetrics)
     a.metrics.get(ch).map_or(f64::NAN, f)
 }
 
-/// What each channel is called in the report: the motion a pilot names, and its symbol.
+/// What each channel is called in the report ([`Channel::label`]); a key this version does
+/// not know, as it is.
 fn channel_name(ch: &str) -> &str {
-    match ch {
-        "fx" => "surge f̂x",
-        "fy" => "sway f̂y",
-        "fz" => "heave f̂z",
-        "wx" => "roll ω̂x",
-        "wy" => "pitch ω̂y",
-        "wz" => "yaw ω̂z",
-        other => other,
+    match Channel::from_key(ch) {
+        Some(c) => c.label(),
+        None => ch,
     }
 }
 
@@ -946,9 +946,11 @@ fn discussion(results: &[TraceResult], profile: &crate::profile::Profile) -> Str
     let mut out = String::from("## Discussion (generated from the numbers above)\n\n");
     out.push_str(&channels_discussion(results));
     out.push_str("### The paper's measure: surge and sway RAE\n\n");
-    let complete = results
-        .iter()
-        .all(|r| ORDER.iter().all(|k| r.summary.algorithms.contains_key(*k)));
+    let complete = results.iter().all(|r| {
+        AlgorithmId::ALL
+            .iter()
+            .all(|id| r.summary.algorithms.contains_key(id.key()))
+    });
     if !complete {
         out.push_str("Not every algorithm ran on every trace, so the ordering S-MPC ≤ MPC < CWF is not assessed.\n");
         return out;

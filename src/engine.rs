@@ -203,7 +203,7 @@ impl Engine {
             .iter()
             .map(|&id| {
                 Ok(Lane {
-                    algorithm: mca::build(id, profile)?,
+                    algorithm: profile.algorithm(id)?,
                     limiter: WorkspaceLimiter::new(
                         stewart.clone(),
                         profile.limits.si(),
@@ -263,11 +263,10 @@ impl Engine {
     }
 
     /// Steps the lanes one after the other on the caller's thread (`false`) rather than
-    /// the first here and the others on a thread started for the step. A live session does:
-    /// starting a thread takes the process's memory-map lock (its stacks are mapped), which
-    /// any other thread of the process may hold while it is preempted, so a real-time step
-    /// could wait on it for a scheduler tick or more; the lanes together take well under a
-    /// period.
+    /// the first here and the others on rayon's pool. A live session does: its stepping
+    /// thread runs at real-time priority and the pool's threads do not, so a step handed to
+    /// them could wait behind any other work of the machine; the lanes together take well
+    /// under a period.
     pub fn set_parallel(&mut self, parallel: bool) {
         let heavy = self
             .lanes
@@ -420,24 +419,22 @@ impl Engine {
         };
         let lanes = match self.lanes.split_first_mut() {
             // Lanes are independent: the first (the heaviest, in the console's order) steps
-            // here, the others on a second thread, so that on two cores a headless run of
-            // every algorithm costs about the slowest lane, not their sum.
+            // here, the others on rayon's pool, so that on two cores a headless run of every
+            // algorithm costs about the slowest lane, not their sum. The pool's threads live
+            // as long as the process: no thread is started per step. A panic in a lane is a
+            // bug, and the scope carries it here rather than drop the lane.
             Some((first, rest)) if !rest.is_empty() && self.parallel => {
-                std::thread::scope(|scope| {
-                    let others = scope.spawn(|| {
-                        rest.iter_mut()
-                            .map(|lane| ctx.step(lane))
-                            .collect::<Vec<_>>()
+                let mut others = Vec::new();
+                let ctx = &ctx;
+                let here = rayon::in_place_scope(|scope| {
+                    scope.spawn(|_| {
+                        others = rest.iter_mut().map(|lane| ctx.step(lane)).collect();
                     });
-                    let mut out = vec![ctx.step(first)];
-                    // A panic in a lane is a bug; carry it here rather than drop the lane.
-                    out.extend(
-                        others
-                            .join()
-                            .unwrap_or_else(|e| std::panic::resume_unwind(e)),
-                    );
-                    out
-                })
+                    ctx.step(first)
+                });
+                let mut out = vec![here];
+                out.extend(others);
+                out
             }
             _ => self.lanes.iter_mut().map(|lane| ctx.step(lane)).collect(),
         };

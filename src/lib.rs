@@ -32,6 +32,7 @@ pub mod summary;
 pub mod trace;
 pub mod tui;
 pub mod tune;
+pub mod vocab;
 
 /// Standard gravity (m/s²).
 pub const G_MPS2: f64 = 9.80665;

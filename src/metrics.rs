@@ -3,8 +3,17 @@
 
 use serde::{Deserialize, Serialize};
 
-/// The six perceived channels, in order.
-pub const CHANNELS: [&str; 6] = ["fx", "fy", "fz", "wx", "wy", "wz"];
+use crate::vocab::Channel;
+
+/// The keys of the six perceived channels, in the order of [`Channel::ALL`].
+pub const CHANNELS: [&str; 6] = [
+    Channel::Fx.key(),
+    Channel::Fy.key(),
+    Channel::Fz.key(),
+    Channel::Wx.key(),
+    Channel::Wy.key(),
+    Channel::Wz.key(),
+];
 
 /// Metrics of one channel over a run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]

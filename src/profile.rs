@@ -3,22 +3,25 @@
 //! Values are stored in the units their key names (`_m`, `_deg`, `_dps`, …) so that the TOML
 //! reads as the engineer wrote it; accessors convert to SI.
 
-use nalgebra::{Vector3, Vector6};
+use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use crate::mca::mpc::MpcParams;
-use crate::mca::washout::WashoutParams;
+use crate::mca::mpc::{Mpc, MpcParams, Terminal};
+use crate::mca::smpc::Smpc;
+use crate::mca::washout::Washout;
+use crate::mca::{AlgorithmId, BuildError, MotionCueing, Setting};
+use crate::model::platform::Platform;
 use crate::model::stewart::{Geometry, Stewart, SYMMETRIC_KEYS};
 use crate::model::vestibular::VestibularParams;
 
-/// A profile value that cannot describe a real simulator.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("`{key}`: {reason}")]
-pub struct ProfileError {
-    /// Dotted path of the offending key, e.g. `geometry.leg_min_m`.
-    pub key: String,
-    pub reason: String,
-}
+// Each section's type lives with what it tunes; these names stay for the code that reached
+// them here before they moved.
+pub use crate::mca::limiter::LimiterParams;
+pub use crate::mca::switching::SwitchingParams;
+pub use crate::mca::washout::WashoutParams;
+pub use crate::model::platform::{DofLimits, Limits, RotationLimits, TranslationLimits};
+pub(crate) use crate::vocab::positive;
+pub use crate::vocab::ProfileError;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -43,7 +46,7 @@ pub struct Profile {
     pub mpc: MpcParams,
     /// The switchable MPC's supervisor, mixer and weight regulator; its two MPCs use `[mpc]`,
     /// COTC with the overrides of `[smpc.cotc]`.
-    pub smpc: crate::mca::switching::SwitchingParams,
+    pub smpc: SwitchingParams,
     /// Weights of the cueing score (absent: the defaults of `crate::score`).
     #[serde(default)]
     pub score: crate::score::ScoreWeights,
@@ -81,67 +84,6 @@ impl Default for MoogParams {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TranslationLimits {
-    /// Largest displacement from neutral, either way (m).
-    pub excursion_m: f64,
-    pub velocity_mps: f64,
-    pub acceleration_mps2: f64,
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RotationLimits {
-    /// Largest angle from neutral, either way (deg).
-    pub excursion_deg: f64,
-    pub rate_dps: f64,
-    pub acceleration_dps2: f64,
-}
-
-/// Per-DoF limits of the platform (DESIGN §3 table).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Limits {
-    pub surge: TranslationLimits,
-    pub sway: TranslationLimits,
-    pub heave: TranslationLimits,
-    pub roll: RotationLimits,
-    pub pitch: RotationLimits,
-    pub yaw: RotationLimits,
-}
-
-impl Limits {
-    /// Excursion, velocity and acceleration limits in SI (m, m/s, m/s², rad, rad/s, rad/s²),
-    /// in the order x, y, z, roll, pitch, yaw.
-    pub fn si(&self) -> DofLimits {
-        let t = [&self.surge, &self.sway, &self.heave];
-        let r = [&self.roll, &self.pitch, &self.yaw];
-        let pick = |ft: fn(&TranslationLimits) -> f64, fr: fn(&RotationLimits) -> f64| {
-            Vector6::from_fn(|i, _| {
-                if i < 3 {
-                    ft(t[i])
-                } else {
-                    fr(r[i - 3]).to_radians()
-                }
-            })
-        };
-        DofLimits {
-            excursion: pick(|l| l.excursion_m, |l| l.excursion_deg),
-            velocity: pick(|l| l.velocity_mps, |l| l.rate_dps),
-            acceleration: pick(|l| l.acceleration_mps2, |l| l.acceleration_dps2),
-        }
-    }
-}
-
-/// Per-DoF limits in SI, symmetric about neutral.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DofLimits {
-    pub excursion: Vector6<f64>,
-    pub velocity: Vector6<f64>,
-    pub acceleration: Vector6<f64>,
-}
-
 /// Saturation of the aircraft motion before any algorithm sees it: a crash or a sensor
 /// glitch in a trace must not become a platform command.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -151,13 +93,6 @@ pub struct InputLimits {
     pub specific_force_limit_mps2: f64,
     /// Largest |ω| per axis passed to the algorithms (°/s).
     pub angular_velocity_limit_dps: f64,
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct LimiterParams {
-    /// Distance every leg keeps from its end stops (m).
-    pub leg_margin_m: f64,
 }
 
 impl Profile {
@@ -173,12 +108,49 @@ impl Profile {
         Stewart::new(&self.geometry)
     }
 
-    /// Every check that TOML's types cannot express. The first problem found is reported.
+    /// The platform as the algorithms see it: legs, limits in SI, leg margin.
+    pub fn platform(&self) -> Platform {
+        Platform {
+            stewart: self.stewart(),
+            limits: self.limits.si(),
+            leg_margin_m: self.limiter.leg_margin_m,
+        }
+    }
+
+    /// What every algorithm this profile tunes is built for, besides its own section.
+    pub fn setting(&self) -> Setting {
+        Setting {
+            dt_s: self.dt_s(),
+            platform: self.platform(),
+            eye_point_m: self.eye_point(),
+            vestibular: self.vestibular.clone(),
+        }
+    }
+
+    /// Builds the algorithm `id` as this profile tunes it.
+    pub fn algorithm(&self, id: AlgorithmId) -> Result<Box<dyn MotionCueing>, BuildError> {
+        let setup = |e: crate::mca::mpc::MpcError| BuildError::Setup {
+            algorithm: id,
+            reason: e.to_string(),
+        };
+        let setting = self.setting();
+        match id {
+            AlgorithmId::Smpc => Smpc::new(&self.mpc, &self.cotc_params(), &self.smpc, &setting)
+                .map(|m| Box::new(m) as Box<dyn MotionCueing>)
+                .map_err(setup),
+            AlgorithmId::Mpc => Mpc::new(&self.mpc, &setting, Terminal::Free)
+                .map(|m| Box::new(m) as Box<dyn MotionCueing>)
+                .map_err(setup),
+            AlgorithmId::Cwf => Ok(Box::new(Washout::new(&self.cwf, &setting))),
+        }
+    }
+
     /// COTC's parameters: `[mpc]` with the overrides of `[smpc.cotc]`.
     pub fn cotc_params(&self) -> MpcParams {
         self.smpc.cotc.apply(&self.mpc)
     }
 
+    /// Every check that TOML's types cannot express. The first problem found is reported.
     pub fn validate(&self) -> Result<(), ProfileError> {
         let err = |key: &str, reason: String| {
             Err(ProfileError {
@@ -499,18 +471,6 @@ fn check_points(key: &str, points: &[Vec<f64>]) -> Result<(), ProfileError> {
         }
     }
     Ok(())
-}
-
-/// `Ok` for a finite, strictly positive value, else an error naming the key.
-pub(crate) fn positive(key: &str, v: f64) -> Result<(), ProfileError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(ProfileError {
-            key: key.to_string(),
-            reason: format!("{v}: expected a finite value greater than 0"),
-        })
-    }
 }
 
 #[cfg(test)]

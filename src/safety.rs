@@ -12,7 +12,7 @@ use nalgebra::Vector6;
 use serde::Serialize;
 
 use crate::mca::PlatformCommand;
-use crate::profile::DofLimits;
+use crate::model::platform::DofLimits;
 
 /// Tuning of the safety states.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -16,8 +16,8 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use crate::metrics::CHANNELS;
-use crate::profile::ProfileError;
+use crate::vocab::Channel;
+use crate::vocab::ProfileError;
 
 /// The profile's `[score]` section: the weights of the score's terms.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -160,12 +160,12 @@ impl ScoreAccumulator {
         }
         let n = self.steps as f64;
         let w = &self.weights;
-        let error: BTreeMap<String, f64> = CHANNELS
+        let error: BTreeMap<String, f64> = Channel::ALL
             .iter()
             .enumerate()
-            .map(|(c, name)| {
+            .map(|(c, channel)| {
                 (
-                    name.to_string(),
+                    channel.key().to_string(),
                     w.channel_weight[c] * self.error_sum[c] / n,
                 )
             })

@@ -8,10 +8,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::engine::Frame;
 use crate::mca::AlgorithmId;
-use crate::metrics::{ChannelAccumulator, ChannelMetrics, StepTimes, TimeHistogram, CHANNELS};
+use crate::metrics::{ChannelAccumulator, ChannelMetrics, StepTimes, TimeHistogram};
 use crate::model::stewart::Stewart;
 use crate::profile::Profile;
 use crate::score::{ScoreAccumulator, ScoreTerms, ScoreWeights};
+use crate::vocab::Channel;
 
 /// Lags searched for the equivalent delay (s).
 pub const MAX_LAG_S: f64 = 1.0;
@@ -297,10 +298,10 @@ impl SummaryBuilder {
             .algorithms
             .iter()
             .map(|(id, acc)| {
-                let metrics = CHANNELS
+                let metrics = Channel::ALL
                     .iter()
                     .zip(&acc.channels)
-                    .map(|(name, ch)| (name.to_string(), ch.finish()))
+                    .map(|(c, ch)| (c.key().to_string(), ch.finish()))
                     .collect();
                 let (score, score_terms) = acc.score.finish();
                 let summary = AlgorithmSummary {

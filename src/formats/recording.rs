@@ -364,7 +364,7 @@ impl ControllerMsg {
                 .iter()
                 .map(|r| SolverMsg {
                     name: r.name.clone(),
-                    status: r.status.clone(),
+                    status: r.status.to_string(),
                     iterations: r.iterations,
                     solve_time_us: r.solve_time_us,
                 })
@@ -1734,7 +1734,7 @@ impl Frames {
                             .iter()
                             .map(|s| SolverReport {
                                 name: s.name.clone(),
-                                status: s.status.clone(),
+                                status: s.status.as_str().into(),
                                 iterations: s.iterations,
                                 solve_time_us: s.solve_time_us,
                             })

@@ -7,10 +7,11 @@
 //! over the rate limits when both cannot hold.
 
 use nalgebra::Vector6;
+use serde::{Deserialize, Serialize};
 
 use super::PlatformCommand;
+use crate::model::platform::DofLimits;
 use crate::model::stewart::Stewart;
-use crate::profile::DofLimits;
 
 /// Relative slack before a command counts as over a rate limit, so that rounding in an
 /// algorithm that sits exactly on a limit does not trigger the limiter.
@@ -19,6 +20,14 @@ const RATE_TOLERANCE: f64 = 1e-6;
 /// Bound on the braking look-ahead: at the shipped limits a stop takes at most about 15
 /// steps; a profile with far lower accelerations is checked over this many.
 const MAX_BRAKING_STEPS: usize = 1000;
+
+/// The profile's `[limiter]` section.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimiterParams {
+    /// Distance every leg keeps from its end stops (m).
+    pub leg_margin_m: f64,
+}
 
 #[derive(Clone, Debug)]
 pub struct WorkspaceLimiter {

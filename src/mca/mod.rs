@@ -10,51 +10,22 @@ pub mod washout;
 use nalgebra::{Vector3, Vector6};
 use serde::Serialize;
 
-use crate::profile::Profile;
+use crate::model::platform::Platform;
+use crate::model::vestibular::VestibularParams;
+pub use crate::vocab::{AlgorithmId, SolveStatus};
 
-/// The algorithms hexcue can run, in the order the console shows them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum AlgorithmId {
-    Smpc,
-    Mpc,
-    Cwf,
-}
-
-impl AlgorithmId {
-    pub const ALL: &'static [AlgorithmId] =
-        &[AlgorithmId::Smpc, AlgorithmId::Mpc, AlgorithmId::Cwf];
-
-    /// Short name used on the command line, in topics (`/cwf/...`) and summaries.
-    pub fn key(self) -> &'static str {
-        match self {
-            AlgorithmId::Smpc => "smpc",
-            AlgorithmId::Mpc => "mpc",
-            AlgorithmId::Cwf => "cwf",
-        }
-    }
-
-    /// Name shown to people.
-    pub fn label(self) -> &'static str {
-        match self {
-            AlgorithmId::Smpc => "S-MPC",
-            AlgorithmId::Mpc => "MPC",
-            AlgorithmId::Cwf => "CWF",
-        }
-    }
-
-    pub fn from_key(key: &str) -> Option<Self> {
-        Self::ALL
-            .iter()
-            .copied()
-            .find(|a| a.key() == key.trim().to_ascii_lowercase())
-    }
-}
-
-impl std::fmt::Display for AlgorithmId {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.key())
-    }
+/// What every algorithm is built for besides its own tuning: the platform it drives, where
+/// the pilot's head sits on it, the pilot's vestibular system and the step. The profile
+/// composes it from its sections; the algorithms never see the profile itself.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Setting {
+    /// The step every algorithm runs at (s).
+    pub dt_s: f64,
+    pub platform: Platform,
+    /// Pilot's head relative to the centre of the platform joint plane, platform frame
+    /// (x forward, y right, z down) (m).
+    pub eye_point_m: Vector3<f64>,
+    pub vestibular: VestibularParams,
 }
 
 /// The aircraft motion an algorithm cues, after input limiting: Δf = f − (0, 0, −g) and ω at
@@ -149,8 +120,8 @@ pub struct SolverReport {
     /// Which QP: `mpc`, `cotc`, `free`. Owned so that a report read back from a recording
     /// is the same type as a live one.
     pub name: String,
-    /// Solver status in words, e.g. `solved`, `primal_infeasible`, `max_time`.
-    pub status: String,
+    /// How the solve ended; recordings store its word, e.g. `solved`, `primal_infeasible`.
+    pub status: SolveStatus,
     pub iterations: u32,
     pub solve_time_us: f64,
 }
@@ -163,6 +134,7 @@ pub struct AlgorithmState {
     pub blend: Option<f64>,
     pub time_in_mode_s: f64,
     pub switch_count: u32,
+    /// The text of the supervisor's last [`crate::vocab::SwitchReason`], as recordings store it.
     pub last_switch_reason: Option<String>,
     pub solvers: Vec<SolverReport>,
 }
@@ -220,7 +192,7 @@ impl std::fmt::Debug for AlgorithmSnapshot {
     }
 }
 
-/// Error building an algorithm from a profile.
+/// Error building an algorithm.
 #[derive(Debug, thiserror::Error)]
 pub enum BuildError {
     #[error("profile `{profile}` has no [{section}] section, which {algorithm} needs")]
@@ -234,21 +206,4 @@ pub enum BuildError {
         algorithm: AlgorithmId,
         reason: String,
     },
-}
-
-/// Builds the algorithm `id` as the profile tunes it.
-pub fn build(id: AlgorithmId, profile: &Profile) -> Result<Box<dyn MotionCueing>, BuildError> {
-    let setup = |e: mpc::MpcError| BuildError::Setup {
-        algorithm: id,
-        reason: e.to_string(),
-    };
-    match id {
-        AlgorithmId::Smpc => smpc::Smpc::new(profile)
-            .map(|m| Box::new(m) as Box<dyn MotionCueing>)
-            .map_err(setup),
-        AlgorithmId::Mpc => mpc::Mpc::new(&profile.mpc, profile, mpc::Terminal::Free)
-            .map(|m| Box::new(m) as Box<dyn MotionCueing>)
-            .map_err(setup),
-        AlgorithmId::Cwf => Ok(Box::new(washout::Washout::new(&profile.cwf, profile))),
-    }
 }

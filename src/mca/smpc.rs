@@ -8,13 +8,16 @@
 //! are solved every step, on the two cores in parallel: the supervisor needs COTC's status
 //! to return, and the mixer blends two commands that start from the same pose.
 
+use std::sync::Arc;
+
+use super::mpc::cache::PredictionCache;
+use super::mpc::MpcParams;
 use super::mpc::{Mpc, MpcError, MpcOutcome, Terminal};
 use super::switching::{
-    AdaptiveWeightRegulator, Controller, Supervisor, SupervisorInput, SwitchMixer,
+    AdaptiveWeightRegulator, Controller, Supervisor, SupervisorInput, SwitchMixer, SwitchingParams,
 };
-use super::{AlgorithmId, AlgorithmState, CueInput, Mode, MotionCueing, PlatformCommand};
+use super::{AlgorithmId, AlgorithmState, CueInput, Mode, MotionCueing, PlatformCommand, Setting};
 use crate::model::stewart::Stewart;
-use crate::profile::Profile;
 
 pub struct Smpc {
     cotc: Mpc,
@@ -44,14 +47,24 @@ struct SmpcState {
 }
 
 impl Smpc {
-    pub fn new(profile: &Profile) -> Result<Self, MpcError> {
+    /// `free` tunes the MPC without terminal conditions, `cotc` the one with them (the
+    /// profile's `[mpc]` with the overrides of `[smpc.cotc]`).
+    pub fn new(
+        free: &MpcParams,
+        cotc: &MpcParams,
+        switching: &SwitchingParams,
+        setting: &Setting,
+    ) -> Result<Self, MpcError> {
+        // One model and one set of discretisations for both: the grids differ in their coarse
+        // intervals only.
+        let cache = Arc::new(PredictionCache::new(setting, &[&free.grid(), &cotc.grid()]));
         Ok(Smpc {
-            cotc: Mpc::new(&profile.cotc_params(), profile, Terminal::Cotc)?,
-            free: Mpc::new(&profile.mpc, profile, Terminal::Free)?,
-            supervisor: Supervisor::new(&profile.smpc),
-            mixer: SwitchMixer::new(&profile.smpc),
-            regulator: AdaptiveWeightRegulator::new(&profile.smpc),
-            stewart: profile.stewart(),
+            cotc: Mpc::with_cache(cotc, setting, Terminal::Cotc, cache.clone())?,
+            free: Mpc::with_cache(free, setting, Terminal::Free, cache)?,
+            supervisor: Supervisor::new(switching),
+            mixer: SwitchMixer::new(switching),
+            regulator: AdaptiveWeightRegulator::new(switching),
+            stewart: setting.platform.stewart.clone(),
             outgoing: Controller::Cotc,
             mode: Mode::Cotc,
             time_in_mode_s: 0.0,
@@ -71,19 +84,17 @@ impl Smpc {
         self.regulator.scale()
     }
 
-    /// Both QPs on the two cores: the free MPC on a scoped thread, COTC here.
+    /// Both QPs on the two cores: the free MPC on rayon's pool (long-lived threads, none
+    /// started per step), COTC here. A panic in the free solve is a bug; the scope carries it
+    /// to this thread rather than continue with one controller silently missing.
     fn solve_both(&mut self, input: &CueInput) -> (MpcOutcome, MpcOutcome) {
         let (cotc, free) = (&mut self.cotc, &mut self.free);
-        std::thread::scope(|scope| {
-            let worker = scope.spawn(|| free.solve(input));
-            let c = cotc.solve(input);
-            // A panic in the solver thread is a bug; carry it to this thread rather than
-            // continue with one controller silently missing.
-            let f = worker
-                .join()
-                .unwrap_or_else(|e| std::panic::resume_unwind(e));
-            (c, f)
-        })
+        let mut f = None;
+        let c = rayon::in_place_scope(|scope| {
+            scope.spawn(|_| f = Some(free.solve(input)));
+            cotc.solve(input)
+        });
+        (c, f.expect("the scope ran the free solve"))
     }
 }
 
@@ -135,7 +146,7 @@ impl MotionCueing for Smpc {
         let decision = self.supervisor.update(
             &SupervisorInput {
                 cotc_solved: cotc.feasible,
-                cotc_status: &cotc.report.status,
+                cotc_status: cotc.report.status,
                 error_x_mps2: error.x,
                 error_y_mps2: error.y,
             },
@@ -189,7 +200,7 @@ impl MotionCueing for Smpc {
             blend: self.mixer.weight(),
             time_in_mode_s: self.time_in_mode_s,
             switch_count: self.supervisor.switch_count(),
-            last_switch_reason: self.supervisor.last_reason().map(str::to_string),
+            last_switch_reason: self.supervisor.last_reason().map(|r| r.to_string()),
             solvers: self.reports.to_vec(),
         }
     }
@@ -272,6 +283,19 @@ mod tests {
             info: None,
             notices: vec![],
         }
+    }
+
+    #[test]
+    fn both_controllers_share_one_prediction_cache() {
+        let profile = full_flight();
+        let smpc = super::Smpc::new(
+            &profile.mpc,
+            &profile.cotc_params(),
+            &profile.smpc,
+            &profile.setting(),
+        )
+        .unwrap();
+        assert!(Arc::ptr_eq(smpc.cotc.cache(), smpc.free.cache()));
     }
 
     #[test]
@@ -446,7 +470,13 @@ mod tests {
         let mut profile = full_flight();
         // A zero time budget: every QP of both MPCs ends max_time.
         profile.mpc.time_limit_ms = 1e-9;
-        let mut smpc = super::Smpc::new(&profile).unwrap();
+        let mut smpc = super::Smpc::new(
+            &profile.mpc,
+            &profile.cotc_params(),
+            &profile.smpc,
+            &profile.setting(),
+        )
+        .unwrap();
         let displaced = PlatformCommand {
             pose: nalgebra::Vector6::new(0.5, -0.3, 0.1, 0.05, 0.08, 0.1),
             ..Default::default()
@@ -477,7 +507,13 @@ mod tests {
     fn a_nan_in_the_reference_never_reaches_the_platform() {
         use crate::mca::{CueSample, PlatformCommand};
         let profile = full_flight();
-        let mut smpc = super::Smpc::new(&profile).unwrap();
+        let mut smpc = super::Smpc::new(
+            &profile.mpc,
+            &profile.cotc_params(),
+            &profile.smpc,
+            &profile.setting(),
+        )
+        .unwrap();
         let mut samples = vec![
             CueSample {
                 delta_f_mps2: Vector3::new(2.0, 1.0, 0.0),

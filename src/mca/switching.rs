@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use super::mpc::CotcOverrides;
 use super::PlatformCommand;
-use crate::profile::{positive, ProfileError};
+use crate::vocab::{positive, ProfileError, SolveStatus, SwitchReason};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -92,11 +92,11 @@ pub enum Controller {
 
 /// What the supervisor is told at each step.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SupervisorInput<'a> {
+pub struct SupervisorInput {
     /// COTC's QP was solved in time this step.
     pub cotc_solved: bool,
-    /// COTC's solver status in words, for the switch reason.
-    pub cotc_status: &'a str,
+    /// COTC's solver status, for the switch reason.
+    pub cotc_status: SolveStatus,
     /// Longitudinal and lateral perceived specific-force errors, reference − simulator (m/s²).
     pub error_x_mps2: f64,
     pub error_y_mps2: f64,
@@ -106,7 +106,7 @@ pub struct SupervisorInput<'a> {
 #[derive(Clone, Debug, PartialEq)]
 pub struct SwitchDecision {
     pub to: Controller,
-    pub reason: String,
+    pub reason: SwitchReason,
 }
 
 /// The supervisory controller: COTC while it is solved, the free MPC when it is not, and back
@@ -119,7 +119,7 @@ pub struct Supervisor {
     time_in_state_s: f64,
     within_epsilon_s: f64,
     switch_count: u32,
-    last_reason: Option<String>,
+    last_reason: Option<SwitchReason>,
 }
 
 impl Supervisor {
@@ -152,8 +152,8 @@ impl Supervisor {
     pub fn switch_count(&self) -> u32 {
         self.switch_count
     }
-    pub fn last_reason(&self) -> Option<&str> {
-        self.last_reason.as_deref()
+    pub fn last_reason(&self) -> Option<&SwitchReason> {
+        self.last_reason.as_ref()
     }
 
     /// One step of `dt_s`; returns the switch to make, if any.
@@ -169,17 +169,17 @@ impl Supervisor {
         let decision = match self.active {
             Controller::Cotc if !input.cotc_solved => Some(SwitchDecision {
                 to: Controller::Free,
-                reason: format!("COTC not solved ({})", input.cotc_status),
+                reason: SwitchReason::CotcNotSolved(input.cotc_status),
             }),
             Controller::Free
                 if input.cotc_solved && self.within_epsilon_s >= self.dwell_s - 1e-9 =>
             {
                 Some(SwitchDecision {
                     to: Controller::Cotc,
-                    reason: format!(
-                        "errors within ε = {:.2} m/s² for {:.1} s and COTC solved",
-                        self.epsilon_mps2, self.dwell_s
-                    ),
+                    reason: SwitchReason::Settled {
+                        epsilon_mps2: self.epsilon_mps2,
+                        dwell_s: self.dwell_s,
+                    },
                 })
             }
             _ => None,
@@ -342,14 +342,15 @@ mod tests {
         }
     }
 
-    fn input(solved: bool, ex: f64) -> SupervisorInput<'static> {
+    fn input(solved: bool, ex: f64) -> SupervisorInput {
         SupervisorInput {
             cotc_solved: solved,
             cotc_status: if solved {
                 "solved"
             } else {
                 "primal_infeasible"
-            },
+            }
+            .into(),
             error_x_mps2: ex,
             error_y_mps2: 0.0,
         }
@@ -361,7 +362,11 @@ mod tests {
         assert_eq!(s.update(&input(true, 0.0), 0.01), None);
         let d = s.update(&input(false, 0.0), 0.01).expect("a switch");
         assert_eq!(d.to, Controller::Free);
-        assert!(d.reason.contains("primal_infeasible"), "{}", d.reason);
+        assert!(
+            d.reason.to_string().contains("primal_infeasible"),
+            "{}",
+            d.reason
+        );
         assert_eq!((s.active(), s.switch_count()), (Controller::Free, 1));
     }
 

@@ -10,9 +10,10 @@ use serde::{Deserialize, Serialize};
 
 use super::{
     AlgorithmId, AlgorithmSnapshot, AlgorithmState, CueInput, Mode, MotionCueing, PlatformCommand,
+    Setting,
 };
 use crate::model::lti::{LtiFilter, StateSpace};
-use crate::profile::{positive, Profile, ProfileError};
+use crate::vocab::{positive, ProfileError};
 use crate::G_MPS2;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -211,8 +212,8 @@ pub struct Washout {
 }
 
 impl Washout {
-    pub fn new(params: &WashoutParams, profile: &Profile) -> Self {
-        let dt = profile.dt_s();
+    pub fn new(params: &WashoutParams, setting: &Setting) -> Self {
+        let dt = setting.dt_s;
         Washout {
             params: params.clone(),
             translational: std::array::from_fn(|i| {
@@ -359,7 +360,7 @@ mod tests {
     #[test]
     fn translational_channel_washes_out_to_neutral() {
         let profile = full_flight();
-        let mut w = Washout::new(&profile.cwf, &profile);
+        let mut w = Washout::new(&profile.cwf, &profile.setting());
         let out = run(&mut w, (0..6000).map(|_| surge(2.0)));
         let peak = out.iter().map(|c| c.pose[0]).fold(0.0f64, f64::max);
         assert!(
@@ -383,7 +384,7 @@ mod tests {
     #[test]
     fn tilt_rate_and_acceleration_stay_within_their_limits() {
         let profile = full_flight();
-        let mut w = Washout::new(&profile.cwf, &profile);
+        let mut w = Washout::new(&profile.cwf, &profile.setting());
         let out = run(
             &mut w,
             (0..3000).map(|k| surge(if k < 1500 { 4.0 } else { -4.0 })),
@@ -402,7 +403,7 @@ mod tests {
     #[test]
     fn outputs_are_consistent_derivatives() {
         let profile = full_flight();
-        let mut w = Washout::new(&profile.cwf, &profile);
+        let mut w = Washout::new(&profile.cwf, &profile.setting());
         let out = run(
             &mut w,
             (0..2000).map(|k| {
@@ -433,7 +434,7 @@ mod tests {
     fn rotational_channel_is_a_high_pass_on_the_rate() {
         // A sustained roll rate gives a roll angle that peaks, then returns to neutral.
         let profile = full_flight();
-        let mut w = Washout::new(&profile.cwf, &profile);
+        let mut w = Washout::new(&profile.cwf, &profile.setting());
         let rate = CueSample {
             delta_f_mps2: Vector3::zeros(),
             angular_velocity_radps: Vector3::new(0.1, 0.0, 0.0),

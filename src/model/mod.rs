@@ -1,5 +1,6 @@
 //! Physical models: linear systems, the vestibular system and the Stewart platform.
 
 pub mod lti;
+pub mod platform;
 pub mod stewart;
 pub mod vestibular;

@@ -34,6 +34,19 @@ pub enum QpStatus {
     NumericalError,
 }
 
+impl From<QpStatus> for crate::vocab::SolveStatus {
+    fn from(s: QpStatus) -> Self {
+        use crate::vocab::SolveStatus;
+        match s {
+            QpStatus::Solved => SolveStatus::Solved,
+            QpStatus::Infeasible => SolveStatus::PrimalInfeasible,
+            QpStatus::MaxIterations => SolveStatus::MaxIterations,
+            QpStatus::MaxTime => SolveStatus::MaxTime,
+            QpStatus::NumericalError => SolveStatus::NumericalError,
+        }
+    }
+}
+
 impl QpStatus {
     /// In words, in the snake case of the solver reports.
     pub fn word(self) -> &'static str {

@@ -670,19 +670,8 @@ fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'stat
 }
 
 /// The solvers' statuses, short enough for an 80-column screen.
-fn status_word(status: &str) -> &str {
-    match status {
-        "solved" => "ok",
-        // Solved by the fallback after the active set gave up.
-        "solved_clarabel" => "ok(c)",
-        "almost_solved" => "~ok",
-        "primal_infeasible" => "infeas",
-        "dual_infeasible" => "d-infeas",
-        "max_time" => "timeout",
-        "max_iterations" => "max-it",
-        "insufficient_progress" => "stalled",
-        other => other,
-    }
+fn status_word(status: &crate::vocab::SolveStatus) -> &'static str {
+    status.short()
 }
 
 fn fmt_us(us: f64) -> String {
@@ -699,21 +688,12 @@ fn fmt_us(us: f64) -> String {
 /// The supervisor's reasons (`Supervisor::update`) in a few characters: "COTC infeas" for
 /// "COTC not solved (primal_infeasible)", "|e|<ε 1.5s, COTC ok" for the return.
 fn short_reason(why: &str) -> String {
-    if let Some(status) = why
-        .strip_prefix("COTC not solved (")
-        .and_then(|r| r.strip_suffix(')'))
-    {
-        return format!("COTC {}", status_word(status));
+    use crate::vocab::SwitchReason;
+    match SwitchReason::parse(why) {
+        SwitchReason::CotcNotSolved(status) => format!("COTC {}", status_word(&status)),
+        SwitchReason::Settled { dwell_s, .. } => format!("|e|<ε {dwell_s:.1}s, COTC ok"),
+        SwitchReason::Other(text) => text,
     }
-    if why.starts_with("errors within") {
-        let dwell = why
-            .split(" for ")
-            .nth(1)
-            .and_then(|r| r.split(' ').next())
-            .unwrap_or("");
-        return format!("|e|<ε {dwell}s, COTC ok");
-    }
-    why.to_string()
 }
 
 fn truncate(s: &str, n: usize) -> String {

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::profile::{positive, ProfileError};
+use crate::vocab::{positive, ProfileError};
 
 /// What the MPC assumes the aircraft will do over its horizon.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

@@ -1,5 +1,10 @@
+//! The MPC's tests, a module of `mpc` compiled only under `#[cfg(test)]`.
+
 use super::*;
 use crate::profile::tests::full_flight;
+use crate::profile::Profile;
+use clarabel::solver::{IPSolver, SolverStatus};
+use nalgebra::Vector6;
 
 fn step(mpc: &mut Mpc, k: usize, sample: CueSample, applied: &PlatformCommand) -> MpcOutcome {
     let input = CueInput {
@@ -61,7 +66,7 @@ fn dense_a(mpc: &Mpc) -> DMatrix<f64> {
 #[test]
 fn qp_is_small_and_the_horizon_long_enough() {
     let p = full_flight();
-    let mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
     let (nv, neq, nin) = mpc.qp_size();
     // Inputs and states per interval, and a false-cue slack per guarded channel and interval.
     let guarded = p.mpc.false_cue_weight.iter().filter(|w| **w > 0.0).count();
@@ -69,7 +74,7 @@ fn qp_is_small_and_the_horizon_long_enough() {
     assert_eq!((nv, neq), (6 * (NU + NX + guarded), 6 * NX));
     assert!(nin > 0);
     assert!(mpc.horizon_s() >= 1.5);
-    let cotc = Mpc::new(&p.mpc, &p, Terminal::Cotc).unwrap();
+    let cotc = Mpc::new(&p.mpc, &p.setting(), Terminal::Cotc).unwrap();
     assert_eq!(cotc.qp_size().1, neq + 11);
 }
 
@@ -80,7 +85,7 @@ fn first_move_equals_the_dense_kkt_optimum_when_no_constraint_is_active() {
     // The false-cue slacks rest on their bound σ ≥ 0 at any optimum without a false cue: an
     // active row by construction. This test is about the tracking cost, so without them.
     p.mpc.false_cue_weight = [0.0; 6];
-    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
     // A gentle motion, so that every limit stays far away, and a state away from rest.
     let input = |t: f64| sample([0.3 * (0.5 * t).sin(), 0.2, 0.1], [0.02, -0.01, 0.03]);
     let outs = run(&mut mpc, 10, input);
@@ -133,7 +138,7 @@ fn riccati_terminal_weight_satisfies_its_equation() {
         let pn = mpc.terminal_weight.as_ref().unwrap();
         riccati::dare_residual(&last.a, &last.b, &qx, &r, pn)
     };
-    let shipped = Mpc::new(&p.cotc_params(), &p, Terminal::Cotc).unwrap();
+    let shipped = Mpc::new(&p.cotc_params(), &p.setting(), Terminal::Cotc).unwrap();
     let res = residual(&shipped);
     assert!(res < 1e-9, "shipped COTC tuning: relative residual {res}");
     assert!(shipped
@@ -143,7 +148,7 @@ fn riccati_terminal_weight_satisfies_its_equation() {
         .iter()
         .all(|v| v.is_finite()));
 
-    let mpc = Mpc::new(&p.mpc, &p, Terminal::Cotc).unwrap();
+    let mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Cotc).unwrap();
     let res = residual(&mpc);
     assert!(res < 1e-9, "relative residual {res}");
     let pn = mpc.terminal_weight.as_ref().unwrap();
@@ -162,7 +167,7 @@ fn cotc_meets_its_terminal_equalities() {
 }
 
 fn cotc_meets_its_terminal_equalities_with(p: &crate::profile::Profile, params: &MpcParams) {
-    let mut mpc = Mpc::new(params, p, Terminal::Cotc).unwrap();
+    let mut mpc = Mpc::new(params, &p.setting(), Terminal::Cotc).unwrap();
     let input = |t: f64| sample([0.4 * (t / 0.5).min(1.0), -0.2, 0.0], [0.0, 0.0, 0.02]);
     let mut applied = PlatformCommand::default();
     let mut checked = 0;
@@ -203,7 +208,7 @@ fn cotc_on_a_sustained_6_mps2_surge_is_infeasible() {
     let p = full_flight();
     let surge = sample([6.0, 0.0, 0.0], [0.0; 3]);
     for terminal in [Terminal::Cotc, Terminal::Free] {
-        let mut mpc = Mpc::new(&p.mpc, &p, terminal).unwrap();
+        let mut mpc = Mpc::new(&p.mpc, &p.setting(), terminal).unwrap();
         // asin(6 / g) = 37.7° of tilt: beyond the 25° the platform has, once the surge has
         // lasted long enough to count as sustained (3 s, several cotc_sustained_s).
         let outs = run(&mut mpc, 300, |_| surge);
@@ -228,7 +233,7 @@ fn closed_loop_keeps_legs_in_stroke_without_clipping() {
     let mut p = full_flight();
     p.rate_hz = 10.0;
     let dt = p.dt_s();
-    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
     let stewart = p.stewart();
     let lim = p.limits.si();
     let pulse = |t: f64, t0: f64, t1: f64| if t >= t0 && t < t1 { 1.0 } else { 0.0 };
@@ -291,7 +296,7 @@ fn closed_loop_keeps_legs_in_stroke_without_clipping() {
 fn preview_sees_a_step_before_it_comes() {
     let mut p = full_flight();
     p.mpc.reference = ReferenceMode::Preview;
-    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
     let future: Vec<CueSample> = (0..300)
         .map(|_| sample([2.0, 0.0, 0.0], [0.0; 3]))
         .collect();
@@ -318,7 +323,7 @@ fn preview_sees_a_step_before_it_comes() {
 #[test]
 fn non_finite_input_never_yields_nan() {
     let p = full_flight();
-    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
     let bad = sample(
         [f64::NAN, f64::INFINITY, 0.0],
         [f64::NAN, 0.0, f64::NEG_INFINITY],
@@ -337,7 +342,7 @@ fn non_finite_input_never_yields_nan() {
 fn failed_solve_follows_the_plan_then_washes_out() {
     let p = full_flight();
     // A time limit no solve can meet turns every step after the first into a failure.
-    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
     let outs = run(&mut mpc, 5, |_| sample([2.0, 0.0, 0.0], [0.0; 3]));
     assert!(outs.iter().all(|o| o.feasible));
     let plan_u0 = mpc.plan().inputs[0];
@@ -383,7 +388,7 @@ fn leg_constraints_hold_a_diagonal_excursion_within_the_margin() {
     // infeasible, and the fallback then relies on the limiter; docs/mpc.md, "False cues".)
     p.mpc.reference = super::ReferenceMode::Hold;
     let dt = p.dt_s();
-    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
     let stewart = p.stewart();
     let mut applied = PlatformCommand::default();
     let mut worst = f64::INFINITY;
@@ -424,7 +429,7 @@ fn compact_rig_builds_and_solves() {
     p.mpc.time_limit_ms = 10_000.0;
     let stewart = p.stewart();
     for terminal in [Terminal::Free, Terminal::Cotc] {
-        let mut mpc = Mpc::new(&p.mpc, &p, terminal).unwrap();
+        let mut mpc = Mpc::new(&p.mpc, &p.setting(), terminal).unwrap();
         let outs = run(&mut mpc, 10, |_| sample([1.0, -0.5, 0.3], [0.05, 0.0, 0.1]));
         assert!(outs.iter().all(|o| o.command.is_finite()));
         if terminal == Terminal::Free {
@@ -444,8 +449,8 @@ fn compact_rig_builds_and_solves() {
 fn washout_gain_is_written_in_place_and_pulls_toward_neutral() {
     let p = full_flight();
     let surge = |_| sample([2.0, 0.0, 0.0], [0.0; 3]);
-    let mut nominal = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
-    let mut strong = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let mut nominal = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
+    let mut strong = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
     strong.set_washout_gain(50.0);
     assert_eq!(strong.washout_gain(), 50.0);
     let a = run(&mut nominal, 3, surge);
@@ -481,7 +486,7 @@ fn own_perception_matches_the_head_through_the_lever_arm() {
     use crate::model::vestibular::Vestibular;
     let p = full_flight();
     assert!(p.eye_point().z < -1.0, "the test needs a lever arm");
-    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
     let mut vest = Vestibular::new(&p.vestibular, 0.01);
     let eye = p.eye_point();
     let mut applied = PlatformCommand::default();
@@ -537,7 +542,7 @@ fn condensed_hessian_and_rows_are_the_sparse_qp_s() {
         } else {
             p.mpc.clone()
         };
-        let mut mpc = Mpc::new(&params, &p, terminal).unwrap();
+        let mut mpc = Mpc::new(&params, &p.setting(), terminal).unwrap();
         assert!(mpc.condensed.as_ref().unwrap().is_affine_in_gain());
         let outs = run(&mut mpc, 20, |t| {
             sample([1.5 * (t * 2.0).sin(), 0.5, 0.0], [0.0; 3])
@@ -634,7 +639,7 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
     } else {
         p.mpc.clone()
     };
-    let mut mpc = Mpc::new(&params, p, terminal).unwrap();
+    let mut mpc = Mpc::new(&params, &p.setting(), terminal).unwrap();
     let mut awr = AdaptiveWeightRegulator::new(&p.smpc);
     let mut applied = PlatformCommand::default();
     let (mut solved, mut infeasible, mut fallback) = (0, 0, 0);
@@ -655,7 +660,7 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
         };
         let out = mpc.solve(&input);
         applied = out.command;
-        let status = out.report.status.clone();
+        let status = out.report.status;
         let z_as = mpc.condensed.as_ref().unwrap().z().to_vec();
         let (cs, zc, fc) = clarabel_reference(&mut mpc);
         let at = format!("{name} {terminal:?} step {k}");
@@ -702,7 +707,7 @@ fn an_unlimited_time_budget_is_no_limit_not_a_panic() {
     // `compare` runs without a time limit (∞): found as a panic in Duration::from_secs_f64.
     let mut p = full_flight();
     p.mpc.time_limit_ms = f64::INFINITY;
-    let mut mpc = Mpc::new(&p.mpc, &p, Terminal::Free).unwrap();
+    let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
     let outs = run(&mut mpc, 5, |_| sample([1.0, 0.0, 0.0], [0.0; 3]));
     assert!(outs
         .iter()

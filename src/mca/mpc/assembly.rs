@@ -1,0 +1,524 @@
+//! The MPC's QP, assembled: the stage and terminal weights, the cost (P, q) and the rows
+//! (A, b) of the sparse QP Clarabel solves and the active set condenses, rebuilt in place each
+//! step on a structure fixed when the MPC was built.
+
+use nalgebra::{DMatrix, DVector, Matrix6, Vector6};
+
+use super::model::{input, pose_of, state, NU, NX, POSE_STATE};
+use super::qp::Triplets;
+use super::{finite_or_zero, total_rates, Mpc, Terminal};
+use crate::model::lti::DiscreteStateSpace;
+
+/// Values of the QP that change every step, built from the current state.
+pub(super) struct StepData<'a> {
+    pub(super) x0: &'a DVector<f64>,
+    pub(super) u_prev: &'a DVector<f64>,
+    /// Per grid point: leg lengths l(p̄) − J p̄ and J = ∂l/∂pose at the linearisation pose p̄,
+    /// so that l(p) ≈ offset + J p.
+    pub(super) leg_offset: Vec<Vector6<f64>>,
+    pub(super) leg_jacobian: Vec<Matrix6<f64>>,
+    /// COTC's terminal roll and pitch: the tilt whose gravity gives the aircraft's Δf now.
+    pub(super) terminal_tilt_rad: [f64; 2],
+}
+
+impl Mpc {
+    /// The Riccati equation of COTC's terminal weight: the last interval's model, its state
+    /// weight (perceived and washout terms at the nominal gain) and input weight w·S + R.
+    pub(super) fn terminal_riccati_data(
+        &self,
+    ) -> (&DiscreteStateSpace, DMatrix<f64>, DMatrix<f64>) {
+        let n = self.grid.len();
+        let last = &self.cache.discrete[self.interval_model[n - 1]];
+        let w = self.stage_weight(n - 1);
+        let qx = self.stage_hessian(1.0) * w;
+        let r = DMatrix::from_diagonal(&(self.input_weight() * w + self.input_change_weight()));
+        (last, qx, r)
+    }
+
+    pub(super) fn stage_weight(&self, interval: usize) -> f64 {
+        self.grid[interval] / self.params.fine_step_s
+    }
+
+    pub(super) fn input_weight(&self) -> DVector<f64> {
+        let p = &self.params;
+        let mut s = DVector::zeros(NU);
+        for i in 0..3 {
+            s[input::ACCEL_X + i] = p.acceleration_weight[i];
+            s[input::ROT_ROLL_RATE + i] = p.rotation_rate_weight[i];
+        }
+        for i in 0..2 {
+            s[input::TILT_ROLL_RATE + i] = p.tilt_rate_weight[i];
+        }
+        s
+    }
+
+    pub(super) fn input_change_weight(&self) -> DVector<f64> {
+        let p = &self.params;
+        let mut r = DVector::zeros(NU);
+        for i in 0..3 {
+            r[input::ACCEL_X + i] = p.acceleration_change_weight[i];
+            r[input::ROT_ROLL_RATE + i] = p.rotation_rate_change_weight[i];
+        }
+        for i in 0..2 {
+            r[input::TILT_ROLL_RATE + i] = p.tilt_rate_change_weight[i];
+        }
+        r
+    }
+
+    /// State weight of one fine interval: Cᵀ Q C on the perceived motion plus the washout
+    /// terms, with every washout weight times `gain`. Built with unit weights it gives the
+    /// structure that must stay fixed whatever the tuning.
+    pub(super) fn stage_hessian_with(
+        &self,
+        q_f: [f64; 3],
+        q_w: [f64; 3],
+        washout: [[f64; 3]; 4],
+        gain: f64,
+    ) -> DMatrix<f64> {
+        let mut q = DMatrix::zeros(6, 6);
+        for i in 0..3 {
+            q[(i, i)] = q_f[i];
+            q[(3 + i, 3 + i)] = q_w[i];
+        }
+        let c = &self.cache.perceived_c;
+        let mut h = c.transpose() * q * c;
+        let [pos, vel, tilt, rot] = washout;
+        for i in 0..3 {
+            h[(state::POS + i, state::POS + i)] += gain * pos[i];
+            h[(state::VEL + i, state::VEL + i)] += gain * vel[i];
+        }
+        h[(state::TILT_ROLL, state::TILT_ROLL)] += gain * tilt[0];
+        h[(state::TILT_PITCH, state::TILT_PITCH)] += gain * tilt[1];
+        // Rotational-channel angle = total − tilt (roll, pitch), yaw itself.
+        for (j, (total, tilt_s)) in [
+            (state::ROLL, state::TILT_ROLL),
+            (state::PITCH, state::TILT_PITCH),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let w = gain * rot[j];
+            h[(total, total)] += w;
+            h[(tilt_s, tilt_s)] += w;
+            h[(total, tilt_s)] -= w;
+            h[(tilt_s, total)] -= w;
+        }
+        h[(state::YAW, state::YAW)] += gain * rot[2];
+        h
+    }
+
+    pub(super) fn stage_hessian(&self, gain: f64) -> DMatrix<f64> {
+        let p = &self.params;
+        self.stage_hessian_with(
+            p.specific_force_weight,
+            p.angular_velocity_weight,
+            [
+                p.washout_position_weight,
+                p.washout_velocity_weight,
+                [p.washout_tilt_weight[0], p.washout_tilt_weight[1], 0.0],
+                p.washout_rotation_weight,
+            ],
+            gain,
+        )
+    }
+
+    pub(super) fn n_intervals(&self) -> usize {
+        self.grid.len()
+    }
+
+    pub(super) fn n_vars(&self) -> usize {
+        self.n_intervals() * (NU + NX + self.false_cue_channels.len())
+    }
+
+    /// Column of the false-cue slack of the `j`-th false-cue channel at the end of interval i;
+    /// the slacks follow every input and state.
+    pub(super) fn slack_col(&self, i: usize, j: usize) -> usize {
+        self.n_intervals() * (NU + NX) + i * self.false_cue_channels.len() + j
+    }
+
+    /// Column of input u_i (interval i).
+    pub(super) fn u_col(i: usize) -> usize {
+        i * (NU + NX)
+    }
+
+    /// Column of state x_{i+1} (end of interval i).
+    pub(super) fn x_col(i: usize) -> usize {
+        i * (NU + NX) + NU
+    }
+
+    /// Upper triangle of P (cost ½ zᵀPz + qᵀz) in a fixed order.
+    pub(super) fn assemble_p(&mut self) {
+        let n = self.n_intervals();
+        let structure = self.stage_hessian_with([1.0; 3], [1.0; 3], [[1.0; 3]; 4], 1.0);
+        let stage = self.stage_hessian(self.washout_gain);
+        let s = self.input_weight();
+        let r = self.input_change_weight();
+        let mut t = std::mem::take(&mut self.p_trip);
+        t.clear();
+        for i in 0..n {
+            let w = self.stage_weight(i);
+            let (uc, xc) = (Self::u_col(i), Self::x_col(i));
+            for k in 0..NU {
+                // Δu_i = u_i − u_{i−1} for every i (u_{−1} is the applied input), and Δu_{i+1}.
+                let couplings = if i + 1 < n { 2.0 } else { 1.0 };
+                t.push(uc + k, uc + k, 2.0 * (w * s[k] + couplings * r[k]));
+                if i + 1 < n {
+                    t.push(uc + k, Self::u_col(i + 1) + k, -2.0 * r[k]);
+                }
+            }
+            let terminal = if i + 1 == n {
+                self.terminal_weight.as_ref()
+            } else {
+                None
+            };
+            for c in 0..NX {
+                for rr in 0..=c {
+                    match terminal {
+                        Some(pn) => t.push(xc + rr, xc + c, 2.0 * pn[(rr, c)]),
+                        None if structure[(rr, c)] != 0.0 => {
+                            t.push(xc + rr, xc + c, 2.0 * w * stage[(rr, c)])
+                        }
+                        None => {}
+                    }
+                }
+            }
+            for (j, &c) in self.false_cue_channels.iter().enumerate() {
+                let th = self.thresholds[c];
+                let weight = self.params.false_cue_weight[c] / (th * th);
+                let col = self.slack_col(i, j);
+                t.push(col, col, 2.0 * w * weight);
+            }
+        }
+        self.p_trip = t;
+    }
+
+    /// Linear cost term: perceived reference tracking and the Δu link to the applied input.
+    pub(super) fn assemble_q(&mut self, u_prev: &DVector<f64>) {
+        let n = self.n_intervals();
+        self.q.clear();
+        self.q.resize(self.n_vars(), 0.0);
+        let p = &self.params;
+        let mut qy = DVector::zeros(6);
+        let r = self.input_change_weight();
+        for k in 0..NU {
+            self.q[Self::u_col(0) + k] = -2.0 * r[k] * u_prev[k];
+        }
+        for i in 0..n {
+            let w = self.stage_weight(i);
+            for a in 0..3 {
+                qy[a] = p.specific_force_weight[a] * self.y_ref[i][a];
+                qy[3 + a] = p.angular_velocity_weight[a] * self.y_ref[i][3 + a];
+            }
+            let lin = self.cache.perceived_c.tr_mul(&qy) * (-2.0 * w);
+            let xc = Self::x_col(i);
+            for (k, v) in lin.iter().enumerate() {
+                self.q[xc + k] = *v;
+            }
+        }
+    }
+
+    /// Constraint rows A z + s = b: the dynamics and COTC's terminal equalities (s = 0), then
+    /// the inequalities (s ≥ 0), in a fixed order.
+    pub(super) fn assemble_a(&mut self, d: &StepData) {
+        let n = self.n_intervals();
+        let mut t = std::mem::take(&mut self.a_trip);
+        let mut b = std::mem::take(&mut self.b);
+        t.clear();
+        b.clear();
+        let mut row = 0;
+        // x_{i+1} − A x_i − B u_i − ΦE (u_i − u_{i−1}) = 0, with x_0 and u_{−1} (the applied
+        // input) known: ΦE is the lever-arm jump at the interval's start.
+        for i in 0..n {
+            let m = self.interval_model[i];
+            let (xc, uc) = (Self::x_col(i), Self::u_col(i));
+            for k in 0..NX {
+                t.push(row + k, xc + k, 1.0);
+            }
+            if i > 0 {
+                let prev = Self::x_col(i - 1);
+                for &(r, c, v) in &self.cache.a_entries[m] {
+                    t.push(row + r, prev + c, -v);
+                }
+            }
+            for &(r, c, v) in &self.cache.b_entries[m] {
+                t.push(row + r, uc + c, -v);
+            }
+            for &(r, c, v) in &self.cache.e_entries[m] {
+                t.push(row + r, uc + c, -v);
+                if i > 0 {
+                    t.push(row + r, Self::u_col(i - 1) + c, v);
+                }
+            }
+            if i == 0 {
+                let mut ax0 = &self.cache.discrete[m].a * d.x0;
+                for &(r, c, v) in &self.cache.e_entries[m] {
+                    ax0[r] -= v * d.u_prev[c];
+                }
+                b.extend(ax0.iter());
+            } else {
+                b.extend(std::iter::repeat_n(0.0, NX));
+            }
+            row += NX;
+        }
+        if self.terminal == Terminal::Cotc {
+            let (xc, uc) = (Self::x_col(n - 1), Self::u_col(n - 1));
+            // At rest at neutral: position and velocity zero, no acceleration in the last
+            // interval (else an otolith transient could pass for the sustained cue).
+            for k in 0..6 {
+                t.push(row, xc + state::POS + k, 1.0);
+                b.push(0.0);
+                row += 1;
+            }
+            for k in 0..3 {
+                t.push(row, uc + input::ACCEL_X + k, 1.0);
+                b.push(0.0);
+                row += 1;
+            }
+            // The sustained specific force carried by tilt alone.
+            for (k, s) in [state::ROLL, state::PITCH].into_iter().enumerate() {
+                t.push(row, xc + s, 1.0);
+                b.push(d.terminal_tilt_rad[k]);
+                row += 1;
+            }
+        }
+        self.n_eq = row;
+        let lim = &self.limits;
+        let mut bound =
+            |t: &mut Triplets, b: &mut Vec<f64>, entries: &[(usize, f64)], lo: f64, hi: f64| {
+                for &(c, v) in entries {
+                    t.push(row, c, v);
+                }
+                b.push(hi);
+                for &(c, v) in entries {
+                    t.push(row + 1, c, -v);
+                }
+                b.push(-lo);
+                row += 2;
+            };
+        let u_prev_rates = total_rates(d.u_prev.as_slice());
+        let alpha = lim.acceleration.fixed_rows::<3>(3).into_owned();
+        let stride = self.params.leg_constraint_stride.max(1);
+        // Time from now to the end of each interval's first sample, for what the rate-change
+        // limit lets the roll and pitch rates reach (the unfelt-tilt guard never asks more).
+        let mut reach_s = self.dt_s;
+        for i in 0..n {
+            let (xc, uc) = (Self::x_col(i), Self::u_col(i));
+            // Pose and translational velocity at the end of the interval.
+            for (dof, &s) in POSE_STATE.iter().enumerate() {
+                let e = match dof {
+                    3 | 4 => self.tilt_bound_rad[i][dof - 3],
+                    _ => lim.excursion[dof],
+                };
+                bound(&mut t, &mut b, &[(xc + s, 1.0)], -e, e);
+            }
+            for k in 0..3 {
+                let v = lim.velocity[k];
+                bound(&mut t, &mut b, &[(xc + state::VEL + k, 1.0)], -v, v);
+                let a = lim.acceleration[k];
+                bound(&mut t, &mut b, &[(uc + input::ACCEL_X + k, 1.0)], -a, a);
+            }
+            // Angular rates (total) and their change from the previous interval's.
+            let rate_cols: [&[usize]; 3] = [
+                &[input::TILT_ROLL_RATE, input::ROT_ROLL_RATE],
+                &[input::TILT_PITCH_RATE, input::ROT_PITCH_RATE],
+                &[input::ROT_YAW_RATE],
+            ];
+            for (axis, cols) in rate_cols.iter().enumerate() {
+                let mut e = [(0usize, 0.0f64); 4];
+                let mut len = 0;
+                for &c in cols.iter() {
+                    e[len] = (uc + c, 1.0);
+                    len += 1;
+                }
+                let w = lim.velocity[3 + axis];
+                let (mut lo, mut hi) = (-w, w);
+                if axis < 2 && self.params.unfelt_tilt_guard {
+                    // Beyond the aircraft's own rotation, no faster than the canals feel;
+                    // relaxed to what the rate-change limit can reach from the present rate.
+                    let aircraft = finite_or_zero(self.ref_rate_radps[i][axis]);
+                    let th = self.tilt_rate_max_radps[axis];
+                    let reach = alpha[axis] * reach_s;
+                    let now = u_prev_rates[axis];
+                    lo = lo.max((aircraft.min(0.0) - th).min(now + reach));
+                    hi = hi.min((aircraft.max(0.0) + th).max(now - reach));
+                }
+                bound(&mut t, &mut b, &e[..len], lo, hi);
+                // Over the first interval the change happens within one trace step.
+                let (dw, centre) = if i == 0 {
+                    (alpha[axis] * self.dt_s, u_prev_rates[axis])
+                } else {
+                    for &c in cols.iter() {
+                        e[len] = (Self::u_col(i - 1) + c, -1.0);
+                        len += 1;
+                    }
+                    (alpha[axis] * self.grid[i - 1], 0.0)
+                };
+                bound(&mut t, &mut b, &e[..len], centre - dw, centre + dw);
+            }
+            reach_s += self.grid[i];
+            // Tilt below the canals' threshold, so that it is not felt as rotation.
+            for k in 0..2 {
+                let w = self.tilt_rate_max_radps[k];
+                bound(
+                    &mut t,
+                    &mut b,
+                    &[(uc + input::TILT_ROLL_RATE + k, 1.0)],
+                    -w,
+                    w,
+                );
+            }
+            // Leg lengths, linearised around the current pose.
+            // The first point always: it is where the platform goes next.
+            if i % stride == 0 || i + 1 == n {
+                for leg in 0..6 {
+                    let mut e = [(0usize, 0.0f64); 6];
+                    for (dof, &s) in POSE_STATE.iter().enumerate() {
+                        e[dof] = (xc + s, d.leg_jacobian[i][(leg, dof)]);
+                    }
+                    let off = d.leg_offset[i][leg];
+                    bound(&mut t, &mut b, &e, self.leg_lo_m - off, self.leg_hi_m - off);
+                }
+            }
+        }
+        // False cues: the simulator's perceived motion may not go beyond false_cue_margin·th
+        // against the direction s in which the reference is felt, but for a slack σ ≥ 0 that
+        // the cost prices heavily: −s·ŷ − σ ≤ margin·th. With false_cue_carry, s is the last
+        // felt direction (from the present on) where the prediction has faded below the
+        // threshold; where nothing is felt s = 0 and the row cannot bind. The pattern stays
+        // fixed either way: only the values change.
+        // With false_cue_carry the direction is also carried back from where the reference
+        // will first be felt to the grid points before it: there the simulator may not move
+        // further against that direction than it is now. Without it the plan was free to
+        // jolt the wrong way just before a reversal that it then met in time (#24 item 9).
+        let felt = |r: f64, th: f64| if r.abs() > th { r.signum() } else { 0.0 };
+        let y_now = &self.cache.ref_discrete[0].c * &self.run.ref_x;
+        let sim_now = &self.cache.perceived_c * &self.run.x;
+        let mut carried: Vec<f64> = self
+            .false_cue_channels
+            .iter()
+            .map(|&c| felt(y_now[c], self.thresholds[c]))
+            .collect();
+        let mut ahead = std::mem::take(&mut self.false_cue_ahead);
+        ahead.clear();
+        ahead.resize(n * self.false_cue_channels.len(), 0.0);
+        for i in (0..n).rev() {
+            for (j, &c) in self.false_cue_channels.iter().enumerate() {
+                let r = self.y_ref.get(i).map_or(0.0, |y| y[c]);
+                let next = if i + 1 < n {
+                    ahead[(i + 1) * self.false_cue_channels.len() + j]
+                } else {
+                    0.0
+                };
+                let s = felt(r, self.thresholds[c]);
+                ahead[i * self.false_cue_channels.len() + j] = if s != 0.0 { s } else { next };
+            }
+        }
+        for i in 0..n {
+            let xc = Self::x_col(i);
+            for (j, &c) in self.false_cue_channels.iter().enumerate() {
+                let th = self.thresholds[c];
+                let r = self.y_ref.get(i).map_or(0.0, |y| y[c]);
+                let mut sign = felt(r, th);
+                let mut bound = self.params.false_cue_margin * th;
+                if self.params.false_cue_carry {
+                    if sign != 0.0 {
+                        carried[j] = sign;
+                    }
+                    sign = carried[j];
+                    if sign == 0.0 {
+                        sign = ahead[i * self.false_cue_channels.len() + j];
+                        bound = bound.max(-sign * sim_now[c]);
+                    }
+                }
+                let col = self.slack_col(i, j);
+                for k in 0..NX {
+                    let v = self.cache.perceived_c[(c, k)];
+                    if v != 0.0 {
+                        t.push(row, xc + k, -sign * v);
+                    }
+                }
+                t.push(row, col, -1.0);
+                b.push(bound);
+                t.push(row + 1, col, -1.0);
+                b.push(0.0);
+                row += 2;
+            }
+        }
+        self.a_trip = t;
+        self.b = b;
+        self.false_cue_ahead = ahead;
+    }
+
+    pub(super) fn neutral_step_data(&self) -> (DVector<f64>, DVector<f64>, Vec<DVector<f64>>) {
+        (
+            DVector::zeros(NX),
+            DVector::zeros(NU),
+            vec![DVector::zeros(6); self.n_intervals()],
+        )
+    }
+
+    pub(super) fn step_data<'a>(
+        &self,
+        x0: &'a DVector<f64>,
+        u_prev: &'a DVector<f64>,
+        terminal_tilt_rad: [f64; 2],
+    ) -> StepData<'a> {
+        let pose0 = pose_of(x0);
+        // Each grid point is linearised around where the last solved plan put the platform
+        // at that point (the leg length is convex in the translation, so a tangent at the
+        // current pose underestimates it further along); around the current pose when there
+        // is no fresh plan.
+        // The plan may be another controller's (`follow`), on another grid: it is read by time.
+        let fresh = self.run.plan.elapsed_s < 1e-12 && !self.run.plan.poses.is_empty();
+        let (mut leg_offset, mut leg_jacobian) = (Vec::new(), Vec::new());
+        let mut t_end = 0.0;
+        for i in 0..self.grid.len() {
+            // The plan was made one step ago.
+            t_end += self.grid[i];
+            let p = match self.run.plan.pose_at(t_end + self.trace_model.dt_s) {
+                Some(p) if fresh && p.iter().all(|v| v.is_finite()) => p,
+                _ => pose0,
+            };
+            let j = self.stewart.jacobian(&p);
+            leg_offset.push(self.stewart.leg_lengths(&p) - j * p);
+            leg_jacobian.push(j);
+        }
+        StepData {
+            x0,
+            u_prev,
+            leg_offset,
+            leg_jacobian,
+            terminal_tilt_rad,
+        }
+    }
+
+    /// Roll and pitch bounds over the horizon. Where the predicted reference is felt heavier
+    /// than the heave threshold, the tilt is kept below acos(1 − th_z/g) (13.7° for 0.28 m/s²):
+    /// beyond it the tilt's loss of vertical gravity is felt as lightness, the opposite of the
+    /// aircraft's heave. The bound relaxes to what the platform can reach from where it is —
+    /// braking its present rate within the angular-acceleration limit, then tilting back at
+    /// the canals' threshold rate, unfelt — so that the guard never makes the QP infeasible.
+    pub(super) fn update_tilt_bounds(&mut self) {
+        let lim = &self.limits;
+        let th_z = self.thresholds[2];
+        let guard_rad = (1.0 - th_z / crate::G_MPS2).clamp(-1.0, 1.0).acos();
+        let rates = total_rates(self.run.u_last.as_slice());
+        let angles = [self.run.x[state::ROLL], self.run.x[state::PITCH]];
+        let mut t_end = 0.0;
+        for (i, h) in self.grid.iter().enumerate() {
+            t_end += h;
+            let heavier =
+                self.params.heave_tilt_guard && self.y_ref.get(i).is_some_and(|y| y[2] < -th_z);
+            for k in 0..2 {
+                let excursion = lim.excursion[3 + k];
+                self.tilt_bound_rad[i][k] = if heavier {
+                    let brake = rates[k] * rates[k] / (2.0 * lim.acceleration[3 + k]);
+                    let reachable = angles[k].abs() + brake - self.tilt_rate_max_radps[k] * t_end;
+                    finite_or_zero(reachable).max(guard_rad).min(excursion)
+                } else {
+                    excursion
+                };
+            }
+        }
+    }
+}

@@ -1,0 +1,79 @@
+//! What an algorithm knows of the platform it drives: its legs and its per-DoF limits. The
+//! profile states them in the units of its keys; algorithms, the limiter and the safety layer
+//! take them from here in SI, so that none of them needs the profile.
+
+use nalgebra::Vector6;
+use serde::{Deserialize, Serialize};
+
+use super::stewart::Stewart;
+
+/// The platform as the algorithms see it: the hexapod, its limits in SI and the distance
+/// every leg keeps from its end stops.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Platform {
+    pub stewart: Stewart,
+    pub limits: DofLimits,
+    /// Distance every leg keeps from its end stops (m).
+    pub leg_margin_m: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TranslationLimits {
+    /// Largest displacement from neutral, either way (m).
+    pub excursion_m: f64,
+    pub velocity_mps: f64,
+    pub acceleration_mps2: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RotationLimits {
+    /// Largest angle from neutral, either way (deg).
+    pub excursion_deg: f64,
+    pub rate_dps: f64,
+    pub acceleration_dps2: f64,
+}
+
+/// Per-DoF limits of the platform (DESIGN §3 table).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    pub surge: TranslationLimits,
+    pub sway: TranslationLimits,
+    pub heave: TranslationLimits,
+    pub roll: RotationLimits,
+    pub pitch: RotationLimits,
+    pub yaw: RotationLimits,
+}
+
+impl Limits {
+    /// Excursion, velocity and acceleration limits in SI (m, m/s, m/s², rad, rad/s, rad/s²),
+    /// in the order x, y, z, roll, pitch, yaw.
+    pub fn si(&self) -> DofLimits {
+        let t = [&self.surge, &self.sway, &self.heave];
+        let r = [&self.roll, &self.pitch, &self.yaw];
+        let pick = |ft: fn(&TranslationLimits) -> f64, fr: fn(&RotationLimits) -> f64| {
+            Vector6::from_fn(|i, _| {
+                if i < 3 {
+                    ft(t[i])
+                } else {
+                    fr(r[i - 3]).to_radians()
+                }
+            })
+        };
+        DofLimits {
+            excursion: pick(|l| l.excursion_m, |l| l.excursion_deg),
+            velocity: pick(|l| l.velocity_mps, |l| l.rate_dps),
+            acceleration: pick(|l| l.acceleration_mps2, |l| l.acceleration_dps2),
+        }
+    }
+}
+
+/// Per-DoF limits in SI, symmetric about neutral.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DofLimits {
+    pub excursion: Vector6<f64>,
+    pub velocity: Vector6<f64>,
+    pub acceleration: Vector6<f64>,
+}

@@ -1,0 +1,385 @@
+//! The words every layer shares, at the bottom of the crate so that any module may use them
+//! without reaching up: a parameter value that cannot be (the profile's sections validate
+//! themselves where they are defined, next to the algorithm they tune).
+
+/// A profile value that cannot describe a real simulator.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("`{key}`: {reason}")]
+pub struct ProfileError {
+    /// Dotted path of the offending key, e.g. `geometry.leg_min_m`.
+    pub key: String,
+    pub reason: String,
+}
+
+/// `Ok` for a finite, strictly positive value, else an error naming the key.
+pub(crate) fn positive(key: &str, v: f64) -> Result<(), ProfileError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(ProfileError {
+            key: key.to_string(),
+            reason: format!("{v}: expected a finite value greater than 0"),
+        })
+    }
+}
+
+/// The algorithms hexcue can run, in the order the console shows them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AlgorithmId {
+    Smpc,
+    Mpc,
+    Cwf,
+}
+
+impl AlgorithmId {
+    pub const ALL: &'static [AlgorithmId] =
+        &[AlgorithmId::Smpc, AlgorithmId::Mpc, AlgorithmId::Cwf];
+
+    /// Short name used on the command line, in topics (`/cwf/...`) and summaries.
+    pub fn key(self) -> &'static str {
+        match self {
+            AlgorithmId::Smpc => "smpc",
+            AlgorithmId::Mpc => "mpc",
+            AlgorithmId::Cwf => "cwf",
+        }
+    }
+
+    /// Name shown to people.
+    pub fn label(self) -> &'static str {
+        match self {
+            AlgorithmId::Smpc => "S-MPC",
+            AlgorithmId::Mpc => "MPC",
+            AlgorithmId::Cwf => "CWF",
+        }
+    }
+
+    pub fn from_key(key: &str) -> Option<Self> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|a| a.key() == key.trim().to_ascii_lowercase())
+    }
+}
+
+impl std::fmt::Display for AlgorithmId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.key())
+    }
+}
+
+/// A cueing channel the metrics judge: the perceived specific force along x, y, z and the
+/// perceived angular velocity about them (head frame), in the order of [`Channel::ALL`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Channel {
+    Fx,
+    Fy,
+    Fz,
+    Wx,
+    Wy,
+    Wz,
+}
+
+impl Channel {
+    pub const ALL: [Channel; 6] = [
+        Channel::Fx,
+        Channel::Fy,
+        Channel::Fz,
+        Channel::Wx,
+        Channel::Wy,
+        Channel::Wz,
+    ];
+
+    /// The key in summaries, recordings and on the command line.
+    pub const fn key(self) -> &'static str {
+        match self {
+            Channel::Fx => "fx",
+            Channel::Fy => "fy",
+            Channel::Fz => "fz",
+            Channel::Wx => "wx",
+            Channel::Wy => "wy",
+            Channel::Wz => "wz",
+        }
+    }
+
+    /// What a report calls it: the motion a pilot names, and its symbol.
+    pub fn label(self) -> &'static str {
+        match self {
+            Channel::Fx => "surge f̂x",
+            Channel::Fy => "sway f̂y",
+            Channel::Fz => "heave f̂z",
+            Channel::Wx => "roll ω̂x",
+            Channel::Wy => "pitch ω̂y",
+            Channel::Wz => "yaw ω̂z",
+        }
+    }
+
+    pub fn from_key(key: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|c| c.key() == key)
+    }
+
+    /// A specific force (m/s²) rather than an angular velocity (rad/s).
+    pub fn is_force(self) -> bool {
+        matches!(self, Channel::Fx | Channel::Fy | Channel::Fz)
+    }
+
+    /// The unit people read it in: m/s² for forces, °/s for rates (summaries keep SI).
+    pub fn unit(self) -> &'static str {
+        if self.is_force() {
+            "m/s²"
+        } else {
+            "°/s"
+        }
+    }
+
+    /// Factor from SI (m/s², rad/s) to [`Channel::unit`].
+    pub fn display_scale(self) -> f64 {
+        if self.is_force() {
+            1.0
+        } else {
+            180.0 / std::f64::consts::PI
+        }
+    }
+}
+
+impl std::fmt::Display for Channel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.key())
+    }
+}
+
+/// How one QP solve ended, as reports and recordings name it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SolveStatus {
+    /// No solve yet (a report before the first step): the empty word.
+    #[default]
+    NotYet,
+    Unsolved,
+    Solved,
+    /// Clarabel solved what the active set could not (docs/recordings.md).
+    SolvedClarabel,
+    PrimalInfeasible,
+    DualInfeasible,
+    AlmostSolved,
+    AlmostPrimalInfeasible,
+    AlmostDualInfeasible,
+    MaxIterations,
+    MaxTime,
+    NumericalError,
+    InsufficientProgress,
+    CallbackTerminated,
+    /// The QP's data could not be brought up to date with this step.
+    UpdateError,
+    /// The QP could not be set up.
+    SetupError,
+    /// The running state was not finite; no QP was posed.
+    NonFiniteState,
+    /// Not solved this step by design: the other controller is in charge and solved.
+    Standby,
+    /// A word this version does not know, read from a file.
+    Unknown,
+}
+
+impl SolveStatus {
+    pub const ALL: [SolveStatus; 19] = [
+        SolveStatus::NotYet,
+        SolveStatus::Unsolved,
+        SolveStatus::Solved,
+        SolveStatus::SolvedClarabel,
+        SolveStatus::PrimalInfeasible,
+        SolveStatus::DualInfeasible,
+        SolveStatus::AlmostSolved,
+        SolveStatus::AlmostPrimalInfeasible,
+        SolveStatus::AlmostDualInfeasible,
+        SolveStatus::MaxIterations,
+        SolveStatus::MaxTime,
+        SolveStatus::NumericalError,
+        SolveStatus::InsufficientProgress,
+        SolveStatus::CallbackTerminated,
+        SolveStatus::UpdateError,
+        SolveStatus::SetupError,
+        SolveStatus::NonFiniteState,
+        SolveStatus::Standby,
+        SolveStatus::Unknown,
+    ];
+
+    /// The word reports and recordings store, in snake case.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SolveStatus::NotYet => "",
+            SolveStatus::Unsolved => "unsolved",
+            SolveStatus::Solved => "solved",
+            SolveStatus::SolvedClarabel => "solved_clarabel",
+            SolveStatus::PrimalInfeasible => "primal_infeasible",
+            SolveStatus::DualInfeasible => "dual_infeasible",
+            SolveStatus::AlmostSolved => "almost_solved",
+            SolveStatus::AlmostPrimalInfeasible => "almost_primal_infeasible",
+            SolveStatus::AlmostDualInfeasible => "almost_dual_infeasible",
+            SolveStatus::MaxIterations => "max_iterations",
+            SolveStatus::MaxTime => "max_time",
+            SolveStatus::NumericalError => "numerical_error",
+            SolveStatus::InsufficientProgress => "insufficient_progress",
+            SolveStatus::CallbackTerminated => "callback_terminated",
+            SolveStatus::UpdateError => "update_error",
+            SolveStatus::SetupError => "setup_error",
+            SolveStatus::NonFiniteState => "non_finite_state",
+            SolveStatus::Standby => "standby",
+            SolveStatus::Unknown => "unknown",
+        }
+    }
+
+    /// The status a word names; [`SolveStatus::Unknown`] for one this version does not know.
+    pub fn from_word(word: &str) -> Self {
+        Self::ALL
+            .into_iter()
+            .find(|s| s.as_str() == word)
+            .unwrap_or(SolveStatus::Unknown)
+    }
+
+    /// The QP was solved, by the active set or by Clarabel after it.
+    pub fn is_solved(self) -> bool {
+        matches!(self, SolveStatus::Solved | SolveStatus::SolvedClarabel)
+    }
+
+    /// A few characters for an 80-column screen.
+    pub fn short(self) -> &'static str {
+        match self {
+            SolveStatus::Solved => "ok",
+            SolveStatus::SolvedClarabel => "ok(c)",
+            SolveStatus::AlmostSolved => "~ok",
+            SolveStatus::PrimalInfeasible => "infeas",
+            SolveStatus::DualInfeasible => "d-infeas",
+            SolveStatus::MaxTime => "timeout",
+            SolveStatus::MaxIterations => "max-it",
+            SolveStatus::InsufficientProgress => "stalled",
+            other => other.as_str(),
+        }
+    }
+}
+
+impl From<&str> for SolveStatus {
+    fn from(word: &str) -> Self {
+        SolveStatus::from_word(word)
+    }
+}
+
+impl PartialEq<&str> for SolveStatus {
+    fn eq(&self, other: &&str) -> bool {
+        self.as_str() == *other
+    }
+}
+
+impl PartialEq<str> for SolveStatus {
+    fn eq(&self, other: &str) -> bool {
+        self.as_str() == other
+    }
+}
+
+impl std::ops::Deref for SolveStatus {
+    type Target = str;
+
+    /// The word, so that code written for the status as text reads it unchanged.
+    fn deref(&self) -> &str {
+        self.as_str()
+    }
+}
+
+impl std::fmt::Display for SolveStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl serde::Serialize for SolveStatus {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+/// Why the S-MPC's supervisor changed controller. Its [`Display`](std::fmt::Display) is the
+/// text recordings and summaries store; [`SwitchReason::parse`] reads that text back.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SwitchReason {
+    /// COTC's QP was not solved: the free MPC takes over.
+    CotcNotSolved(SolveStatus),
+    /// The errors stayed within ε for the dwell time and COTC is solved: back to COTC.
+    Settled { epsilon_mps2: f64, dwell_s: f64 },
+    /// A reason this version does not know, read from a file, kept as written.
+    Other(String),
+}
+
+impl SwitchReason {
+    /// The reason a stored text names; [`SwitchReason::Other`] for text that is not exactly
+    /// what this version's `Display` writes.
+    pub fn parse(text: &str) -> Self {
+        let parsed = if let Some(word) = text
+            .strip_prefix("COTC not solved (")
+            .and_then(|r| r.strip_suffix(')'))
+        {
+            let status = SolveStatus::from_word(word);
+            (status != SolveStatus::Unknown).then_some(SwitchReason::CotcNotSolved(status))
+        } else if let Some(rest) = text.strip_prefix("errors within ε = ") {
+            let mut words = rest.split(' ');
+            let epsilon = words.next().and_then(|w| w.parse().ok());
+            let dwell = words.nth(2).and_then(|w| w.parse().ok());
+            epsilon
+                .zip(dwell)
+                .map(|(epsilon_mps2, dwell_s)| SwitchReason::Settled {
+                    epsilon_mps2,
+                    dwell_s,
+                })
+        } else {
+            None
+        };
+        // Only a reason that prints back to the same text is understood.
+        parsed
+            .filter(|r| r.to_string() == text)
+            .unwrap_or_else(|| SwitchReason::Other(text.to_string()))
+    }
+}
+
+impl std::fmt::Display for SwitchReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SwitchReason::CotcNotSolved(status) => write!(f, "COTC not solved ({status})"),
+            SwitchReason::Settled {
+                epsilon_mps2,
+                dwell_s,
+            } => write!(
+                f,
+                "errors within ε = {epsilon_mps2:.2} m/s² for {dwell_s:.1} s and COTC solved"
+            ),
+            SwitchReason::Other(text) => f.write_str(text),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn words_read_back() {
+        for s in SolveStatus::ALL {
+            assert_eq!(SolveStatus::from_word(s.as_str()), s);
+        }
+        for c in Channel::ALL {
+            assert_eq!(Channel::from_key(c.key()), Some(c));
+        }
+        for text in [
+            "COTC not solved (primal_infeasible)",
+            "errors within ε = 0.30 m/s² for 1.5 s and COTC solved",
+            "COTC infeasible",
+        ] {
+            assert_eq!(SwitchReason::parse(text).to_string(), text);
+        }
+        assert_eq!(
+            SwitchReason::parse("COTC not solved (max_time)"),
+            SwitchReason::CotcNotSolved(SolveStatus::MaxTime)
+        );
+        assert!(matches!(
+            SwitchReason::parse("errors within ε = 0.30 m/s² for 1.5 s and COTC solved"),
+            SwitchReason::Settled { dwell_s, .. } if dwell_s == 1.5
+        ));
+    }
+}
