@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
+use crate::app::common::check_folder_outputs;
 use crate::cli::ExportArgs;
 use crate::export::{chosen, columns, export_fields, export_one, topic_file, Column, Written};
 use crate::formats::recording::Recording;
@@ -87,22 +88,9 @@ fn export_topics(
         .keys()
         .map(|t| (t.clone(), dir.join(topic_file(t))))
         .collect();
+    let paths: Vec<PathBuf> = files.iter().map(|(_, p)| p.clone()).collect();
     let recording_input = [Input::new(&args.file, "recording")];
-    for (_, path) in &files {
-        check_not_input(path, "-o", &recording_input)?;
-    }
-    let existing: Vec<String> = files
-        .iter()
-        .filter(|(_, p)| p.exists())
-        .map(|(_, p)| p.display().to_string())
-        .collect();
-    if !existing.is_empty() && !args.force {
-        bail!(
-            "{}: -o: would overwrite {}; pass --force to overwrite, or choose another folder",
-            dir.display(),
-            existing.join(", ")
-        );
-    }
+    check_folder_outputs(&dir, &paths, "-o", &recording_input, args.force)?;
     std::fs::create_dir_all(&dir)
         .with_context(|| format!("{}: -o: cannot create the folder", dir.display()))?;
     check_writable_dir(&dir)

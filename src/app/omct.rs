@@ -1,12 +1,11 @@
 //! `hexcue omct`: the Objective Motion Cueing Test on the algorithms, written as a table,
 //! JSON and Bode plots.
 
-use std::io::IsTerminal;
 use std::path::PathBuf;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 
-use crate::app::common::inputs;
+use crate::app::common::{check_folder_outputs, inputs, progress_bar};
 use crate::cli::{parse_algorithms, parse_tests, OmctArgs};
 use crate::formats::profile::{default_profile, load_profile};
 use crate::outputs::check_writable_dir;
@@ -32,45 +31,19 @@ pub fn run(args: &OmctArgs) -> Result<()> {
         .map(|name| args.out.join(name))
         .collect();
     let profile_input = inputs(&[(args.profile.as_deref(), "--profile")]);
-    for path in &outputs {
-        crate::outputs::check_not_input(path, "--out", &profile_input)?;
-    }
-    let existing: Vec<String> = outputs
-        .iter()
-        .filter(|p| p.exists())
-        .map(|p| p.display().to_string())
-        .collect();
-    if !existing.is_empty() && !args.force {
-        bail!(
-            "{}: --out: would overwrite {}; pass --force to overwrite, or choose another folder",
-            args.out.display(),
-            existing.join(", ")
-        );
-    }
+    check_folder_outputs(&args.out, &outputs, "--out", &profile_input, args.force)?;
 
     let total = algorithms.len() * tests.len() * frequencies.len();
-    let bar = std::io::stderr().is_terminal().then(|| {
-        let bar = indicatif::ProgressBar::new(total as u64);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} OMCT [{bar:40}] {pos}/{len} points ({elapsed}, {eta} left)",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        // Drawn now and kept moving: the first point of a slow MPC takes seconds.
-        bar.enable_steady_tick(std::time::Duration::from_millis(200));
-        bar
-    });
+    let bar = progress_bar(
+        total as u64,
+        "{spinner} OMCT [{bar:40}] {pos}/{len} points ({elapsed}, {eta} left)",
+    );
     let workers = std::thread::available_parallelism()
         .map(|n| n.get())
         .unwrap_or(1)
         .min(total);
     let started = std::time::Instant::now();
-    let on_point = |done: usize| {
-        if let Some(bar) = &bar {
-            bar.set_position(done as u64);
-        }
-    };
+    let on_point = |done: usize| bar.set_position(done as u64);
     let curves = run_all(
         &profile,
         &algorithms,
@@ -79,9 +52,7 @@ pub fn run(args: &OmctArgs) -> Result<()> {
         workers,
         &on_point,
     );
-    if let Some(bar) = &bar {
-        bar.finish_and_clear();
-    }
+    bar.finish_and_clear();
     let curves = curves?;
     let wall_s = started.elapsed().as_secs_f64();
     let report = OmctReport {

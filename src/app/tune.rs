@@ -3,12 +3,12 @@
 //! and the before/after table.
 
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
 use anyhow::{anyhow, bail, Context, Result};
 use toml_edit::DocumentMut;
 
+use crate::app::common::{progress_bar, stop_flag};
 use crate::cli::TuneArgs;
 use crate::formats::profile::{
     default_profile, parse_profile, DEFAULT_PROFILE_SOURCE, DEFAULT_PROFILE_TOML,
@@ -211,11 +211,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         );
     }
 
-    let stop = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(sig, stop.clone())
-            .context("cannot install the signal handlers")?;
-    }
+    let stop = stop_flag()?;
     let validator = (!validation_traces.is_empty()).then(|| Evaluator {
         algorithm,
         keys: keys.clone(),
@@ -241,12 +237,9 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         )),
         args.seed
     );
-    let bar = indicatif::ProgressBar::new(budget as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} tune {prefix} [{bar:30}] {pos}/{len} candidates ({elapsed}, {eta} left) {msg}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    let bar = progress_bar(
+        budget as u64,
+        "{spinner} tune {prefix} [{bar:30}] {pos}/{len} candidates ({elapsed}, {eta} left) {msg}",
     );
     bar.set_prefix(algorithm.key());
     let progress = Bar {
