@@ -14,7 +14,7 @@ use crate::app::common::stop_flag;
 use crate::engine::Engine;
 use crate::formats::profile::{default_profile, load_profile, DEFAULT_PROFILE_TOML};
 use crate::formats::recording::{Recorder, Recording, RecordingMeta};
-use crate::formats::trace::{default_trace, load_trace, LoadedTrace};
+use crate::formats::trace::default_trace;
 use crate::foxglove::FoxgloveServer;
 use crate::mca::AlgorithmId;
 use crate::profile::Profile;
@@ -359,8 +359,6 @@ fn key_form(name: &str) -> String {
         .to_ascii_lowercase()
 }
 
-pub use crate::outputs::check_output;
-
 /// Parses a comma-separated option into known values, in the order given and without
 /// repeats; an unknown name is refused with the list of known ones.
 fn parse_keys<T: Copy + PartialEq>(
@@ -419,28 +417,6 @@ pub fn parse_tests(names: &[String]) -> Result<Vec<crate::omct::OmctTest>> {
     Ok(out)
 }
 
-/// The profile and trace a play session runs on, with the texts a recording attaches.
-pub struct Session {
-    pub profile: Profile,
-    pub profile_toml: String,
-    pub trace: LoadedTrace,
-    pub algorithms: Vec<AlgorithmId>,
-}
-
-pub fn load_session(args: &PlayArgs) -> Result<Session> {
-    let (profile, profile_toml, algorithms) = load_play(args)?;
-    let trace = match &args.trace {
-        Some(path) => load_trace(path, profile.rate_hz)?,
-        None => default_trace(profile.rate_hz),
-    };
-    Ok(Session {
-        profile,
-        profile_toml,
-        trace,
-        algorithms,
-    })
-}
-
 /// The profile (with its TOML) and the algorithms of a play session.
 pub fn load_play(args: &PlayArgs) -> Result<(Profile, String, Vec<AlgorithmId>)> {
     let (mut profile, profile_toml) = match &args.profile {
@@ -490,23 +466,6 @@ pub fn open_play_source(args: &PlayArgs, rate_hz: f64) -> Result<PlaySource> {
             }
         }
     })
-}
-
-pub fn recording_meta(session: &Session) -> RecordingMeta {
-    RecordingMeta {
-        profile_name: session.profile.name.clone(),
-        profile_toml: session.profile_toml.clone(),
-        trace_name: session.trace.trace.name.clone(),
-        trace_csv: session.trace.text.clone(),
-        trace_sidecar: session
-            .trace
-            .trace
-            .info
-            .as_ref()
-            .and_then(|i| serde_json::to_string_pretty(i).ok()),
-        algorithms: session.algorithms.clone(),
-        rate_hz: session.profile.rate_hz,
-    }
 }
 
 pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
@@ -892,29 +851,5 @@ mod tests {
         );
         let e = parse_algorithms(&names(&["lqr"])).unwrap_err();
         assert!(e.to_string().contains("smpc, mpc, cwf"), "{e}");
-    }
-
-    #[test]
-    fn outputs_are_checked_before_the_work() {
-        let dir = tempfile::tempdir().unwrap();
-        let existing = dir.path().join("run.mcap");
-        std::fs::write(&existing, "precious").unwrap();
-        let e = check_output(&existing, false, "--record").unwrap_err();
-        let m = format!("{e:#}");
-        assert!(m.contains("run.mcap") && m.contains("--force"), "{m}");
-        check_output(&existing, true, "--record").unwrap();
-        assert_eq!(std::fs::read_to_string(&existing).unwrap(), "precious");
-
-        let missing_dir = dir.path().join("nope").join("x.json");
-        let m = format!(
-            "{:#}",
-            check_output(&missing_dir, false, "--summary").unwrap_err()
-        );
-        assert!(m.contains("x.json") && m.contains("does not exist"), "{m}");
-        let m = format!("{:#}", check_output(dir.path(), false, "-o").unwrap_err());
-        assert!(m.contains("is a folder"), "{m}");
-        check_output(&dir.path().join("new.json"), false, "--summary").unwrap();
-        // The probe leaves nothing behind.
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 }

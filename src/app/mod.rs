@@ -16,6 +16,19 @@ use crate::app::common::{check_session_outputs, headless_or_console, inputs};
 use crate::cli::{Cli, Command};
 use crate::outputs::{check_output_of, Input};
 
+/// The binary: the arguments parsed, the command run, and an error printed as
+/// `hexcue: error: …` with exit status 1.
+pub fn main() -> std::process::ExitCode {
+    use clap::Parser;
+    match run(Cli::parse()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("hexcue: error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
 /// Runs the command the arguments name (`play` when none is).
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command.unwrap_or(Command::Play(cli.play)) {

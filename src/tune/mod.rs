@@ -51,6 +51,7 @@ pub struct TraceOutcome {
 }
 
 impl TraceOutcome {
+    #[cfg(test)]
     pub fn feasible(&self) -> bool {
         self.leg_violations == 0 && self.limiter_fraction <= LIMITER_TOLERANCE
     }
@@ -80,6 +81,7 @@ impl Candidate {
     }
 
     /// Within [`LIMITER_TOLERANCE`] on every trace, every leg in stroke.
+    #[cfg(test)]
     pub fn feasible(&self) -> bool {
         self.outcomes.iter().all(TraceOutcome::feasible)
     }
@@ -220,8 +222,6 @@ pub struct TuneResult {
     pub best: Option<Candidate>,
     pub evaluations: usize,
     pub interrupted: bool,
-    /// One line a generation: training best and its validation.
-    pub history: Vec<GenerationRecord>,
     /// With validation flights: the base's outcomes there and the chosen candidate's.
     pub validation: Option<ValidationOutcome>,
 }
@@ -279,7 +279,6 @@ pub fn tune(
         None => None,
     };
     let mut validated: Vec<Validated> = Vec::new();
-    let mut history = Vec::new();
     let bounds = limiter_bounds(&base);
     let best: Mutex<Option<Candidate>> =
         Mutex::new(base.feasible_within(&bounds).then(|| base.clone()));
@@ -353,7 +352,6 @@ pub fn tune(
                 }
             }
             progress.generation(&record);
-            history.push(record);
             if done.is_some() {
                 break;
             }
@@ -378,7 +376,6 @@ pub fn tune(
         best,
         evaluations,
         interrupted,
-        history,
         validation,
     })
 }
