@@ -10,13 +10,11 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 
-use crate::app::common::{
-    check_session_outputs, headless_or_console, inputs, print_stdout, stop_flag,
-};
+use crate::app::common::stop_flag;
 use crate::engine::Engine;
 use crate::formats::profile::{default_profile, load_profile, DEFAULT_PROFILE_TOML};
 use crate::formats::recording::{Recorder, Recording, RecordingMeta};
-use crate::formats::trace::{default_trace, load_trace, LoadedTrace};
+use crate::formats::trace::default_trace;
 use crate::foxglove::FoxgloveServer;
 use crate::mca::AlgorithmId;
 use crate::profile::Profile;
@@ -63,10 +61,10 @@ pub enum Command {
     Live(LiveArgs),
     /// Tune one algorithm's keys against the cueing score on a set of traces (CMA-ES) and
     /// write the tuned profile (docs/tuning.md).
-    Tune(crate::tune::TuneArgs),
+    Tune(TuneArgs),
     /// Export a recording to CSV for MATLAB and spreadsheets: one file per topic, one topic,
     /// or chosen fields side by side (docs/recordings.md).
-    Export(crate::export::ExportArgs),
+    Export(ExportArgs),
 }
 
 #[derive(Args, Debug, Clone)]
@@ -256,6 +254,58 @@ pub struct ReviewArgs {
     pub foxglove: Option<SocketAddr>,
 }
 
+#[derive(Args, Debug, Clone)]
+pub struct TuneArgs {
+    /// The algorithm to tune: cwf, mpc or smpc (its keys: docs/tuning.md).
+    #[arg(long, value_name = "ALG")]
+    pub algorithm: String,
+    /// Traces to tune on: folders (every *.csv in them) or CSV files, comma-separated.
+    #[arg(long, value_name = "DIR|FILE", value_delimiter = ',', required = true)]
+    pub traces: Vec<PathBuf>,
+    /// Validation traces, never fitted on (folders or CSV files, comma-separated): each
+    /// generation's best is scored on them, and the result is the candidate that does best
+    /// there without being worse than the base on any of them (else the base is kept).
+    #[arg(long, value_name = "DIR|FILE", value_delimiter = ',')]
+    pub validate: Vec<PathBuf>,
+    /// Base profile (TOML), whose other keys and comments the result keeps. Default: the
+    /// embedded profiles/full-flight.toml.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+    /// Candidates to score, the base included. Default: 200 for cwf, 50 for mpc and smpc.
+    #[arg(long, value_name = "N")]
+    pub budget: Option<usize>,
+    /// Seed of the search: the same seed, traces and base give the same result.
+    #[arg(long, value_name = "S", default_value_t = 1)]
+    pub seed: u64,
+    /// Where to write the tuned profile (refused if it exists, unless --force).
+    #[arg(long, value_name = "TUNED.toml")]
+    pub out: PathBuf,
+    /// Overwrite the --out file if it exists.
+    #[arg(long)]
+    pub force: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    /// The recording (.mcap) to export.
+    pub file: PathBuf,
+    /// Export this topic only (e.g. /cwf/platform), to -o FILE or stdout.
+    #[arg(long, value_name = "TOPIC", conflicts_with = "fields")]
+    pub topic: Option<String>,
+    /// Export these fields side by side, one row per step, to -o FILE or stdout:
+    /// comma-separated TOPIC.FIELD, FIELD a message key (all its columns) or one column,
+    /// e.g. /cwf/platform.pose,/aircraft.specific_force,/cwf/actuators.margin_leg1_m.
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    pub fields: Vec<String>,
+    /// Where to write: the folder for one CSV per topic (default: the recording's name with
+    /// `-csv`, beside it), or the file for --topic and --fields (default, or `-`: stdout).
+    #[arg(short = 'o', long = "output", value_name = "DIR|FILE")]
+    pub output: Option<PathBuf>,
+    /// Overwrite files that exist.
+    #[arg(long)]
+    pub force: bool,
+}
+
 /// How the console starts, for `play` and `review` alike.
 #[derive(Args, Debug, Default, Clone, Copy)]
 pub struct ConsoleStart {
@@ -309,9 +359,6 @@ fn key_form(name: &str) -> String {
         .to_ascii_lowercase()
 }
 
-pub use crate::outputs::check_output;
-use crate::outputs::{check_output_of, check_writable_dir, Input};
-
 /// Parses a comma-separated option into known values, in the order given and without
 /// repeats; an unknown name is refused with the list of known ones.
 fn parse_keys<T: Copy + PartialEq>(
@@ -358,26 +405,16 @@ pub fn parse_algorithms(names: &[String]) -> Result<Vec<AlgorithmId>> {
     Ok(out)
 }
 
-/// The profile and trace a play session runs on, with the texts a recording attaches.
-pub struct Session {
-    pub profile: Profile,
-    pub profile_toml: String,
-    pub trace: LoadedTrace,
-    pub algorithms: Vec<AlgorithmId>,
-}
-
-pub fn load_session(args: &PlayArgs) -> Result<Session> {
-    let (profile, profile_toml, algorithms) = load_play(args)?;
-    let trace = match &args.trace {
-        Some(path) => load_trace(path, profile.rate_hz)?,
-        None => default_trace(profile.rate_hz),
-    };
-    Ok(Session {
-        profile,
-        profile_toml,
-        trace,
-        algorithms,
-    })
+/// Parses `--tests`: every test when none is named, in the standard's order.
+pub fn parse_tests(names: &[String]) -> Result<Vec<crate::omct::OmctTest>> {
+    use crate::omct::OmctTest;
+    let mut out = parse_keys(names, "--tests", "test", &OmctTest::ALL, OmctTest::key)?;
+    if out.is_empty() {
+        out = OmctTest::ALL.to_vec();
+    }
+    // The standard's order: direct tests, then cross-couplings.
+    out.sort_by_key(|t| OmctTest::ALL.iter().position(|a| a == t));
+    Ok(out)
 }
 
 /// The profile (with its TOML) and the algorithms of a play session.
@@ -429,23 +466,6 @@ pub fn open_play_source(args: &PlayArgs, rate_hz: f64) -> Result<PlaySource> {
             }
         }
     })
-}
-
-pub fn recording_meta(session: &Session) -> RecordingMeta {
-    RecordingMeta {
-        profile_name: session.profile.name.clone(),
-        profile_toml: session.profile_toml.clone(),
-        trace_name: session.trace.trace.name.clone(),
-        trace_csv: session.trace.text.clone(),
-        trace_sidecar: session
-            .trace
-            .trace
-            .info
-            .as_ref()
-            .and_then(|i| serde_json::to_string_pretty(i).ok()),
-        algorithms: session.algorithms.clone(),
-        rate_hz: session.profile.rate_hz,
-    }
 }
 
 pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
@@ -720,7 +740,7 @@ impl Pacer {
 }
 
 /// The pace of a headless run that serves Foxglove: `--speed` × real time; `None` at `max`.
-fn headless_pace(start: &ConsoleStart) -> Option<f64> {
+pub fn headless_pace(start: &ConsoleStart) -> Option<f64> {
     crate::tui::player::SPEEDS
         .get(start.speed)
         .copied()
@@ -779,326 +799,6 @@ pub fn review_summary(path: &Path) -> Result<Summary> {
     Ok(builder.finish())
 }
 
-pub fn run(cli: Cli) -> Result<()> {
-    match cli.command.unwrap_or(Command::Play(cli.play)) {
-        Command::Play(args) => {
-            check_session_outputs(
-                args.record.as_deref(),
-                args.summary.as_deref(),
-                args.headless,
-                args.force,
-                &inputs(&[
-                    (args.trace.as_deref(), "--trace"),
-                    (args.profile.as_deref(), "--profile"),
-                ]),
-            )?;
-            headless_or_console(
-                args.headless,
-                args.summary.as_deref(),
-                || run_headless(&args),
-                || crate::console::run_live(&args),
-            )
-        }
-        Command::Review(args) => {
-            if let (Some(path), true) = (&args.summary, args.headless) {
-                let recording = [Input::new(&args.file, "recording")];
-                check_output_of(path, args.force, "--summary", &recording)?;
-            }
-            headless_or_console(
-                args.headless,
-                args.summary.as_deref(),
-                || match args.foxglove {
-                    Some(addr) => review_served(&args.file, addr, headless_pace(&args.start)),
-                    None => review_summary(&args.file),
-                },
-                || crate::console::run_review(&args),
-            )
-        }
-        Command::Compare(args) => run_compare(&args),
-        Command::Plot(args) => run_plot(&args),
-        Command::Omct(args) => run_omct(&args),
-        Command::Live(args) => {
-            check_session_outputs(
-                args.record.as_deref(),
-                args.summary.as_deref(),
-                args.headless,
-                args.force,
-                &inputs(&[(args.profile.as_deref(), "--profile")]),
-            )?;
-            let mut platform_fault = None;
-            let mut no_input = None;
-            headless_or_console(
-                args.headless,
-                args.summary.as_deref(),
-                || {
-                    let summary = run_live_headless(&args)?;
-                    platform_fault = summary.live.as_ref().and_then(|l| l.platform_fault.clone());
-                    no_input = summary.no_input_line();
-                    Ok(summary)
-                },
-                || crate::console::run_live_session(&args),
-            )?;
-            // After the summary is written and printed: the run is on record, and it failed;
-            // a script sees the failure, a person the table that explains it.
-            match (platform_fault, no_input) {
-                (Some(fault), _) => bail!("platform fault: {fault}"),
-                (None, Some(line)) => bail!("live: {line}"),
-                (None, None) => Ok(()),
-            }
-        }
-        Command::Tune(args) => crate::tune::run(&args),
-        Command::Export(args) => crate::export::run(&args),
-        Command::Recover {
-            input,
-            output,
-            force,
-        } => {
-            check_output_of(&output, force, "OUTPUT", &[Input::new(&input, "recording")])?;
-            let stats = crate::formats::recording::recover(&input, &output)?;
-            eprintln!(
-                "{}: wrote a finished copy with {} steps ({} messages)",
-                output.display(),
-                stats.output.steps,
-                stats.output.messages
-            );
-            Ok(())
-        }
-    }
-}
-
-/// Runs every algorithm on every trace of the folder and writes the report.
-pub fn run_compare(args: &CompareArgs) -> Result<()> {
-    let (mut profile, _) = match &args.profile {
-        Some(path) => load_profile(path)?,
-        None => (default_profile(), String::new()),
-    };
-    // Offline, the report must not depend on what else the machine is doing: the solvers'
-    // wall-clock safety net is lifted, and "solved in time" means within the iteration cap.
-    profile.mpc.time_limit_ms = f64::INFINITY;
-    let algorithms = parse_algorithms(&args.algorithms)?;
-    if let Some(path) = &args.out {
-        let inputs = inputs(&[
-            (args.traces.as_deref(), "--traces"),
-            (args.profile.as_deref(), "--profile"),
-        ]);
-        check_output_of(path, args.force, "--out", &inputs)?;
-    }
-    // Every trace is read and checked before the first is run: a bad one at the end of the
-    // folder must not cost the runs before it.
-    let traces: Vec<crate::trace::Trace> = match &args.traces {
-        Some(dir) => {
-            let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
-                .with_context(|| format!("{}: cannot list the traces folder", dir.display()))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")))
-                .collect();
-            paths.sort();
-            if paths.is_empty() {
-                bail!("{}: no trace (*.csv) in this folder", dir.display());
-            }
-            paths
-                .iter()
-                .map(|p| load_trace(p, profile.rate_hz).map(|l| l.trace))
-                .collect::<Result<_, _>>()?
-        }
-        None => crate::formats::library::library_traces(profile.rate_hz)?,
-    };
-    let stop = stop_flag()?;
-    let mut results = Vec::new();
-    for trace in traces {
-        let trace = Arc::new(trace);
-        let started = std::time::Instant::now();
-        let mut engine = Engine::new(&profile, trace.clone(), &algorithms)?;
-        let mut summary = SummaryBuilder::new(&profile, &trace.name);
-        while let Some(frame) = engine.step() {
-            summary.push(&frame);
-            if stop.load(Ordering::Relaxed) {
-                bail!(
-                    "stopped by a signal during {}; no report written",
-                    trace.name
-                );
-            }
-        }
-        let wall = started.elapsed().as_secs_f64();
-        eprintln!(
-            "{}: {:.1} s of flight in {:.1} s ({:.1}× real time)",
-            trace.name,
-            trace.duration_s(),
-            wall,
-            trace.duration_s() / wall.max(1e-9)
-        );
-        let description = trace.info.as_ref().map(|i| {
-            [i.aircraft.as_deref(), i.scenario.as_deref()]
-                .into_iter()
-                .flatten()
-                .collect::<Vec<_>>()
-                .join(": ")
-        });
-        results.push(crate::compare::TraceResult {
-            summary: summary.finish(),
-            description: description.filter(|d| !d.is_empty()),
-        });
-    }
-    let command = format!(
-        "hexcue compare{}{}",
-        args.traces
-            .as_ref()
-            .map(|t| format!(" --traces {}", t.display()))
-            .unwrap_or_default(),
-        args.profile
-            .as_ref()
-            .map(|p| format!(" --profile {}", p.display()))
-            .unwrap_or_default()
-    );
-    let report = crate::compare::render_markdown(&results, &profile, &command);
-    match &args.out {
-        Some(path) => std::fs::write(path, report)
-            .with_context(|| format!("{}: cannot write the report", path.display())),
-        None => print_stdout(&report),
-    }
-}
-
-pub fn run_plot(args: &PlotArgs) -> Result<()> {
-    let request = crate::plot::timeline::PlotRequest {
-        panels: crate::plot::timeline::Panel::parse_list(&args.channels)?,
-        from_s: args.from,
-        to_s: args.to,
-        width_px: args.width,
-    };
-    if let (Some(from), Some(to)) = (args.from, args.to) {
-        // Checked before the file is read: a wrong window should not cost a long read.
-        if from >= to {
-            bail!("--from {from} --to {to}: expected --from before --to");
-        }
-    }
-    let recording = [Input::new(&args.file, "recording")];
-    check_output_of(&args.output, args.force, "-o", &recording)?;
-    crate::plot::timeline::plot(&args.file, &request, &args.output)?;
-    eprintln!("wrote {}", args.output.display());
-    Ok(())
-}
-
-fn parse_tests(names: &[String]) -> Result<Vec<crate::omct::OmctTest>> {
-    use crate::omct::OmctTest;
-    let mut out = parse_keys(names, "--tests", "test", &OmctTest::ALL, OmctTest::key)?;
-    if out.is_empty() {
-        out = OmctTest::ALL.to_vec();
-    }
-    // The standard's order: direct tests, then cross-couplings.
-    out.sort_by_key(|t| OmctTest::ALL.iter().position(|a| a == t));
-    Ok(out)
-}
-
-pub fn run_omct(args: &OmctArgs) -> Result<()> {
-    use crate::formats::omct::OmctReport;
-    use crate::omct::{frequency_subset, run_all};
-
-    let profile = match &args.profile {
-        Some(path) => load_profile(path)?.0,
-        None => default_profile(),
-    };
-    let algorithms = parse_algorithms(&args.algorithms)?;
-    let tests = parse_tests(&args.tests)?;
-    let frequencies = frequency_subset(args.frequencies as usize);
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create the output directory", args.out.display()))?;
-    check_writable_dir(&args.out)
-        .with_context(|| format!("{}: --out: cannot be written", args.out.display()))?;
-    let outputs: Vec<PathBuf> = ["omct.md".to_string(), "omct.json".to_string()]
-        .into_iter()
-        .chain(tests.iter().map(|t| format!("{}.{}", t.key(), args.format)))
-        .map(|name| args.out.join(name))
-        .collect();
-    let profile_input = inputs(&[(args.profile.as_deref(), "--profile")]);
-    for path in &outputs {
-        crate::outputs::check_not_input(path, "--out", &profile_input)?;
-    }
-    let existing: Vec<String> = outputs
-        .iter()
-        .filter(|p| p.exists())
-        .map(|p| p.display().to_string())
-        .collect();
-    if !existing.is_empty() && !args.force {
-        bail!(
-            "{}: --out: would overwrite {}; pass --force to overwrite, or choose another folder",
-            args.out.display(),
-            existing.join(", ")
-        );
-    }
-
-    let total = algorithms.len() * tests.len() * frequencies.len();
-    let bar = std::io::stderr().is_terminal().then(|| {
-        let bar = indicatif::ProgressBar::new(total as u64);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} OMCT [{bar:40}] {pos}/{len} points ({elapsed}, {eta} left)",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        // Drawn now and kept moving: the first point of a slow MPC takes seconds.
-        bar.enable_steady_tick(std::time::Duration::from_millis(200));
-        bar
-    });
-    let workers = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1)
-        .min(total);
-    let started = std::time::Instant::now();
-    let on_point = |done: usize| {
-        if let Some(bar) = &bar {
-            bar.set_position(done as u64);
-        }
-    };
-    let curves = run_all(
-        &profile,
-        &algorithms,
-        &tests,
-        &frequencies,
-        workers,
-        &on_point,
-    );
-    if let Some(bar) = &bar {
-        bar.finish_and_clear();
-    }
-    let curves = curves?;
-    let wall_s = started.elapsed().as_secs_f64();
-    let report = OmctReport {
-        profile: profile.name.clone(),
-        algorithms: algorithms.clone(),
-        tests: tests.clone(),
-        frequencies_radps: frequencies,
-        curves,
-    };
-    let write = |name: &str, text: String| -> Result<()> {
-        let path = args.out.join(name);
-        std::fs::write(&path, text).with_context(|| format!("{}: cannot write", path.display()))
-    };
-    write("omct.md", report.to_markdown())?;
-    write(
-        "omct.json",
-        serde_json::to_string_pretty(&report.to_json())? + "\n",
-    )?;
-    for &test in &tests {
-        let path = args.out.join(format!("{}.{}", test.key(), args.format));
-        crate::plot::bode::write(&path, test, &profile.name, &report.curves)?;
-    }
-    let names: Vec<&str> = algorithms.iter().map(|a| a.key()).collect();
-    let plural =
-        |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
-    eprintln!(
-        "OMCT of {} on {}: {} × {} in {:.1} s on {}; wrote {}/omct.md, omct.json and {}",
-        names.join(", "),
-        profile.name,
-        plural(tests.len(), "test", "tests"),
-        plural(report.frequencies_radps.len(), "frequency", "frequencies"),
-        wall_s,
-        plural(workers, "thread", "threads"),
-        args.out.display(),
-        plural(tests.len(), "figure", "figures")
-    );
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1151,29 +851,5 @@ mod tests {
         );
         let e = parse_algorithms(&names(&["lqr"])).unwrap_err();
         assert!(e.to_string().contains("smpc, mpc, cwf"), "{e}");
-    }
-
-    #[test]
-    fn outputs_are_checked_before_the_work() {
-        let dir = tempfile::tempdir().unwrap();
-        let existing = dir.path().join("run.mcap");
-        std::fs::write(&existing, "precious").unwrap();
-        let e = check_output(&existing, false, "--record").unwrap_err();
-        let m = format!("{e:#}");
-        assert!(m.contains("run.mcap") && m.contains("--force"), "{m}");
-        check_output(&existing, true, "--record").unwrap();
-        assert_eq!(std::fs::read_to_string(&existing).unwrap(), "precious");
-
-        let missing_dir = dir.path().join("nope").join("x.json");
-        let m = format!(
-            "{:#}",
-            check_output(&missing_dir, false, "--summary").unwrap_err()
-        );
-        assert!(m.contains("x.json") && m.contains("does not exist"), "{m}");
-        let m = format!("{:#}", check_output(dir.path(), false, "-o").unwrap_err());
-        assert!(m.contains("is a folder"), "{m}");
-        check_output(&dir.path().join("new.json"), false, "--summary").unwrap();
-        // The probe leaves nothing behind.
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 }

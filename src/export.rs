@@ -7,35 +7,12 @@
 use std::collections::{BTreeMap, HashSet};
 use std::fmt;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{bail, Context, Result};
-use clap::Args;
 use serde::de::{self, Deserialize, Deserializer, MapAccess, SeqAccess, Visitor};
 
 use crate::formats::recording::{JsonMessage, Recording};
-use crate::outputs::{check_not_input, check_output_of, check_writable_dir, Input};
-
-#[derive(Args, Debug)]
-pub struct ExportArgs {
-    /// The recording (.mcap) to export.
-    pub file: PathBuf,
-    /// Export this topic only (e.g. /cwf/platform), to -o FILE or stdout.
-    #[arg(long, value_name = "TOPIC", conflicts_with = "fields")]
-    pub topic: Option<String>,
-    /// Export these fields side by side, one row per step, to -o FILE or stdout:
-    /// comma-separated TOPIC.FIELD, FIELD a message key (all its columns) or one column,
-    /// e.g. /cwf/platform.pose,/aircraft.specific_force,/cwf/actuators.margin_leg1_m.
-    #[arg(long, value_name = "LIST", value_delimiter = ',')]
-    pub fields: Vec<String>,
-    /// Where to write: the folder for one CSV per topic (default: the recording's name with
-    /// `-csv`, beside it), or the file for --topic and --fields (default, or `-`: stdout).
-    #[arg(short = 'o', long = "output", value_name = "DIR|FILE")]
-    pub output: Option<PathBuf>,
-    /// Overwrite files that exist.
-    #[arg(long)]
-    pub force: bool,
-}
 
 /// A JSON value with its object keys in the order written, so that columns follow the
 /// message's own order (`t` first, then the fields as the schema lists them).
@@ -101,7 +78,7 @@ impl<'de> Deserialize<'de> for Node {
 
 /// One CSV column of a topic: its name and the message key it comes from.
 #[derive(Clone, Debug, PartialEq)]
-struct Column {
+pub struct Column {
     name: String,
     key: String,
 }
@@ -204,7 +181,7 @@ fn topic_kind(topic: &str) -> &str {
 }
 
 /// A topic's file name: `/cwf/platform` → `cwf-platform.csv`.
-fn topic_file(topic: &str) -> String {
+pub fn topic_file(topic: &str) -> String {
     let stem: Vec<&str> = topic.split('/').filter(|p| !p.is_empty()).collect();
     format!("{}.csv", stem.join("-"))
 }
@@ -228,7 +205,7 @@ fn parse(recording: &Path, m: &JsonMessage) -> Result<Node> {
 }
 
 /// First pass: every topic's columns, in the order they first appear.
-fn columns(recording: &Recording) -> Result<BTreeMap<String, Vec<Column>>> {
+pub fn columns(recording: &Recording) -> Result<BTreeMap<String, Vec<Column>>> {
     let mut out: BTreeMap<String, (Vec<Column>, HashSet<String>)> = BTreeMap::new();
     for m in recording.json_messages()? {
         let m = m?;
@@ -278,7 +255,7 @@ fn write_record(w: &mut csv::Writer<Box<dyn Write>>, row: &[String], shown: &str
 
 /// The chosen fields: (topic, column) pairs in the order asked, each field expanded to its
 /// columns; an unknown topic or field is refused with what there is.
-fn chosen(
+pub fn chosen(
     fields: &[String],
     all: &BTreeMap<String, Vec<Column>>,
     recording: &Path,
@@ -326,116 +303,14 @@ fn chosen(
 }
 
 /// What was written, for the message on stderr.
-struct Written {
-    path: String,
-    rows: usize,
-    columns: usize,
-}
-
-pub fn run(args: &ExportArgs) -> Result<()> {
-    let recording_input = [Input::new(&args.file, "recording")];
-    let to_stdout = args.output.as_deref().is_none_or(|p| p == Path::new("-"));
-    let per_topic = args.topic.is_none() && args.fields.is_empty();
-    if let Some(out) = &args.output {
-        check_not_input(out, "-o", &recording_input)?;
-    }
-    if !per_topic && !to_stdout {
-        if let Some(out) = &args.output {
-            check_output_of(out, args.force, "-o", &recording_input)?;
-        }
-    }
-    let recording = Recording::open(&args.file)?;
-    if !recording.finished {
-        eprintln!(
-            "warning: {}: the recording was not finished; exporting the messages before {}",
-            args.file.display(),
-            recording.stopped.as_deref().unwrap_or("its end")
-        );
-    }
-    let all = columns(&recording)?;
-    if all.is_empty() {
-        bail!("{}: no JSON topic to export", args.file.display());
-    }
-    let written = if per_topic {
-        export_topics(args, &recording, &all)?
-    } else if let Some(topic) = &args.topic {
-        let cols = all.get(topic).with_context(|| {
-            format!(
-                "--topic: {} has no topic `{topic}`; its topics: {}",
-                args.file.display(),
-                all.keys().cloned().collect::<Vec<_>>().join(", ")
-            )
-        })?;
-        let path = (!to_stdout).then(|| args.output.clone()).flatten();
-        vec![export_one(&recording, topic, cols, path.as_deref())?]
-    } else {
-        let pairs = chosen(&args.fields, &all, &args.file)?;
-        let path = (!to_stdout).then(|| args.output.clone()).flatten();
-        vec![export_fields(&recording, &pairs, path.as_deref())?]
-    };
-    for w in written.iter().filter(|w| w.path != "stdout") {
-        eprintln!("wrote {} ({} rows, {} columns)", w.path, w.rows, w.columns);
-    }
-    Ok(())
-}
-
-/// One CSV per topic in the output folder.
-fn export_topics(
-    args: &ExportArgs,
-    recording: &Recording,
-    all: &BTreeMap<String, Vec<Column>>,
-) -> Result<Vec<Written>> {
-    let dir = match &args.output {
-        Some(d) => d.clone(),
-        None => {
-            let stem = args
-                .file
-                .file_stem()
-                .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
-            args.file
-                .parent()
-                .unwrap_or(Path::new(""))
-                .join(format!("{stem}-csv"))
-        }
-    };
-    if dir.exists() && !dir.is_dir() {
-        bail!(
-            "{}: -o: is a file; one CSV per topic needs a folder (or pass --topic or --fields for one file)",
-            dir.display()
-        );
-    }
-    let files: Vec<(String, PathBuf)> = all
-        .keys()
-        .map(|t| (t.clone(), dir.join(topic_file(t))))
-        .collect();
-    let recording_input = [Input::new(&args.file, "recording")];
-    for (_, path) in &files {
-        check_not_input(path, "-o", &recording_input)?;
-    }
-    let existing: Vec<String> = files
-        .iter()
-        .filter(|(_, p)| p.exists())
-        .map(|(_, p)| p.display().to_string())
-        .collect();
-    if !existing.is_empty() && !args.force {
-        bail!(
-            "{}: -o: would overwrite {}; pass --force to overwrite, or choose another folder",
-            dir.display(),
-            existing.join(", ")
-        );
-    }
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("{}: -o: cannot create the folder", dir.display()))?;
-    check_writable_dir(&dir)
-        .with_context(|| format!("{}: -o: cannot be written", dir.display()))?;
-    files
-        .iter()
-        .map(|(topic, path)| export_one(recording, topic, &all[topic], Some(path)))
-        .collect()
+pub struct Written {
+    pub path: String,
+    pub rows: usize,
+    pub columns: usize,
 }
 
 /// One topic, one row per message.
-fn export_one(
+pub fn export_one(
     recording: &Recording,
     topic: &str,
     cols: &[Column],
@@ -478,7 +353,7 @@ fn export_one(
 
 /// Chosen fields of several topics, one row per step (the messages of a step share their log
 /// time), time first: the step's `t` from the first of its messages that has one.
-fn export_fields(
+pub fn export_fields(
     recording: &Recording,
     pairs: &[(String, String)],
     path: Option<&Path>,

@@ -219,4 +219,28 @@ mod tests {
         let e = check_distinct(Some(rel), Some(&cwd.join(rel)), "--record and --summary");
         assert!(e.is_err());
     }
+
+    #[test]
+    fn outputs_are_checked_before_the_work() {
+        let dir = tempfile::tempdir().unwrap();
+        let existing = dir.path().join("run.mcap");
+        std::fs::write(&existing, "precious").unwrap();
+        let e = check_output(&existing, false, "--record").unwrap_err();
+        let m = format!("{e:#}");
+        assert!(m.contains("run.mcap") && m.contains("--force"), "{m}");
+        check_output(&existing, true, "--record").unwrap();
+        assert_eq!(std::fs::read_to_string(&existing).unwrap(), "precious");
+
+        let missing_dir = dir.path().join("nope").join("x.json");
+        let m = format!(
+            "{:#}",
+            check_output(&missing_dir, false, "--summary").unwrap_err()
+        );
+        assert!(m.contains("x.json") && m.contains("does not exist"), "{m}");
+        let m = format!("{:#}", check_output(dir.path(), false, "-o").unwrap_err());
+        assert!(m.contains("is a folder"), "{m}");
+        check_output(&dir.path().join("new.json"), false, "--summary").unwrap();
+        // The probe leaves nothing behind.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
 }

@@ -1,16 +1,16 @@
-//! What every command sets up the same way: the stop flag for signals, the summary table
-//! and file, stdout that tolerates a closed pipe, and the checks on output paths made before
-//! anything runs.
+//! What every command sets up the same way: the stop flag for signals, the progress bar, the
+//! summary table and file, stdout that tolerates a closed pipe, and the checks on output
+//! paths made before anything runs.
 
-use std::io::Write;
-use std::path::Path;
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 
 use crate::metrics::CHANNELS;
-use crate::outputs::{check_distinct, check_output_of, Input};
+use crate::outputs::{check_distinct, check_not_input, check_output_of, Input};
 use crate::summary::Summary;
 
 /// Set by SIGINT, SIGTERM or SIGHUP so that a headless run stops cleanly and finishes its
@@ -26,6 +26,30 @@ pub fn stop_flag() -> Result<Arc<AtomicBool>> {
             .context("cannot install the signal handlers")?;
     }
     Ok(flag)
+}
+
+/// A progress bar on stderr for a long run of `len` units, drawn with indicatif's `template`
+/// (which may also use `{rate}`: whole units per second, where indicatif's `{per_sec}` prints
+/// four decimals). Hidden when stderr is not a terminal: a log or a pipe gets the messages
+/// alone. It ticks on its own, so that a slow first unit (an MPC's first OMCT point takes
+/// seconds) does not look like a hang.
+pub fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(len);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(template)
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .with_key(
+                "rate",
+                |state: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+                    let _ = write!(w, "{:.0}", state.per_sec());
+                },
+            ),
+    );
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    bar
 }
 
 /// The metrics table printed by headless runs: one row per algorithm and channel, then a
@@ -244,4 +268,32 @@ pub fn inputs<'a>(named: &[(Option<&'a Path>, &'a str)]) -> Vec<Input<'a>> {
         .iter()
         .filter_map(|(path, option)| path.map(|p| Input::new(p, option)))
         .collect()
+}
+
+/// The files a command writes into `dir`, checked before anything runs: none of them is one of
+/// its inputs, and none exists unless `force` (then every file that would be overwritten is
+/// named at once, rather than the first).
+pub fn check_folder_outputs(
+    dir: &Path,
+    files: &[PathBuf],
+    option: &str,
+    inputs: &[Input],
+    force: bool,
+) -> Result<()> {
+    for path in files {
+        check_not_input(path, option, inputs)?;
+    }
+    let existing: Vec<String> = files
+        .iter()
+        .filter(|p| p.exists())
+        .map(|p| p.display().to_string())
+        .collect();
+    if !existing.is_empty() && !force {
+        bail!(
+            "{}: {option}: would overwrite {}; pass --force to overwrite, or choose another folder",
+            dir.display(),
+            existing.join(", ")
+        );
+    }
+    Ok(())
 }

@@ -12,20 +12,15 @@
 pub mod keys;
 pub mod validate;
 
-use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use anyhow::{anyhow, bail, Context, Result};
-use clap::Args;
 use rayon::prelude::*;
 use toml_edit::DocumentMut;
 
 use crate::engine::Engine;
-use crate::formats::profile::{
-    default_profile, parse_profile, DEFAULT_PROFILE_SOURCE, DEFAULT_PROFILE_TOML,
-};
-use crate::formats::trace::load_trace;
+use crate::formats::profile::parse_profile;
 use crate::mca::AlgorithmId;
 use crate::profile::Profile;
 use crate::summary::SummaryBuilder;
@@ -47,37 +42,6 @@ const INVALID_SCORE: f64 = 1e6;
 /// Step size of the search, in coordinates where each key's bounds span 0 to 1.
 const INITIAL_STEP: f64 = 0.2;
 
-#[derive(Args, Debug, Clone)]
-pub struct TuneArgs {
-    /// The algorithm to tune: cwf, mpc or smpc (its keys: docs/tuning.md).
-    #[arg(long, value_name = "ALG")]
-    pub algorithm: String,
-    /// Traces to tune on: folders (every *.csv in them) or CSV files, comma-separated.
-    #[arg(long, value_name = "DIR|FILE", value_delimiter = ',', required = true)]
-    pub traces: Vec<PathBuf>,
-    /// Validation traces, never fitted on (folders or CSV files, comma-separated): each
-    /// generation's best is scored on them, and the result is the candidate that does best
-    /// there without being worse than the base on any of them (else the base is kept).
-    #[arg(long, value_name = "DIR|FILE", value_delimiter = ',')]
-    pub validate: Vec<PathBuf>,
-    /// Base profile (TOML), whose other keys and comments the result keeps. Default: the
-    /// embedded profiles/full-flight.toml.
-    #[arg(long, value_name = "FILE")]
-    pub profile: Option<PathBuf>,
-    /// Candidates to score, the base included. Default: 200 for cwf, 50 for mpc and smpc.
-    #[arg(long, value_name = "N")]
-    pub budget: Option<usize>,
-    /// Seed of the search: the same seed, traces and base give the same result.
-    #[arg(long, value_name = "S", default_value_t = 1)]
-    pub seed: u64,
-    /// Where to write the tuned profile (refused if it exists, unless --force).
-    #[arg(long, value_name = "TUNED.toml")]
-    pub out: PathBuf,
-    /// Overwrite the --out file if it exists.
-    #[arg(long)]
-    pub force: bool,
-}
-
 /// How one candidate did on one trace.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TraceOutcome {
@@ -87,6 +51,7 @@ pub struct TraceOutcome {
 }
 
 impl TraceOutcome {
+    #[cfg(test)]
     pub fn feasible(&self) -> bool {
         self.leg_violations == 0 && self.limiter_fraction <= LIMITER_TOLERANCE
     }
@@ -116,6 +81,7 @@ impl Candidate {
     }
 
     /// Within [`LIMITER_TOLERANCE`] on every trace, every leg in stroke.
+    #[cfg(test)]
     pub fn feasible(&self) -> bool {
         self.outcomes.iter().all(TraceOutcome::feasible)
     }
@@ -256,8 +222,6 @@ pub struct TuneResult {
     pub best: Option<Candidate>,
     pub evaluations: usize,
     pub interrupted: bool,
-    /// One line a generation: training best and its validation.
-    pub history: Vec<GenerationRecord>,
     /// With validation flights: the base's outcomes there and the chosen candidate's.
     pub validation: Option<ValidationOutcome>,
 }
@@ -315,7 +279,6 @@ pub fn tune(
         None => None,
     };
     let mut validated: Vec<Validated> = Vec::new();
-    let mut history = Vec::new();
     let bounds = limiter_bounds(&base);
     let best: Mutex<Option<Candidate>> =
         Mutex::new(base.feasible_within(&bounds).then(|| base.clone()));
@@ -389,7 +352,6 @@ pub fn tune(
                 }
             }
             progress.generation(&record);
-            history.push(record);
             if done.is_some() {
                 break;
             }
@@ -414,381 +376,14 @@ pub fn tune(
         best,
         evaluations,
         interrupted,
-        history,
         validation,
     })
-}
-
-/// Traces from folders (their *.csv, sorted) and files, checked before any work.
-pub fn load_traces(paths: &[PathBuf], rate_hz: f64) -> Result<Vec<Arc<Trace>>> {
-    let mut files = Vec::new();
-    for p in paths {
-        if p.is_dir() {
-            let mut in_dir: Vec<PathBuf> = std::fs::read_dir(p)
-                .with_context(|| format!("{}: cannot list the traces folder", p.display()))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|f| f.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")))
-                .collect();
-            in_dir.sort();
-            if in_dir.is_empty() {
-                bail!("{}: --traces: no trace (*.csv) in this folder", p.display());
-            }
-            files.extend(in_dir);
-        } else {
-            files.push(p.clone());
-        }
-    }
-    if files.is_empty() {
-        bail!("--traces: expected at least one trace");
-    }
-    files
-        .iter()
-        .map(|f| Ok(Arc::new(load_trace(f, rate_hz)?.trace)))
-        .collect()
-}
-
-struct Bar {
-    bar: indicatif::ProgressBar,
-    start: Mutex<Option<f64>>,
-}
-
-impl Progress for Bar {
-    fn scored(&self, evaluations: usize, best: Option<f64>) {
-        let mut start = self.start.lock().expect("not poisoned");
-        if start.is_none() {
-            *start = best;
-        }
-        self.bar.set_position(evaluations as u64);
-        self.bar.set_message(match (best, *start) {
-            (Some(b), Some(s)) => format!("best score {b:.4} (base {s:.4})"),
-            (Some(b), None) => format!("best score {b:.4} (base infeasible)"),
-            _ => "no feasible candidate yet".to_string(),
-        });
-    }
-
-    fn generation(&self, r: &GenerationRecord) {
-        // A line per generation says how far the search is and whether what it fits holds on
-        // the flights it does not see: above the bar on a terminal, on stderr elsewhere.
-        let line = format!(
-            "generation {}: {} candidates, training best {}{}",
-            r.generation,
-            r.evaluations,
-            r.training
-                .map_or("none yet".to_string(), |b| format!("{b:.4}")),
-            match r.validation {
-                Some((v, true)) => format!(", validation {v:.4} (accepted)"),
-                Some((v, false)) => format!(", validation {v:.4} (not accepted)"),
-                None => String::new(),
-            }
-        );
-        if self.bar.is_hidden() {
-            eprintln!("{line}");
-        } else {
-            self.bar.println(line);
-        }
-    }
-}
-
-/// The command line that reproduces a tune, for the profile's header.
-fn command_line(args: &TuneArgs, algorithm: AlgorithmId, budget: usize) -> String {
-    let traces: Vec<String> = args
-        .traces
-        .iter()
-        .map(|t| t.display().to_string())
-        .collect();
-    format!(
-        "hexcue tune --algorithm {algorithm} --traces {}{}{} --budget {budget} --seed {} --out {}",
-        traces.join(","),
-        if args.validate.is_empty() {
-            String::new()
-        } else {
-            format!(
-                " --validate {}",
-                args.validate
-                    .iter()
-                    .map(|t| t.display().to_string())
-                    .collect::<Vec<_>>()
-                    .join(",")
-            )
-        },
-        args.profile
-            .as_ref()
-            .map(|p| format!(" --profile {}", p.display()))
-            .unwrap_or_default(),
-        args.seed,
-        args.out.display()
-    )
-}
-
-/// Puts `line` after the `# tuned:` lines already at the top of a profile (or first), so
-/// that a profile tuned in several passes lists its commands in order.
-fn add_header(text: &str, line: &str) -> String {
-    let mut lines: Vec<&str> = text.lines().collect();
-    let at = lines
-        .iter()
-        .take_while(|l| l.starts_with("# tuned:"))
-        .count();
-    lines.insert(at, line);
-    let mut out = lines.join("\n");
-    out.push('\n');
-    out
-}
-
-/// `hexcue tune`.
-pub fn run(args: &TuneArgs) -> Result<()> {
-    let wanted = args
-        .algorithm
-        .trim()
-        .to_ascii_lowercase()
-        .replace(['-', '_'], "");
-    let algorithm = AlgorithmId::ALL
-        .iter()
-        .copied()
-        .find(|a| a.key() == wanted)
-        .ok_or_else(|| {
-            anyhow!(
-                "--algorithm: unknown algorithm `{}`; expected one of cwf, mpc, smpc",
-                args.algorithm
-            )
-        })?;
-    let (profile, text, source) = match &args.profile {
-        Some(path) => {
-            let (p, t) = crate::formats::profile::load_profile(path)?;
-            (p, t, path.display().to_string())
-        }
-        None => (
-            default_profile(),
-            DEFAULT_PROFILE_TOML.to_string(),
-            DEFAULT_PROFILE_SOURCE.to_string(),
-        ),
-    };
-    let mut inputs: Vec<crate::outputs::Input> = args
-        .traces
-        .iter()
-        .map(|t| crate::outputs::Input::new(t, "--traces"))
-        .collect();
-    if let Some(p) = &args.profile {
-        inputs.push(crate::outputs::Input::new(p, "--profile"));
-    }
-    crate::outputs::check_output_of(&args.out, args.force, "--out", &inputs)?;
-    let budget = args.budget.unwrap_or(match algorithm {
-        AlgorithmId::Cwf => 200,
-        _ => 50,
-    });
-    if budget == 0 {
-        bail!("--budget: expected at least 1 candidate");
-    }
-    let base: DocumentMut = text
-        .parse()
-        .with_context(|| format!("{source}: cannot be edited as TOML"))?;
-    let (keys, absent) = keys::stated_keys(tunable_keys(algorithm), &base);
-    for k in &absent {
-        eprintln!(
-            "note: {source}: `{}` is not stated, so it is not tuned (the loader's default holds)",
-            k.name()
-        );
-    }
-    keys::check_table(&keys, &base).with_context(|| source.clone())?;
-    let traces = load_traces(&args.traces, profile.rate_hz)?;
-    let validation_traces = if args.validate.is_empty() {
-        Vec::new()
-    } else {
-        load_traces(&args.validate, profile.rate_hz).context("--validate")?
-    };
-    for t in traces.iter().chain(&validation_traces) {
-        for notice in &t.notices {
-            eprintln!("note: {}: {notice}", t.name);
-        }
-    }
-    if let Some(t) = validation_traces
-        .iter()
-        .find(|v| traces.iter().any(|t| t.name == v.name))
-    {
-        bail!(
-            "--validate: {} is also a training trace; validation flights must be flights the \
-             search does not fit on",
-            t.name
-        );
-    }
-
-    let stop = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(sig, stop.clone())
-            .context("cannot install the signal handlers")?;
-    }
-    let validator = (!validation_traces.is_empty()).then(|| Evaluator {
-        algorithm,
-        keys: keys.clone(),
-        base: base.clone(),
-        traces: validation_traces,
-        stop: stop.clone(),
-    });
-    let evaluator = Evaluator {
-        algorithm,
-        keys: keys.clone(),
-        base,
-        traces,
-        stop: stop.clone(),
-    };
-    eprintln!(
-        "tuning {} ({} keys) on {} traces{}, budget {budget} candidates, seed {}",
-        algorithm.label(),
-        keys.len(),
-        evaluator.traces.len(),
-        validator.as_ref().map_or(String::new(), |v| format!(
-            ", validated on {} others",
-            v.traces.len()
-        )),
-        args.seed
-    );
-    let bar = indicatif::ProgressBar::new(budget as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} tune {prefix} [{bar:30}] {pos}/{len} candidates ({elapsed}, {eta} left) {msg}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
-    bar.set_prefix(algorithm.key());
-    let progress = Bar {
-        bar,
-        start: Mutex::new(None),
-    };
-    let started = std::time::Instant::now();
-    let result = tune(&evaluator, validator.as_ref(), budget, args.seed, &progress)?;
-    progress.bar.finish_and_clear();
-    let wall = started.elapsed().as_secs_f64();
-
-    let Some(best) = &result.best else {
-        bail!(
-            "no candidate kept every leg in its stroke and the limiter within {} % of the \
-             steps (or the base's share) on every trace; nothing written",
-            100.0 * LIMITER_TOLERANCE
-        );
-    };
-    let names = |e: &Evaluator| {
-        e.traces
-            .iter()
-            .map(|t| t.name.as_str())
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    let mut header = format!(
-        "# tuned: `{}` (hexcue {}): {} mean score {:.4} -> {:.4} on {}",
-        command_line(args, algorithm, budget),
-        env!("CARGO_PKG_VERSION"),
-        algorithm.label(),
-        result.base.mean_score(),
-        best.mean_score(),
-        names(&evaluator)
-    );
-    if let (Some(v), Some(val)) = (&validator, &result.validation) {
-        header.push_str(&format!(
-            "; validation mean score {:.4} -> {:.4} on {}{}",
-            val.base_mean(),
-            val.chosen.as_ref().map_or(val.base_mean(), Validated::mean),
-            names(v),
-            if val.chosen.is_none() {
-                " (base kept: no candidate beat it there)"
-            } else {
-                ""
-            }
-        ));
-    }
-    let tuned = add_header(&evaluator.document(&best.values)?, &header);
-    // The same loader and validation as any profile, then scored again from that text.
-    let shown = args.out.display().to_string();
-    let mut written = parse_profile(&tuned, &shown)?;
-    written.mpc.time_limit_ms = f64::INFINITY;
-    std::fs::write(&args.out, &tuned)
-        .with_context(|| format!("{shown}: cannot write the tuned profile"))?;
-    let after = evaluator.run(&written)?;
-
-    let mut out = String::new();
-    out.push_str(&format!(
-        "{} tuned in {:.1} s: {} candidates{}; wrote {shown}\n\n",
-        algorithm.label(),
-        wall,
-        result.evaluations,
-        if result.interrupted {
-            " (interrupted: the best found so far)"
-        } else {
-            ""
-        }
-    ));
-    out.push_str(&format!(
-        "{:<24} {:>10} {:>10}\n",
-        "trace", "before", "after"
-    ));
-    let after_scores: Vec<Option<f64>> = match &after {
-        Some(a) => a.iter().map(|o| Some(o.score)).collect(),
-        None => vec![None; evaluator.traces.len()],
-    };
-    for ((t, b), a) in evaluator
-        .traces
-        .iter()
-        .zip(&result.base.outcomes)
-        .zip(&after_scores)
-    {
-        out.push_str(&format!(
-            "{:<24} {:>10.4} {:>10}\n",
-            t.name,
-            b.score,
-            a.map_or("-".into(), |a| format!("{a:.4}"))
-        ));
-    }
-    out.push_str(&format!(
-        "{:<24} {:>10.4} {:>10.4}\n\n",
-        "mean",
-        result.base.mean_score(),
-        best.mean_score()
-    ));
-    if let (Some(v), Some(val)) = (&validator, &result.validation) {
-        out.push_str(&format!(
-            "{:<24} {:>10} {:>10}\n",
-            "validation trace", "before", "after"
-        ));
-        let after = val.chosen.as_ref().map_or(&val.base, |c| &c.validation);
-        for ((t, b), a) in v.traces.iter().zip(&val.base).zip(after) {
-            out.push_str(&format!(
-                "{:<24} {:>10.4} {:>10.4}\n",
-                t.name, b.score, a.score
-            ));
-        }
-        out.push_str(&format!(
-            "{:<24} {:>10.4} {:>10.4}\n",
-            "validation mean",
-            val.base_mean(),
-            val.chosen.as_ref().map_or(val.base_mean(), Validated::mean)
-        ));
-        out.push_str(&match &val.chosen {
-            Some(_) => "(the tuned profile: the best validation mean of the candidates not \
-                        worse than the base on any validation trace)\n\n"
-                .to_string(),
-            None => format!(
-                "(base kept: none of the {} candidates validated beat it on every validation \
-                 trace)\n\n",
-                val.validated.len()
-            ),
-        });
-    }
-    out.push_str(&format!("{:<40} {:>10} {:>10}\n", "key", "base", "tuned"));
-    for ((k, b), v) in keys.iter().zip(&result.base.values).zip(&best.values) {
-        out.push_str(&format!("{:<40} {:>10} {:>10}\n", k.name(), b, v));
-    }
-    print!("{out}");
-    if result.interrupted {
-        bail!(
-            "interrupted by a signal after {} of {budget} candidates; {shown} holds the best \
-             profile found so far",
-            result.evaluations
-        );
-    }
-    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::formats::profile::DEFAULT_PROFILE_TOML;
     use crate::profile::tests::full_flight;
 
     struct Quiet;
@@ -920,12 +515,5 @@ mod tests {
         let ev = evaluator(vec![short_manoeuvre()]);
         ev.stop.store(true, Ordering::Relaxed);
         assert!(tune(&ev, None, 20, 1, &Quiet).is_err());
-    }
-
-    #[test]
-    fn headers_accumulate_in_order() {
-        let t = add_header("name = \"x\"\n", "# tuned: a");
-        let t = add_header(&t, "# tuned: b");
-        assert_eq!(t, "# tuned: a\n# tuned: b\nname = \"x\"\n");
     }
 }

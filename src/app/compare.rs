@@ -1,0 +1,107 @@
+//! `hexcue compare`: every algorithm on every trace of a folder, and the Markdown report.
+
+use std::path::PathBuf;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+use anyhow::{bail, Context, Result};
+
+use crate::app::common::{inputs, print_stdout, stop_flag};
+use crate::cli::{parse_algorithms, CompareArgs};
+use crate::engine::Engine;
+use crate::formats::profile::{default_profile, load_profile};
+use crate::formats::trace::load_trace;
+use crate::outputs::check_output_of;
+use crate::summary::SummaryBuilder;
+
+/// Runs every algorithm on every trace of the folder and writes the report.
+pub fn run(args: &CompareArgs) -> Result<()> {
+    let (mut profile, _) = match &args.profile {
+        Some(path) => load_profile(path)?,
+        None => (default_profile(), String::new()),
+    };
+    // Offline, the report must not depend on what else the machine is doing: the solvers'
+    // wall-clock safety net is lifted, and "solved in time" means within the iteration cap.
+    profile.mpc.time_limit_ms = f64::INFINITY;
+    let algorithms = parse_algorithms(&args.algorithms)?;
+    if let Some(path) = &args.out {
+        let inputs = inputs(&[
+            (args.traces.as_deref(), "--traces"),
+            (args.profile.as_deref(), "--profile"),
+        ]);
+        check_output_of(path, args.force, "--out", &inputs)?;
+    }
+    // Every trace is read and checked before the first is run: a bad one at the end of the
+    // folder must not cost the runs before it.
+    let traces: Vec<crate::trace::Trace> = match &args.traces {
+        Some(dir) => {
+            let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+                .with_context(|| format!("{}: cannot list the traces folder", dir.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")))
+                .collect();
+            paths.sort();
+            if paths.is_empty() {
+                bail!("{}: no trace (*.csv) in this folder", dir.display());
+            }
+            paths
+                .iter()
+                .map(|p| load_trace(p, profile.rate_hz).map(|l| l.trace))
+                .collect::<Result<_, _>>()?
+        }
+        None => crate::formats::library::library_traces(profile.rate_hz)?,
+    };
+    let stop = stop_flag()?;
+    let mut results = Vec::new();
+    for trace in traces {
+        let trace = Arc::new(trace);
+        let started = std::time::Instant::now();
+        let mut engine = Engine::new(&profile, trace.clone(), &algorithms)?;
+        let mut summary = SummaryBuilder::new(&profile, &trace.name);
+        while let Some(frame) = engine.step() {
+            summary.push(&frame);
+            if stop.load(Ordering::Relaxed) {
+                bail!(
+                    "stopped by a signal during {}; no report written",
+                    trace.name
+                );
+            }
+        }
+        let wall = started.elapsed().as_secs_f64();
+        eprintln!(
+            "{}: {:.1} s of flight in {:.1} s ({:.1}× real time)",
+            trace.name,
+            trace.duration_s(),
+            wall,
+            trace.duration_s() / wall.max(1e-9)
+        );
+        let description = trace.info.as_ref().map(|i| {
+            [i.aircraft.as_deref(), i.scenario.as_deref()]
+                .into_iter()
+                .flatten()
+                .collect::<Vec<_>>()
+                .join(": ")
+        });
+        results.push(crate::compare::TraceResult {
+            summary: summary.finish(),
+            description: description.filter(|d| !d.is_empty()),
+        });
+    }
+    let command = format!(
+        "hexcue compare{}{}",
+        args.traces
+            .as_ref()
+            .map(|t| format!(" --traces {}", t.display()))
+            .unwrap_or_default(),
+        args.profile
+            .as_ref()
+            .map(|p| format!(" --profile {}", p.display()))
+            .unwrap_or_default()
+    );
+    let report = crate::compare::render_markdown(&results, &profile, &command);
+    match &args.out {
+        Some(path) => std::fs::write(path, report)
+            .with_context(|| format!("{}: cannot write the report", path.display())),
+        None => print_stdout(&report),
+    }
+}
