@@ -229,6 +229,36 @@ mod tests {
     }
 
     #[test]
+    fn the_supervisors_back_off_keys_are_checked_and_optional() {
+        assert_eq!(
+            invalid_key(&with("backoff_factor = 2.0", "backoff_factor = 0.5")),
+            "smpc.backoff_factor"
+        );
+        assert_eq!(
+            invalid_key(&with("backoff_max_s = 12.0", "backoff_max_s = 1.0")),
+            "smpc.backoff_max_s"
+        );
+        // A profile written before them loads with the shipped values.
+        let old = [
+            "leave_confirm_s",
+            "backoff_factor",
+            "backoff_max_s",
+            "backoff_hold_s",
+        ]
+        .iter()
+        .fold(DEFAULT_PROFILE_TOML.to_string(), |t, k| {
+            t.lines()
+                .filter(|l| !l.starts_with(k))
+                .collect::<Vec<_>>()
+                .join("\n")
+        });
+        assert_eq!(
+            parse_profile(&old, "old.toml").unwrap().smpc,
+            default_profile().smpc
+        );
+    }
+
+    #[test]
     fn the_moog_section_is_optional_and_checked() {
         let shipped = default_profile();
         assert_eq!(shipped.moog, crate::profile::MoogParams::default());

@@ -147,6 +147,7 @@ impl MotionCueing for Smpc {
             &SupervisorInput {
                 cotc_solved: cotc.feasible,
                 cotc_status: cotc.report.status,
+                free_solved: free.as_ref().is_some_and(|f| f.feasible),
                 error_x_mps2: error.x,
                 error_y_mps2: error.y,
             },

@@ -18,6 +18,22 @@ pub struct SwitchingParams {
     pub dwell_s: f64,
     /// Duration of the mixer's blend from one controller to the other (s).
     pub transition_s: f64,
+    /// How long COTC may stay unsolved while the free MPC fails too before the supervisor
+    /// leaves it anyway (s). A failure both MPCs share is not COTC's (a constraint they have
+    /// in common), so switching cannot help it; a failure of COTC alone leaves at once.
+    #[serde(default = "default_leave_confirm_s")]
+    pub leave_confirm_s: f64,
+    /// Factor by which the dwell grows after a return to COTC that fails within
+    /// `backoff_hold_s`, and shrinks back toward `dwell_s` for each `backoff_hold_s` COTC
+    /// holds (1 = no back-off).
+    #[serde(default = "default_backoff_factor")]
+    pub backoff_factor: f64,
+    /// Longest dwell the back-off may reach (s).
+    #[serde(default = "default_backoff_max_s")]
+    pub backoff_max_s: f64,
+    /// How long COTC must stay in charge after a return for the return to count as held (s).
+    #[serde(default = "default_backoff_hold_s")]
+    pub backoff_hold_s: f64,
     /// Leg usage (fraction of the stroke, neutral to end stop) above which the regulator
     /// raises the washout weights.
     pub awr_usage_start: f64,
@@ -34,6 +50,20 @@ pub struct SwitchingParams {
     pub cotc: CotcOverrides,
 }
 
+// Profiles written before the back-off keep loading; the shipped ones spell these out.
+fn default_leave_confirm_s() -> f64 {
+    0.5
+}
+fn default_backoff_factor() -> f64 {
+    2.0
+}
+fn default_backoff_max_s() -> f64 {
+    12.0
+}
+fn default_backoff_hold_s() -> f64 {
+    5.0
+}
+
 impl SwitchingParams {
     pub fn validate(&self, section: &str) -> Result<(), ProfileError> {
         let key = |k: &str| format!("{section}.{k}");
@@ -41,6 +71,7 @@ impl SwitchingParams {
         positive(&key("dwell_s"), self.dwell_s)?;
         positive(&key("transition_s"), self.transition_s)?;
         positive(&key("awr_relax_s"), self.awr_relax_s)?;
+        self.validate_backoff(section)?;
         if !(self.awr_gain.is_finite() && self.awr_gain >= 0.0) {
             return Err(ProfileError {
                 key: key("awr_gain"),
@@ -78,6 +109,43 @@ impl SwitchingParams {
         }
         Ok(())
     }
+
+    fn validate_backoff(&self, section: &str) -> Result<(), ProfileError> {
+        let key = |k: &str| format!("{section}.{k}");
+        positive(&key("backoff_hold_s"), self.backoff_hold_s)?;
+        let checks = [
+            (
+                "leave_confirm_s",
+                self.leave_confirm_s,
+                self.leave_confirm_s >= 0.0,
+                "expected 0 or more (0 = leave COTC as soon as it is not solved)".to_string(),
+            ),
+            (
+                "backoff_factor",
+                self.backoff_factor,
+                self.backoff_factor >= 1.0,
+                "expected 1 or more (1 = no back-off)".to_string(),
+            ),
+            (
+                "backoff_max_s",
+                self.backoff_max_s,
+                self.backoff_max_s >= self.dwell_s,
+                format!(
+                    "expected at least dwell_s = {}: the back-off only lengthens the dwell",
+                    self.dwell_s
+                ),
+            ),
+        ];
+        for (k, v, ok, expected) in checks {
+            if !(v.is_finite() && ok) {
+                return Err(ProfileError {
+                    key: key(k),
+                    reason: format!("{v}: {expected}"),
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The controller the supervisor has chosen.
@@ -97,6 +165,9 @@ pub struct SupervisorInput {
     pub cotc_solved: bool,
     /// COTC's solver status, for the switch reason.
     pub cotc_status: SolveStatus,
+    /// The free MPC was solved this step (false while it stands by): tells a failure of
+    /// COTC's own from one that both MPCs share.
+    pub free_solved: bool,
     /// Longitudinal and lateral perceived specific-force errors, reference − simulator (m/s²).
     pub error_x_mps2: f64,
     pub error_y_mps2: f64,
@@ -109,15 +180,30 @@ pub struct SwitchDecision {
     pub reason: SwitchReason,
 }
 
-/// The supervisory controller: COTC while it is solved, the free MPC when it is not, and back
-/// once the errors have stayed within ε for the dwell time and COTC is solved again.
+/// The supervisory controller: COTC while it is solved, the free MPC when COTC alone fails
+/// (or stays unsolved for `leave_confirm_s`), and back once COTC has been solved and the
+/// errors within ε throughout the dwell. A return that fails within `backoff_hold_s`
+/// lengthens the next dwell by `backoff_factor` (up to `backoff_max_s`); each
+/// `backoff_hold_s` that COTC holds shortens it again toward `dwell_s`.
 #[derive(Clone, Debug)]
 pub struct Supervisor {
     epsilon_mps2: f64,
     dwell_s: f64,
+    transition_s: f64,
+    leave_confirm_s: f64,
+    backoff_factor: f64,
+    backoff_max_s: f64,
+    backoff_hold_s: f64,
     active: Controller,
     time_in_state_s: f64,
+    /// Time with COTC solved and both errors within ε, without a break.
     within_epsilon_s: f64,
+    /// Time with COTC unsolved, without a break.
+    unsolved_s: f64,
+    /// The dwell the next return must wait, lengthened by the back-off.
+    dwell_now_s: f64,
+    /// Time on COTC since the return or the last shortening of the dwell.
+    held_s: f64,
     switch_count: u32,
     last_reason: Option<SwitchReason>,
 }
@@ -127,9 +213,17 @@ impl Supervisor {
         Supervisor {
             epsilon_mps2: params.epsilon_mps2,
             dwell_s: params.dwell_s,
+            transition_s: params.transition_s,
+            leave_confirm_s: params.leave_confirm_s,
+            backoff_factor: params.backoff_factor,
+            backoff_max_s: params.backoff_max_s,
+            backoff_hold_s: params.backoff_hold_s,
             active: Controller::Cotc,
             time_in_state_s: 0.0,
             within_epsilon_s: 0.0,
+            unsolved_s: 0.0,
+            dwell_now_s: params.dwell_s,
+            held_s: 0.0,
             switch_count: 0,
             last_reason: None,
         }
@@ -139,6 +233,9 @@ impl Supervisor {
         self.active = Controller::Cotc;
         self.time_in_state_s = 0.0;
         self.within_epsilon_s = 0.0;
+        self.unsolved_s = 0.0;
+        self.dwell_now_s = self.dwell_s;
+        self.held_s = 0.0;
         self.switch_count = 0;
         self.last_reason = None;
     }
@@ -161,37 +258,68 @@ impl Supervisor {
         self.time_in_state_s += dt_s;
         let within = input.error_x_mps2.abs() <= self.epsilon_mps2
             && input.error_y_mps2.abs() <= self.epsilon_mps2;
-        self.within_epsilon_s = if within {
+        // The dwell counts COTC's feasibility too: solved at the one step the dwell ends was
+        // what let it return into its next failure a few steps later (docs/mpc.md).
+        self.within_epsilon_s = if within && input.cotc_solved {
             self.within_epsilon_s + dt_s
         } else {
             0.0
         };
+        self.unsolved_s = if input.cotc_solved {
+            0.0
+        } else {
+            self.unsolved_s + dt_s
+        };
         let decision = match self.active {
-            Controller::Cotc if !input.cotc_solved => Some(SwitchDecision {
-                to: Controller::Free,
-                reason: SwitchReason::CotcNotSolved(input.cotc_status),
-            }),
-            Controller::Free
-                if input.cotc_solved && self.within_epsilon_s >= self.dwell_s - 1e-9 =>
-            {
-                Some(SwitchDecision {
-                    to: Controller::Cotc,
-                    reason: SwitchReason::Settled {
-                        epsilon_mps2: self.epsilon_mps2,
-                        dwell_s: self.dwell_s,
-                    },
-                })
-            }
-            _ => None,
+            Controller::Cotc => self.leave(input, dt_s),
+            Controller::Free => self.back(),
         };
         if let Some(d) = &decision {
             self.active = d.to;
             self.time_in_state_s = 0.0;
             self.within_epsilon_s = 0.0;
+            self.held_s = 0.0;
             self.switch_count += 1;
             self.last_reason = Some(d.reason.clone());
         }
         decision
+    }
+
+    /// On COTC: leave on COTC's own failure, or on one that lasts; otherwise let a held
+    /// COTC shorten the back-off.
+    fn leave(&mut self, input: &SupervisorInput, dt_s: f64) -> Option<SwitchDecision> {
+        let own_failure = !input.cotc_solved && input.free_solved;
+        let lasting = self.unsolved_s > 0.0 && self.unsolved_s >= self.leave_confirm_s - 1e-9;
+        if own_failure || lasting {
+            // Only a return (not the start) can fail; the back-off is for returns that do.
+            if self.switch_count > 0 && self.time_in_state_s < self.backoff_hold_s - 1e-9 {
+                self.dwell_now_s = (self.dwell_now_s * self.backoff_factor).min(self.backoff_max_s);
+            }
+            return Some(SwitchDecision {
+                to: Controller::Free,
+                reason: SwitchReason::CotcNotSolved(input.cotc_status),
+            });
+        }
+        self.held_s += dt_s;
+        if self.held_s >= self.backoff_hold_s - 1e-9 {
+            self.held_s = 0.0;
+            self.dwell_now_s = (self.dwell_now_s / self.backoff_factor).max(self.dwell_s);
+        }
+        None
+    }
+
+    /// On the free MPC: back once COTC has been solved with the errors within ε for the
+    /// dwell, and never before the blend away from COTC has ended.
+    fn back(&self) -> Option<SwitchDecision> {
+        let dwelt = self.within_epsilon_s >= self.dwell_now_s - 1e-9;
+        let blended = self.time_in_state_s >= self.transition_s - 1e-9;
+        (dwelt && blended).then_some(SwitchDecision {
+            to: Controller::Cotc,
+            reason: SwitchReason::Settled {
+                epsilon_mps2: self.epsilon_mps2,
+                dwell_s: self.dwell_now_s,
+            },
+        })
     }
 }
 
@@ -218,9 +346,15 @@ impl SwitchMixer {
         self.elapsed_s = None;
     }
 
-    /// Starts a blend from the command being issued toward the other controller's.
+    /// Starts a blend from the command being issued toward the other controller's. A switch
+    /// back during a blend turns it around where it stands (w → 1 − w, the smoothstep being
+    /// symmetric) instead of restarting at w = 0 from the controller it was leaving, which
+    /// jumped by (1 − w) of the gap between the two commands.
     pub fn start(&mut self) {
-        self.elapsed_s = Some(0.0);
+        self.elapsed_s = Some(match self.elapsed_s {
+            Some(t) => self.transition_s - t,
+            None => 0.0,
+        });
     }
 
     pub fn is_blending(&self) -> bool {
@@ -333,6 +467,10 @@ mod tests {
             epsilon_mps2: 0.3,
             dwell_s: 1.0,
             transition_s: 0.5,
+            leave_confirm_s: 0.5,
+            backoff_factor: 2.0,
+            backoff_max_s: 4.0,
+            backoff_hold_s: 3.0,
             awr_usage_start: 0.5,
             awr_gain: 4.0,
             awr_max_scale: 5.0,
@@ -342,6 +480,7 @@ mod tests {
         }
     }
 
+    /// COTC solved or not, the free MPC solved (a failure of COTC's own).
     fn input(solved: bool, ex: f64) -> SupervisorInput {
         SupervisorInput {
             cotc_solved: solved,
@@ -351,9 +490,150 @@ mod tests {
                 "primal_infeasible"
             }
             .into(),
+            free_solved: true,
             error_x_mps2: ex,
             error_y_mps2: 0.0,
         }
+    }
+
+    /// COTC unsolved with the free MPC failing too (a constraint both share).
+    fn shared_failure() -> SupervisorInput {
+        SupervisorInput {
+            free_solved: false,
+            ..input(false, 0.0)
+        }
+    }
+
+    /// Drives the supervisor through `steps` of 10 ms with COTC unsolved where `unsolved(k)`
+    /// says so; returns the steps at which it switched.
+    fn run(
+        s: &mut Supervisor,
+        steps: usize,
+        unsolved: impl Fn(usize) -> bool,
+        shared: bool,
+    ) -> Vec<(usize, Controller)> {
+        (0..steps)
+            .filter_map(|k| {
+                let i = match (unsolved(k), shared) {
+                    (true, true) => shared_failure(),
+                    (fail, _) => input(!fail, 0.05),
+                };
+                s.update(&i, 0.01).map(|d| (k, d.to))
+            })
+            .collect()
+    }
+
+    /// Isolated unsolved steps (1 to 3 in a row) at irregular gaps of 0.3 to 0.9 s, shorter
+    /// than the 1 s dwell: the pattern of the 737 take-off's (docs/mpc.md).
+    fn flickers(k: usize) -> bool {
+        let gaps = [30, 70, 50, 90, 40, 60, 80];
+        let (mut at, mut i) = (100, 0);
+        while at <= k {
+            if k < at + 1 + i % 3 {
+                return true;
+            }
+            at += gaps[i % gaps.len()];
+            i += 1;
+        }
+        false
+    }
+
+    #[test]
+    fn flickering_feasibility_makes_at_most_one_round_trip() {
+        // Failures of COTC's own: it leaves on the first and does not come back while COTC
+        // keeps failing within every dwell. The rule before (errors within ε for the dwell,
+        // COTC solved at its last step) returned after each dwell and left again.
+        let mut s = Supervisor::new(&params());
+        let switches = run(&mut s, 3000, flickers, false);
+        assert!(switches.len() <= 2, "{switches:?}");
+        assert_eq!(switches[0], (100, Controller::Free));
+        // Once the flickering stops, COTC returns after one dwell with COTC solved.
+        let after = run(&mut s, 200, |_| false, false);
+        assert_eq!(after.len(), 1, "{after:?}");
+        assert_eq!(s.active(), Controller::Cotc);
+        // Failures both MPCs share, each shorter than leave_confirm_s: no switch at all.
+        let mut s = Supervisor::new(&params());
+        assert_eq!(run(&mut s, 3000, flickers, true), vec![]);
+    }
+
+    #[test]
+    fn a_sustained_infeasibility_leaves_within_the_stated_time() {
+        // COTC's own failure: at once.
+        let mut s = Supervisor::new(&params());
+        assert_eq!(
+            run(&mut s, 100, |k| k >= 10, false),
+            vec![(10, Controller::Free)]
+        );
+        // A failure both share: after leave_confirm_s = 0.5 s unsolved (50 steps), not before.
+        let mut s = Supervisor::new(&params());
+        assert_eq!(
+            run(&mut s, 200, |k| k >= 10, true),
+            vec![(59, Controller::Free)]
+        );
+        let d = s.last_reason().unwrap();
+        assert!(
+            d.to_string()
+                .starts_with("COTC not solved (primal_infeasible"),
+            "{d}"
+        );
+        // With leave_confirm_s = 0 the first unsolved step leaves, shared or not.
+        let mut s = Supervisor::new(&SwitchingParams {
+            leave_confirm_s: 0.0,
+            ..params()
+        });
+        assert_eq!(
+            run(&mut s, 100, |k| k >= 10, true),
+            vec![(10, Controller::Free)]
+        );
+    }
+
+    /// Steps from a switch to the free MPC until the supervisor returns, COTC solved.
+    fn steps_to_return(s: &mut Supervisor) -> usize {
+        assert_eq!(s.active(), Controller::Free);
+        (1..=2000)
+            .find(|_| s.update(&input(true, 0.05), 0.01).is_some())
+            .expect("returns")
+    }
+
+    #[test]
+    fn the_dwell_backs_off_after_failed_returns_and_decays_while_cotc_holds() {
+        let mut s = Supervisor::new(&params());
+        s.update(&input(false, 0.0), 0.01);
+        // Each return that fails within backoff_hold_s (3 s) doubles the dwell: 1, 2, 4 s,
+        // then the cap of backoff_max_s = 4 s.
+        let mut dwells = Vec::new();
+        for _ in 0..4 {
+            dwells.push(steps_to_return(&mut s));
+            for _ in 0..50 {
+                assert_eq!(s.update(&input(true, 0.05), 0.01), None);
+            }
+            assert!(s.update(&input(false, 0.05), 0.01).is_some());
+        }
+        assert_eq!(dwells, [100, 200, 400, 400]);
+        // COTC now holds: every 3 s on it halves the dwell again, down to dwell_s.
+        assert_eq!(steps_to_return(&mut s), 400);
+        for _ in 0..300 {
+            s.update(&input(true, 0.05), 0.01);
+        }
+        s.update(&input(false, 0.05), 0.01);
+        assert_eq!(steps_to_return(&mut s), 200, "one hold: 4 → 2 s");
+        for _ in 0..1000 {
+            s.update(&input(true, 0.05), 0.01);
+        }
+        s.update(&input(false, 0.05), 0.01);
+        assert_eq!(steps_to_return(&mut s), 100, "back to dwell_s, never below");
+        assert!(s.last_reason().unwrap().to_string().contains("for 1.0 s"));
+    }
+
+    #[test]
+    fn no_return_before_the_blend_away_has_ended() {
+        // A dwell shorter than the blend: the return waits for the blend to end.
+        let mut s = Supervisor::new(&SwitchingParams {
+            dwell_s: 0.1,
+            ..params()
+        });
+        s.update(&input(false, 0.0), 0.01);
+        assert_eq!(steps_to_return(&mut s), 50);
     }
 
     #[test]
@@ -485,6 +765,36 @@ mod tests {
     }
 
     #[test]
+    fn a_switch_back_during_a_blend_turns_it_around_without_a_jump() {
+        let dt = 0.01;
+        let mut m = SwitchMixer::new(&params());
+        let (a, b) = (cmd(0.0, 0.0, 0.0), cmd(1.0, 0.0, 0.0));
+        m.start();
+        let mut last = a;
+        for _ in 0..20 {
+            last = m.mix(&a, &b, dt);
+        }
+        let w = m.weight().unwrap();
+        assert!(w > 0.3 && w < 0.9, "{w}");
+        // Back toward A: the first blended pose continues from where the blend stood.
+        m.start();
+        let first = m.mix(&b, &a, dt);
+        assert!(
+            (first.pose[0] - last.pose[0]).abs() < 0.05,
+            "{} after {}",
+            first.pose[0],
+            last.pose[0]
+        );
+        // It reaches A in what remains of a blend's length, not a whole one from the far end.
+        let mut steps = 1;
+        while m.is_blending() {
+            m.mix(&b, &a, dt);
+            steps += 1;
+        }
+        assert!(steps <= 31, "{steps} steps");
+    }
+
+    #[test]
     fn smoothstep_has_flat_ends() {
         assert_eq!(smoothstep(0.0), (0.0, 0.0, 0.0));
         let (w, dw, ddw) = smoothstep(1.0);
@@ -526,5 +836,20 @@ mod tests {
         let mut p = params();
         p.dwell_s = 0.0;
         assert_eq!(p.validate("smpc").unwrap_err().key, "smpc.dwell_s");
+        for (k, change) in [
+            (
+                "leave_confirm_s",
+                (|p| p.leave_confirm_s = -0.1) as fn(&mut SwitchingParams),
+            ),
+            ("backoff_factor", |p| p.backoff_factor = 0.5),
+            ("backoff_max_s", |p| p.backoff_max_s = 0.5),
+            ("backoff_hold_s", |p| p.backoff_hold_s = 0.0),
+            ("backoff_factor", |p| p.backoff_factor = f64::NAN),
+        ] {
+            let mut p = params();
+            change(&mut p);
+            let e = p.validate("smpc").unwrap_err();
+            assert_eq!(e.key, format!("smpc.{k}"), "{}", e.reason);
+        }
     }
 }
