@@ -394,6 +394,7 @@ pub fn run_all(
     workers: usize,
     on_point: &(dyn Fn(usize) + Sync),
 ) -> Result<Vec<OmctCurve>, BuildError> {
+    use rayon::prelude::*;
     use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
     let mut jobs: Vec<(usize, usize, usize)> = Vec::new();
@@ -411,38 +412,49 @@ pub fn run_all(
             .total_cmp(&frequencies[jobs[y].2])
             .then(x.cmp(&y))
     });
-    let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     let failed = AtomicBool::new(false);
-    let work = || {
-        let mut out = Vec::new();
-        while !failed.load(Ordering::Relaxed) {
-            let i = next.fetch_add(1, Ordering::Relaxed);
-            let Some(&j) = order.get(i) else { break };
-            let (a, t, f) = jobs[j];
-            let r = measure_within_limits(profile, algorithms[a], tests[t], frequencies[f]);
-            if r.is_err() {
-                failed.store(true, Ordering::Relaxed);
-            }
-            out.push((j, r));
-            on_point(done.fetch_add(1, Ordering::Relaxed) + 1);
+    let measure = |j: usize| {
+        // After a failure the run is lost: the points not started are skipped.
+        if failed.load(Ordering::Relaxed) {
+            return None;
         }
-        out
+        let (a, t, f) = jobs[j];
+        // A point whose measurement panicked is a bug; it stays missing and is reported as
+        // NaN rather than taking the whole run down.
+        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            measure_within_limits(profile, algorithms[a], tests[t], frequencies[f])
+        }))
+        .ok()?;
+        if r.is_err() {
+            failed.store(true, Ordering::Relaxed);
+        }
+        on_point(done.fetch_add(1, Ordering::Relaxed) + 1);
+        Some(r)
+    };
+    // Its own pool of `workers` threads, started once for the run; one point per task, taken
+    // in `order`, so that a thread that finishes takes the next longest point left.
+    let measured: Vec<Option<Result<OmctPoint, BuildError>>> = match rayon::ThreadPoolBuilder::new()
+        .num_threads(workers.max(1))
+        .build()
+    {
+        Ok(pool) => pool.install(|| {
+            order
+                .par_iter()
+                .with_max_len(1)
+                .map(|&j| measure(j))
+                .collect()
+        }),
+        // No threads to be had: the points one after the other here.
+        Err(_) => order.iter().map(|&j| measure(j)).collect(),
     };
     let mut results: Vec<Option<OmctPoint>> = vec![None; jobs.len()];
     let mut first_error = None;
-    let per_worker: Vec<_> = std::thread::scope(|s| {
-        let handles: Vec<_> = (0..workers.max(1)).map(|_| s.spawn(work)).collect();
-        handles.into_iter().map(|h| h.join()).collect()
-    });
-    for worker in per_worker {
-        // A worker that panicked is a bug; its points stay missing and are reported as NaN
-        // rather than taking the whole run down.
-        for (j, r) in worker.unwrap_or_default() {
-            match r {
-                Ok(p) => results[j] = Some(p),
-                Err(e) => first_error = first_error.or(Some(e)),
-            }
+    for (&j, r) in order.iter().zip(measured) {
+        match r {
+            Some(Ok(p)) => results[j] = Some(p),
+            Some(Err(e)) => first_error = first_error.or(Some(e)),
+            None => {}
         }
     }
     if let Some(e) = first_error {

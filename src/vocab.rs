@@ -1,6 +1,8 @@
 //! The words every layer shares, at the bottom of the crate so that any module may use them
-//! without reaching up: a parameter value that cannot be (the profile's sections validate
-//! themselves where they are defined, next to the algorithm they tune).
+//! without reaching up: the algorithms, the cueing channels, how a solve ended and why the
+//! S-MPC switched, as types with their words (the words are what summaries and recordings
+//! store, unchanged), and the error of a parameter value that cannot be (each profile section
+//! validates itself where it is defined, next to what it tunes).
 
 /// A profile value that cannot describe a real simulator.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

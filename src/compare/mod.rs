@@ -1,0 +1,425 @@
+//! The comparison report of `hexcue compare`: per trace and algorithm, the cueing errors,
+//! workspace use and step times, and a discussion generated from those numbers so that it
+//! stays true when the report is regenerated.
+
+use crate::summary::{AlgorithmSummary, Summary};
+use crate::vocab::{AlgorithmId, Channel};
+
+mod discussion;
+mod tables;
+mod verdict;
+
+pub use self::tables::{pilot_table, render_markdown};
+pub use self::verdict::{ERROR_TOLERANCE_ABS, ERROR_TOLERANCE_REL, FALSE_CUE_MARGIN};
+
+/// One trace's results with what the report says about the trace.
+pub struct TraceResult {
+    pub summary: Summary,
+    /// One line from the trace's sidecar (aircraft and scenario), if it has one.
+    pub description: Option<String>,
+}
+
+/// An algorithm's name for people; a key this version does not know, as it is.
+pub(super) fn label(key: &str) -> &str {
+    match known(key) {
+        Some(id) => id.label(),
+        None => key,
+    }
+}
+
+/// The algorithm a summary's key names exactly.
+pub(super) fn known(key: &str) -> Option<AlgorithmId> {
+    AlgorithmId::ALL.iter().copied().find(|id| id.key() == key)
+}
+
+/// The summary's algorithms in the order the report shows them ([`AlgorithmId::ALL`]), keys
+/// this version does not know last.
+pub(super) fn ordered(summary: &Summary) -> Vec<(&str, &AlgorithmSummary)> {
+    let mut v: Vec<(&str, &AlgorithmSummary)> = AlgorithmId::ALL
+        .iter()
+        .filter_map(|id| {
+            summary
+                .algorithms
+                .get_key_value(id.key())
+                .map(|(k, a)| (k.as_str(), a))
+        })
+        .collect();
+    for (k, a) in &summary.algorithms {
+        if known(k).is_none() {
+            v.push((k.as_str(), a));
+        }
+    }
+    v
+}
+
+pub(super) fn metric(
+    a: &AlgorithmSummary,
+    ch: &str,
+    f: fn(&crate::metrics::ChannelMetrics) -> f64,
+) -> f64 {
+    a.metrics.get(ch).map_or(f64::NAN, f)
+}
+
+/// What each channel is called in the report ([`Channel::label`]); a key this version does
+/// not know, as it is.
+pub(super) fn channel_name(ch: &str) -> &str {
+    match Channel::from_key(ch) {
+        Some(c) => c.label(),
+        None => ch,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tables::*;
+    use super::verdict::*;
+    use super::*;
+    use crate::metrics::{ChannelMetrics, StepTimes, CHANNELS};
+    use crate::profile::tests::full_flight;
+    use crate::summary::AlgorithmSummary;
+    use std::collections::BTreeMap;
+
+    /// An algorithm whose threshold-aware error equals its RAE on every channel (a stand-in:
+    /// the tests set the two together).
+    fn alg(rae_fx: f64, switches: u64) -> AlgorithmSummary {
+        let rae = |c: &str| if c == "fx" { rae_fx } else { 0.5 };
+        let metrics = CHANNELS
+            .iter()
+            .map(|c| {
+                (
+                    c.to_string(),
+                    ChannelMetrics {
+                        rae: rae(c),
+                        naad: 0.1,
+                        pc: 0.9,
+                        ..Default::default()
+                    },
+                )
+            })
+            .collect();
+        AlgorithmSummary {
+            metrics,
+            step_time_us: StepTimes {
+                median: 900.0,
+                p99: 2000.0,
+                max: 3000.0,
+            },
+            limiter_steps: 0,
+            limiter_fraction: 0.0,
+            max_leg_usage: 0.5,
+            min_leg_margin_m: 0.3,
+            leg_violations: 0,
+            switches,
+            max_dof_usage: BTreeMap::new(),
+            score: 1.0,
+            score_terms: crate::score::ScoreTerms {
+                error: CHANNELS.iter().map(|c| (c.to_string(), rae(c))).collect(),
+                ..Default::default()
+            },
+        }
+    }
+
+    fn result(smpc: f64, mpc: f64, cwf: f64) -> TraceResult {
+        result_switching(smpc, mpc, cwf, 3)
+    }
+
+    fn result_switching(smpc: f64, mpc: f64, cwf: f64, switches: u64) -> TraceResult {
+        let mut algorithms = BTreeMap::new();
+        algorithms.insert("smpc".to_string(), alg(smpc, switches));
+        algorithms.insert("mpc".to_string(), alg(mpc, 0));
+        algorithms.insert("cwf".to_string(), alg(cwf, 0));
+        TraceResult {
+            summary: Summary {
+                trace: "t".into(),
+                profile: "p".into(),
+                steps: 10,
+                rate_hz: 100.0,
+                algorithms,
+                input_clipped: BTreeMap::new(),
+                live: None,
+            },
+            description: Some("a test".into()),
+        }
+    }
+
+    #[test]
+    fn ordering_is_judged_from_the_numbers() {
+        let md = render_markdown(&[result(0.2, 0.28, 0.32)], &full_flight(), "hexcue compare");
+        assert!(md.contains("| S-MPC | 0.200 |"), "{md}");
+        assert!(md.contains("| t | holds |"), "{md}");
+        assert!(md.contains("switched 3 times"));
+        let md = render_markdown(&[result(0.3, 0.28, 0.32)], &full_flight(), "hexcue compare");
+        assert!(md.contains("| t | **does not hold** |"), "{md}");
+        assert!(
+            md.contains("on fx, RAE is 0.300 (S-MPC), 0.280 (MPC), 0.320 (CWF)"),
+            "{md}"
+        );
+    }
+
+    #[test]
+    fn where_the_cwf_does_better_is_said() {
+        let md = render_markdown(&[result(0.2, 0.28, 0.32)], &full_flight(), "hexcue compare");
+        assert!(
+            md.contains("- **t**: the CWF's RAE is not lower than either MPC's on any channel"),
+            "{md}"
+        );
+        let mut r = result(0.2, 0.28, 0.25);
+        r.summary.algorithms.get_mut("cwf").unwrap().score = 0.5;
+        let md = render_markdown(&[r], &full_flight(), "hexcue compare");
+        assert!(
+            md.contains(
+                "- **t**: the CWF's RAE is lower than the MPC's on fx; lowest score: CWF \
+                 (1.000 / 1.000 / 0.500 for S-MPC / MPC / CWF)."
+            ),
+            "{md}"
+        );
+    }
+
+    #[test]
+    fn rows_follow_the_console_order() {
+        let md = render_markdown(&[result(0.2, 0.28, 0.32)], &full_flight(), "hexcue compare");
+        let (s, m, c) = (
+            md.find("| S-MPC |").unwrap(),
+            md.find("| MPC |").unwrap(),
+            md.find("| CWF |").unwrap(),
+        );
+        assert!(s < m && m < c);
+    }
+
+    #[test]
+    fn when_cotc_ran_throughout_the_why_names_both_horizons() {
+        let profile = full_flight();
+        let md = render_markdown(
+            &[result_switching(0.07, 0.08, 0.4, 0)],
+            &profile,
+            "hexcue compare",
+        );
+        let cotc = format!(
+            "COTC predicts over {:.1} s",
+            profile.cotc_params().horizon_s()
+        );
+        let free = format!("the free MPC over {:.1} s", profile.mpc.horizon_s());
+        assert!(md.contains(&cotc) && md.contains(&free), "{md}");
+        assert!(md.contains("5.0 to 5.7 times lower"), "{md}");
+        // With switches, the S-MPC was not COTC alone: no such claim.
+        let md = render_markdown(&[result(0.07, 0.08, 0.4)], &profile, "hexcue compare");
+        assert!(!md.contains("COTC predicts over"), "{md}");
+    }
+
+    /// One channel's numbers for one algorithm of a result, on a 90 s flight (1 %: 0.9 s):
+    /// the threshold-aware error and the RAE are both set to `error`.
+    fn set(r: &mut TraceResult, alg: &str, ch: &str, error: f64, pc: f64, false_s: f64) {
+        r.summary.steps = 9000;
+        let a = r.summary.algorithms.get_mut(alg).unwrap();
+        a.score_terms.error.insert(ch.to_string(), error);
+        let m = a.metrics.get_mut(ch).unwrap();
+        m.rae = error;
+        m.pc = pc;
+        m.false_cue_s = false_s;
+    }
+
+    #[test]
+    fn the_cwf_wins_a_channel_on_which_the_mpcs_give_false_cues() {
+        let mut r = result(0.2, 0.28, 0.32);
+        // Roll in turbulence: the MPCs' RAE is far better, but 17.8 s and 12.5 s of roll the
+        // wrong way against the CWF's 0.3 s lose the channel.
+        set(&mut r, "smpc", "wx", 0.3, 0.6, 17.8);
+        set(&mut r, "mpc", "wx", 0.35, 0.6, 12.5);
+        set(&mut r, "cwf", "wx", 0.9, 0.5, 0.3);
+        let v = verdict(&r.summary, "wx");
+        assert_eq!(v.best(), Best::One("cwf"));
+        assert_eq!(
+            v.worse_than_cwf(),
+            vec![
+                ("smpc", Criterion::FalseCues),
+                ("mpc", Criterion::FalseCues)
+            ]
+        );
+        let md = render_markdown(&[r], &full_flight(), "hexcue compare");
+        assert!(
+            md.contains("**S-MPC is worse than the CWF (17.8 s of false cues against 0.3 s)**"),
+            "{md}"
+        );
+        assert!(md.contains("**MPC is worse than the CWF (12.5 s of false cues against 0.3 s)**"));
+        assert!(
+            md.contains("**CWF** 0.3 s (S-MPC 17.8 s, MPC 12.5 s)"),
+            "{md}"
+        );
+        assert!(md.contains("met on 5 of 6 trace-channels"), "{md}");
+        assert!(
+            md.contains("Roll and pitch: the platform's roll and pitch"),
+            "{md}"
+        );
+    }
+
+    #[test]
+    fn false_cues_within_one_percent_of_the_flight_do_not_decide() {
+        let mut r = result(0.2, 0.28, 0.32);
+        // 1.1 s against 0.3 s on a 90 s flight: within 0.9 s, so the error decides.
+        set(&mut r, "smpc", "fz", 0.9, 0.3, 1.1);
+        set(&mut r, "mpc", "fz", 0.8, 0.3, 1.1);
+        set(&mut r, "cwf", "fz", 1.0, 0.3, 0.3);
+        let v = verdict(&r.summary, "fz");
+        assert_eq!(v.best(), Best::One("mpc"));
+        assert_eq!(v.worse_than_cwf(), vec![]);
+        assert_eq!(
+            v.losses(),
+            vec![
+                "S-MPC loses to MPC: error 0.900 against 0.800",
+                "CWF loses to MPC: error 1.000 against 0.800"
+            ]
+        );
+        // 1.3 s: beyond it, and the MPCs are worse than the CWF.
+        set(&mut r, "mpc", "fz", 0.8, 0.3, 1.3);
+        let v = verdict(&r.summary, "fz");
+        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::FalseCues)]);
+        // Out on false cues, the MPC's lower error does not count against the S-MPC.
+        assert_eq!(v.best(), Best::One("smpc"));
+    }
+
+    #[test]
+    fn worse_than_the_cwf_means_below_it_and_beaten_by_it() {
+        let mut r = result(0.2, 0.28, 0.32);
+        // The MPC is out on false cues against the S-MPC (1.0 s against 0.0 s), not against
+        // the CWF (0.5 s), and its error beats the CWF's: not worse than the CWF. The S-MPC,
+        // beaten by the CWF on error, is.
+        set(&mut r, "smpc", "fz", 0.9, 0.3, 0.0);
+        set(&mut r, "mpc", "fz", 0.4, 0.3, 1.0);
+        set(&mut r, "cwf", "fz", 0.5, 0.3, 0.5);
+        let v = verdict(&r.summary, "fz");
+        assert_eq!(v.best(), Best::One("cwf"));
+        assert_eq!(v.worse_than_cwf(), vec![("smpc", Criterion::Error)]);
+        // The CWF out on false cues against the S-MPC: the best MPC is not called worse than
+        // it for a lower error the CWF bought with them.
+        set(&mut r, "mpc", "fz", 0.8, 0.3, 0.5);
+        set(&mut r, "cwf", "fz", 0.5, 0.3, 1.0);
+        let v = verdict(&r.summary, "fz");
+        assert_eq!(v.best(), Best::One("mpc"));
+        assert_eq!(v.worse_than_cwf(), vec![]);
+        assert!(v
+            .losses()
+            .contains(&"CWF loses to S-MPC: 1.0 s of false cues against 0.0 s".to_string()));
+    }
+
+    #[test]
+    fn errors_within_what_is_felt_are_level_and_pc_does_not_decide() {
+        let mut r = result(0.2, 0.28, 0.32);
+        set(&mut r, "smpc", "fy", 0.50, 0.90, 0.0);
+        set(&mut r, "mpc", "fy", 0.53, 0.88, 0.0);
+        set(&mut r, "cwf", "fy", 0.90, 0.70, 0.0);
+        let v = verdict(&r.summary, "fy");
+        // 0.53 is within 0.50 × 1.05 + 0.005: level.
+        assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc"]));
+        assert_eq!(v.best_label(), "S-MPC = MPC");
+        assert_eq!(v.pilot_cell(), "**S-MPC** = **MPC** 0.0 s");
+        // A far lower PC with a level error: still level (PC is shown, not judged).
+        set(&mut r, "mpc", "fy", 0.53, 0.10, 0.0);
+        assert_eq!(
+            verdict(&r.summary, "fy").best(),
+            Best::Tie(vec!["smpc", "mpc"])
+        );
+        // Just beyond the tolerance the MPC loses.
+        set(&mut r, "mpc", "fy", 0.54, 0.88, 0.0);
+        let v = verdict(&r.summary, "fy");
+        assert_eq!(v.best(), Best::One("smpc"));
+        assert!(v
+            .losses()
+            .contains(&"MPC loses to S-MPC: error 0.540 against 0.500".to_string()));
+        // Errors of a few thousandths are level whatever their ratio: nothing is felt.
+        set(&mut r, "smpc", "wz", 0.000, 0.9, 0.0);
+        set(&mut r, "mpc", "wz", 0.004, 0.9, 0.0);
+        set(&mut r, "cwf", "wz", 0.002, 0.9, 0.0);
+        let v = verdict(&r.summary, "wz");
+        assert_eq!(v.worse_than_cwf(), vec![]);
+        assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc", "cwf"]));
+        // An MPC beyond the CWF's error × 1.05 + 0.005 is worse than it.
+        set(&mut r, "mpc", "wz", 0.030, 0.9, 0.0);
+        let v = verdict(&r.summary, "wz");
+        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Error)]);
+    }
+
+    #[test]
+    fn a_chain_of_level_errors_puts_both_ends_of_it_apart() {
+        let mut r = result(0.2, 0.28, 0.32);
+        // S-MPC level with the MPC, the MPC level with the CWF, the CWF beyond the S-MPC's
+        // tolerance: the two unbeaten are level at the top and the CWF ranks below.
+        set(&mut r, "smpc", "wz", 1.00, 0.2, 0.0);
+        set(&mut r, "mpc", "wz", 1.04, 0.5, 0.0);
+        set(&mut r, "cwf", "wz", 1.08, 0.9, 0.0);
+        let v = verdict(&r.summary, "wz");
+        assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc"]));
+        assert_eq!(
+            v.losses(),
+            vec!["CWF loses to S-MPC: error 1.080 against 1.000"]
+        );
+    }
+
+    #[test]
+    fn a_best_with_negative_pc_or_rae_above_one_carries_a_caveat() {
+        let mut r = result(0.2, 0.28, 0.32);
+        set(&mut r, "smpc", "wy", 1.2, -0.2, 0.0);
+        set(&mut r, "mpc", "wy", 1.5, 0.1, 0.0);
+        set(&mut r, "cwf", "wy", 1.6, 0.2, 0.0);
+        let v = verdict(&r.summary, "wy");
+        assert_eq!(v.best(), Best::One("smpc"));
+        assert_eq!(
+            v.caveats(),
+            vec![
+                "S-MPC's cue runs against the aircraft's motion (PC −0.20)",
+                "S-MPC's cue is no closer to the aircraft's motion than a platform at rest \
+                 (RAE 1.200)"
+            ]
+        );
+        assert_eq!(v.pilot_cell(), "**S-MPC**†‡ 0.0 s");
+        let md = render_markdown(&[r], &full_flight(), "hexcue compare");
+        assert!(
+            md.contains("**S-MPC**; caveat: S-MPC's cue runs against"),
+            "{md}"
+        );
+        assert!(
+            md.contains(
+                "PC ≥ 0 for every MPC: met in 3 of 4 cases; below 0: S-MPC on t pitch ω̂y (−0.20)"
+            ),
+            "{md}"
+        );
+        // A caveat, not a loss: the CWF's better PC does not make the S-MPC worse than it.
+        assert!(md.contains("| pitch ω̂y | **S-MPC**; caveat"), "{md}");
+    }
+
+    #[test]
+    fn the_report_has_false_cues_and_a_verdict_for_all_six_channels() {
+        let mut r = result(0.2, 0.28, 0.32);
+        set(&mut r, "mpc", "fz", 0.9, 0.2, 4.25);
+        let md = render_markdown(&[r], &full_flight(), "hexcue compare");
+        let header: Vec<String> = CHANNELS.iter().map(|c| format!("false s {c}")).collect();
+        assert!(
+            md.contains(&format!("| algorithm | {} |", header.join(" | "))),
+            "{md}"
+        );
+        assert!(
+            md.contains("| MPC | 0.0 | 0.0 | 4.2 | 0.0 | 0.0 | 0.0 |"),
+            "{md}"
+        );
+        for ch in CHANNELS {
+            let name = channel_name(ch);
+            assert!(md.contains(&format!("| {name} | **")), "{name}: {md}");
+            assert!(md.contains(&format!("- **{name}**: best")), "{name}: {md}");
+        }
+        // The pilot's table comes first, then the rule, then the traces.
+        let (pilot, rule, trace) = (
+            md.find("## Verdicts at a glance").unwrap(),
+            md.find("**How a channel's verdict is reached.**").unwrap(),
+            md.find("## t\n").unwrap(),
+        );
+        assert!(pilot < rule && rule < trace, "{md}");
+        assert!(md.contains("| t (90 s) | **S-MPC** 0.0 s |"), "{md}");
+        assert!(
+            md.contains(
+                "An MPC is worse than the CWF on 1 of 6 trace-channels: t: heave f̂z (MPC)."
+            ),
+            "{md}"
+        );
+        // The paper's ordering statement stays.
+        assert!(md.contains("| t | holds |"), "{md}");
+    }
+}
