@@ -52,6 +52,16 @@ pub fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {
     bar
 }
 
+/// A line for the user while `bar` runs: above the bar on a terminal (where a plain write
+/// would be drawn over), on stderr elsewhere.
+pub fn progress_line(bar: &indicatif::ProgressBar, line: String) {
+    if bar.is_hidden() {
+        eprintln!("{line}");
+    } else {
+        bar.println(line);
+    }
+}
+
 /// The metrics table printed by headless runs: one row per algorithm and channel, then a
 /// workspace line per algorithm.
 pub fn format_table(s: &Summary) -> String {

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 
-use crate::app::common::{inputs, print_stdout, stop_flag};
+use crate::app::common::{inputs, print_stdout, progress_bar, progress_line, stop_flag};
 use crate::cli::{parse_algorithms, CompareArgs};
 use crate::engine::Engine;
 use crate::formats::profile::{default_profile, load_profile};
@@ -52,28 +52,43 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         None => crate::formats::library::library_traces(profile.rate_hz)?,
     };
     let stop = stop_flag()?;
+    let total: usize = traces.iter().map(|t| t.len()).sum();
+    let bar = progress_bar(
+        total as u64,
+        "{spinner} compare {msg} [{bar:40}] {pos}/{len} steps ({rate} steps/s, {eta} left)",
+    );
     let mut results = Vec::new();
+    let mut done = 0;
     for trace in traces {
         let trace = Arc::new(trace);
+        bar.set_message(trace.name.clone());
         let started = std::time::Instant::now();
         let mut engine = Engine::new(&profile, trace.clone(), &algorithms)?;
         let mut summary = SummaryBuilder::new(&profile, &trace.name);
         while let Some(frame) = engine.step() {
             summary.push(&frame);
+            if frame.k % 50 == 0 {
+                bar.set_position((done + frame.k) as u64);
+            }
             if stop.load(Ordering::Relaxed) {
+                bar.finish_and_clear();
                 bail!(
                     "stopped by a signal during {}; no report written",
                     trace.name
                 );
             }
         }
+        done += trace.len();
         let wall = started.elapsed().as_secs_f64();
-        eprintln!(
-            "{}: {:.1} s of flight in {:.1} s ({:.1}× real time)",
-            trace.name,
-            trace.duration_s(),
-            wall,
-            trace.duration_s() / wall.max(1e-9)
+        progress_line(
+            &bar,
+            format!(
+                "{}: {:.1} s of flight in {:.1} s ({:.1}× real time)",
+                trace.name,
+                trace.duration_s(),
+                wall,
+                trace.duration_s() / wall.max(1e-9)
+            ),
         );
         let description = trace.info.as_ref().map(|i| {
             [i.aircraft.as_deref(), i.scenario.as_deref()]
@@ -87,6 +102,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
             description: description.filter(|d| !d.is_empty()),
         });
     }
+    bar.finish_and_clear();
     let command = format!(
         "hexcue compare{}{}",
         args.traces

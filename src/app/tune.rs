@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 use anyhow::{anyhow, bail, Context, Result};
 use toml_edit::DocumentMut;
 
-use crate::app::common::{progress_bar, stop_flag};
+use crate::app::common::{progress_bar, progress_line, stop_flag};
 use crate::cli::TuneArgs;
 use crate::formats::profile::{
     default_profile, parse_profile, DEFAULT_PROFILE_SOURCE, DEFAULT_PROFILE_TOML,
@@ -82,11 +82,7 @@ impl Progress for Bar {
                 None => String::new(),
             }
         );
-        if self.bar.is_hidden() {
-            eprintln!("{line}");
-        } else {
-            self.bar.println(line);
-        }
+        progress_line(&self.bar, line);
     }
 }
 

@@ -1,4 +1,5 @@
-//! `hexcue tune`: derivative-free optimisation of one algorithm's tuning keys against the
+//! The search behind `hexcue tune` (the command itself, its arguments aside, is
+//! `app/tune.rs`): derivative-free optimisation of one algorithm's tuning keys against the
 //! cueing score (`crate::score`) on a set of traces, with CMA-ES (the `cmaes` crate; the
 //! choice is argued in docs/tuning.md).
 //!
@@ -12,7 +13,7 @@
 pub mod keys;
 pub mod validate;
 
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use anyhow::{anyhow, bail, Context, Result};
@@ -205,11 +206,45 @@ impl Evaluator {
     }
 
     /// Scores the candidate at search coordinates `z`: `None` when stopped or refused.
+    /// Self-contained: it reads the evaluator and its arguments and shares nothing with the
+    /// other candidates of its generation, which CMA-ES scores in parallel.
     fn candidate(&self, z: &[f64]) -> Option<Candidate> {
         let values: Vec<f64> = self.keys.iter().zip(z).map(|(k, z)| k.decode(*z)).collect();
         let profile = self.profile(&values).ok()?;
         let outcomes = self.run_sequential(&profile).ok()??;
         Some(Candidate { values, outcomes })
+    }
+}
+
+/// What the search minimises at coordinates `z`, with the candidate scored there (`None`
+/// when the loader refuses it or the run was stopped: [`INVALID_SCORE`]). A point outside the
+/// unit box is pulled back by a quadratic penalty, since the keys' bounds are that box.
+fn evaluate(evaluator: &Evaluator, bounds: &[f64], z: &[f64]) -> (f64, Option<Candidate>) {
+    let out_of_box: f64 = z.iter().map(|v| (v - v.clamp(0.0, 1.0)).powi(2)).sum();
+    match evaluator.candidate(z) {
+        Some(c) => (c.objective(bounds) + 10.0 * out_of_box, Some(c)),
+        None => (INVALID_SCORE, None),
+    }
+}
+
+/// What the search has found so far: the candidates scored and the best feasible one. The
+/// one thing a generation's parallel evaluations share, behind one lock.
+struct Tally {
+    evaluations: usize,
+    best: Option<Candidate>,
+}
+
+impl Tally {
+    /// Counts a scored candidate and keeps it if it is feasible and the best so far.
+    fn record(&mut self, c: Candidate, bounds: &[f64]) {
+        self.evaluations += 1;
+        if c.feasible_within(bounds) && self.best.as_ref().is_none_or(|b| c.better_than(b)) {
+            self.best = Some(c);
+        }
+    }
+
+    fn best_score(&self) -> Option<f64> {
+        self.best.as_ref().map(Candidate::mean_score)
     }
 }
 
@@ -280,11 +315,11 @@ pub fn tune(
     };
     let mut validated: Vec<Validated> = Vec::new();
     let bounds = limiter_bounds(&base);
-    let best: Mutex<Option<Candidate>> =
-        Mutex::new(base.feasible_within(&bounds).then(|| base.clone()));
-    let evaluations = AtomicUsize::new(1);
-    let best_score = |b: &Option<Candidate>| b.as_ref().map(Candidate::mean_score);
-    progress.scored(1, best_score(&best.lock().expect("not poisoned")));
+    let tally = Mutex::new(Tally {
+        evaluations: 1,
+        best: base.feasible_within(&bounds).then(|| base.clone()),
+    });
+    progress.scored(1, tally.lock().expect("not poisoned").best_score());
 
     let n = keys.len();
     let default_lambda = 4 + (3.0 * (n as f64).ln()).floor() as usize;
@@ -296,19 +331,14 @@ pub fn tune(
         .map(|(k, v)| k.encode(*v).clamp(0.0, 1.0))
         .collect();
     let objective = |z: &cmaes::DVector<f64>| -> f64 {
-        let z = z.as_slice();
-        let out_of_box: f64 = z.iter().map(|v| (v - v.clamp(0.0, 1.0)).powi(2)).sum();
-        let Some(c) = evaluator.candidate(z) else {
-            // Refused by the loader, or stopped: the generation is not used when stopped.
-            return INVALID_SCORE;
-        };
-        let score = c.objective(&bounds) + 10.0 * out_of_box;
-        let count = evaluations.fetch_add(1, Ordering::SeqCst) + 1;
-        let mut guard = best.lock().expect("not poisoned");
-        if c.feasible_within(&bounds) && guard.as_ref().is_none_or(|b| c.better_than(b)) {
-            *guard = Some(c);
+        let (score, candidate) = evaluate(evaluator, &bounds, z.as_slice());
+        // Refused by the loader, or stopped: not counted (the generation is not used when
+        // stopped).
+        if let Some(c) = candidate {
+            let mut tally = tally.lock().expect("not poisoned");
+            tally.record(c, &bounds);
+            progress.scored(tally.evaluations, tally.best_score());
         }
-        progress.scored(count, best_score(&guard));
         score
     };
     let mut interrupted = evaluator.stop.load(Ordering::Relaxed);
@@ -324,11 +354,14 @@ pub fn tune(
                 interrupted = true;
                 break;
             }
-            let current = best.lock().expect("not poisoned").clone();
+            let (evaluations, current) = {
+                let tally = tally.lock().expect("not poisoned");
+                (tally.evaluations, tally.best.clone())
+            };
             let mut record = GenerationRecord {
                 generation: cmaes.generation(),
-                evaluations: evaluations.load(Ordering::SeqCst),
-                training: best_score(&current),
+                evaluations,
+                training: current.as_ref().map(Candidate::mean_score),
                 validation: None,
             };
             if let (Some(v), Some(c), Some(base_v)) = (validation, &current, &base_validation) {
@@ -357,8 +390,10 @@ pub fn tune(
             }
         }
     }
-    let evaluations = evaluations.load(Ordering::SeqCst);
-    let mut best = best.into_inner().expect("not poisoned");
+    let Tally {
+        evaluations,
+        mut best,
+    } = tally.into_inner().expect("not poisoned");
     let validation = base_validation.map(|base_v| {
         let chosen = validate::choose(&base_v, &validated).cloned();
         best = match &chosen {
