@@ -26,9 +26,8 @@ def load(folder):
 
 def main():
     before, after = load(sys.argv[1]), load(sys.argv[2])
-    print("| flight | switches before → after | S-MPC error before → after, "
-          "per channel " + " ".join(CH) + " (MPC / CWF) | limiter % | leg viol. | "
-          "step µs median / p99 before → after |")
+    print("| flight | switches before → after | S-MPC error before → after where it moved "
+          "(MPC / CWF) | limiter % | leg violations | S-MPC step µs median / p99 before → after |")
     print("|---|---:|---|---|---|---|")
     tot = [0, 0]
     worse = []
@@ -41,12 +40,12 @@ def main():
         for c in CH:
             eb, ea = sb["score_terms"]["error"][c], sa["score_terms"]["error"][c]
             em, ec = a["mpc"]["score_terms"]["error"][c], a["cwf"]["score_terms"]["error"][c]
-            mark = "**" if abs(ea - eb) >= 0.0005 else ""
-            cells.append(f"{c} {mark}{eb:.3f}→{ea:.3f}{mark} ({em:.3f}/{ec:.3f})")
+            if abs(ea - eb) >= 0.0005:
+                cells.append(f"{c} {eb:.3f} → {ea:.3f} ({em:.3f} / {ec:.3f})")
             if ea > eb + 0.0005:
-                worse.append(f"{name} {c} {eb:.3f}→{ea:.3f}")
+                worse.append(f"{name} {c} {eb:.3f} → {ea:.3f}")
         tb, ta = sb["step_time_us"], sa["step_time_us"]
-        print(f"| {name} | {sb['switches']} → {sa['switches']} | {'; '.join(cells)} | "
+        print(f"| {name} | {sb['switches']} → {sa['switches']} | {'; '.join(cells) or '–'} | "
               f"{100 * sb['limiter_fraction']:.2f} → {100 * sa['limiter_fraction']:.2f} | "
               f"{sb['leg_violations']} → {sa['leg_violations']} | "
               f"{tb['median']:.0f} / {tb['p99']:.0f} → {ta['median']:.0f} / {ta['p99']:.0f} |")

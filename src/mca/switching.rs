@@ -52,7 +52,7 @@ pub struct SwitchingParams {
 
 // Profiles written before the back-off keep loading; the shipped ones spell these out.
 fn default_leave_confirm_s() -> f64 {
-    0.5
+    0.15
 }
 fn default_backoff_factor() -> f64 {
     2.0
