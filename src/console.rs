@@ -9,7 +9,7 @@ use crate::cli::{load_play, open_play_source, PlayArgs, ReviewArgs};
 use crate::engine::Frame;
 use crate::formats::recording::{Recorder, Recording, RecordingMeta};
 use crate::tui::{
-    self, FrameSink, FrameSource, LiveConfig, RecordedFrames, ReviewConfig, SessionInfo, Teed,
+    self, FrameSink, FrameSource, LiveConfig, RecordedFrames, ReviewConfig, SessionInfo,
 };
 
 /// An MCAP recorder as the console's frame sink.
@@ -122,10 +122,11 @@ pub fn run_review(args: &ReviewArgs) -> Result<()> {
     if !recording.finished {
         info.description = Some("unfinished recording (cut short): showing what it holds".into());
     }
-    let mut source: Box<dyn FrameSource> = Box::new(RecordedFrames::new(frames, profile.rate_hz));
+    let source: Box<dyn FrameSource> = Box::new(RecordedFrames::new(frames, profile.rate_hz));
+    let mut sinks: Vec<Box<dyn FrameSink>> = Vec::new();
     if let Some(addr) = args.foxglove {
         let server = crate::cli::start_foxglove(addr, &profile, &recording.algorithms)?;
-        source = Box::new(Teed::new(source, vec![Box::new(server)]));
+        sinks.push(Box::new(server));
     }
     let outcome = tui::run_review(ReviewConfig {
         profile,
@@ -134,6 +135,7 @@ pub fn run_review(args: &ReviewArgs) -> Result<()> {
         start_paused: args.start.paused,
         speed: args.start.speed,
         looping: args.start.looping,
+        sinks,
     })?;
     exit_for_signal(outcome.signal)
 }
@@ -166,7 +168,7 @@ pub fn run_live_session(args: &crate::cli::LiveArgs) -> Result<()> {
         }
     });
     let mut terminal = ratatui::try_init().context("opening the terminal")?;
-    let mut events = tui::live::TerminalEvents { signals: rx };
+    let mut events = tui::terminal::TerminalEvents { signals: rx };
     let outcome = tui::live::run(
         &mut terminal,
         &mut events,

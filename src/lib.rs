@@ -25,6 +25,7 @@ pub mod profile;
 pub mod qp;
 pub mod safety;
 pub mod score;
+pub mod session;
 pub mod sinks;
 pub mod source;
 pub mod sources;

@@ -13,7 +13,7 @@ use crate::engine::Frame;
 use crate::formats::recording::{Recorder, RecordingMeta};
 use crate::formats::trace::NATIVE_HEADER;
 use crate::mca::AlgorithmId;
-use crate::sinks::FrameSink;
+use crate::session::FrameSink;
 
 pub struct LiveRecording {
     recorder: Recorder,

@@ -6,6 +6,7 @@
 pub mod flightgear;
 pub mod jsbsim;
 pub mod live;
+pub mod recording;
 pub mod trace_file;
 pub mod xplane;
 

@@ -5,12 +5,12 @@
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc, Mutex};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use ratatui::backend::Backend;
-use ratatui::crossterm::event::{self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
+use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
 use ratatui::style::Modifier;
 use ratatui::text::{Line, Span};
 use ratatui::Terminal;
@@ -540,26 +540,8 @@ pub fn on_key(app: &mut App, key: KeyEvent) -> LiveKey {
     }
 }
 
-/// Keys and resizes from crossterm, signals from signal-hook: as the playback console.
-pub struct TerminalEvents {
-    pub signals: mpsc::Receiver<i32>,
-}
-
-impl EventSource for TerminalEvents {
-    fn next(&mut self, timeout: Duration) -> Result<Option<UiEvent>> {
-        if let Ok(sig) = self.signals.try_recv() {
-            return Ok(Some(UiEvent::Signal(super::signal_name(sig))));
-        }
-        if event::poll(timeout)? {
-            return Ok(match event::read()? {
-                Event::Key(key) => Some(UiEvent::Key(key)),
-                Event::Resize(..) => Some(UiEvent::Resize),
-                _ => None,
-            });
-        }
-        Ok(None)
-    }
-}
+/// The console's terminal events, at their old path.
+pub use super::terminal::TerminalEvents;
 
 #[cfg(test)]
 mod tests {
