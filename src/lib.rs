@@ -8,7 +8,6 @@
 pub mod app;
 pub mod cli;
 pub mod compare;
-pub mod console;
 pub mod engine;
 pub mod events;
 pub mod export;

@@ -2,3 +2,6 @@
 //! does lives here. Set-ups every command shares are in `common`.
 
 pub mod common;
+pub mod live;
+pub mod play;
+pub mod review;
