@@ -14,6 +14,7 @@ pub mod app;
 mod gauges;
 mod help;
 pub mod live;
+pub mod state;
 pub mod terminal;
 pub mod theme;
 pub mod view;
@@ -34,8 +35,8 @@ use crate::mca::AlgorithmId;
 use crate::profile::Profile;
 use crate::trace::Trace;
 
-pub use app::{App, UiEvent};
 pub use player::{Command, Snapshot};
+pub use state::{App, UiEvent};
 pub use terminal::TerminalSignals;
 pub use theme::Theme;
 

@@ -10,7 +10,7 @@ use std::time::Duration;
 use anyhow::{bail, Context, Result};
 use ratatui::crossterm::event::{self, Event};
 
-use super::app::{EventSource, UiEvent};
+use super::state::{EventSource, UiEvent};
 
 /// The signals that end a console session, forwarded to its interface.
 pub struct TerminalSignals {
