@@ -57,7 +57,8 @@ pub struct LiveSetup {
 
 /// Opens the input, the outputs and the recording of `hexcue live`.
 pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
-    use crate::live::{live_profile, recording::LiveRecording, LiveSession};
+    use crate::live::{live_profile, LiveSession};
+    use crate::sinks::live_recording::LiveRecording;
     if let Some(d) = args.duration {
         if !(d.is_finite() && d > 0.0) {
             bail!("--duration {d}: expected a positive number of seconds");

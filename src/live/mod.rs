@@ -18,7 +18,6 @@
 pub mod handoff;
 pub mod input_watch;
 pub mod realtime;
-pub mod recording;
 
 use std::time::{Duration, Instant};
 

@@ -4,6 +4,7 @@
 //! (hexcue's JSON over UDP, Moog's 6DOF2000E DOF mode), and a platform that answers says
 //! where it is in its own sequence ([`PlatformStatus`]): the safety stage waits for it.
 
+pub mod live_recording;
 pub mod moog;
 pub mod recorder;
 pub mod udp_json;
