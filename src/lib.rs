@@ -10,7 +10,6 @@
 pub(crate) mod app;
 pub(crate) mod cli;
 pub mod compare;
-pub(crate) mod console;
 pub mod engine;
 pub mod events;
 pub(crate) mod export;
@@ -27,6 +26,7 @@ pub mod profile;
 pub mod qp;
 pub mod safety;
 pub mod score;
+pub mod session;
 pub mod sinks;
 pub mod source;
 pub mod sources;

@@ -243,7 +243,7 @@ impl Drop for FoxgloveServer {
 
 /// The live Foxglove server as a frame sink attached for a whole session: the console's
 /// playback and review, and `hexcue live` (whose events go to `/events`).
-impl crate::sinks::FrameSink for FoxgloveServer {
+impl crate::session::FrameSink for FoxgloveServer {
     fn record(&mut self, frame: &Frame) -> anyhow::Result<()> {
         self.publish(frame);
         Ok(())

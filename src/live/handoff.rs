@@ -12,7 +12,7 @@ use anyhow::Result;
 
 use super::StepReport;
 use crate::events::Event;
-use crate::sinks::FrameSink;
+use crate::session::FrameSink;
 
 /// Seconds of steps the channel holds: far longer than an MCAP chunk's compression or a
 /// terminal's redraw, so a drop means the machine is overloaded, not that a sink hiccuped.

@@ -18,7 +18,6 @@
 pub mod handoff;
 pub mod input_watch;
 pub mod realtime;
-pub mod recording;
 
 use std::time::{Duration, Instant};
 
@@ -33,7 +32,8 @@ use crate::metrics::TimeHistogram;
 use crate::model::stewart::Stewart;
 use crate::profile::Profile;
 use crate::safety::{PlatformReadiness, Safety, SafetyParams, SafetyState};
-use crate::sinks::{CommandSink, FrameSink, PlatformOutput, PlatformPhase, PlatformStatus};
+use crate::session::FrameSink;
+use crate::sinks::{CommandSink, PlatformOutput, PlatformPhase, PlatformStatus};
 use crate::source::{HeldSample, HeldSampleHandle};
 use crate::sources::live::LiveInput;
 use crate::summary::{LiveSummary, Quantiles, RealtimeSummary, Summary, SummaryBuilder};

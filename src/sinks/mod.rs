@@ -4,33 +4,19 @@
 //! (hexcue's JSON over UDP, Moog's 6DOF2000E DOF mode), and a platform that answers says
 //! where it is in its own sequence ([`PlatformStatus`]): the safety stage waits for it.
 
+pub mod live_recording;
 pub mod moog;
+pub mod recorder;
 pub mod udp_json;
+
+/// The trait lives with the session runner, which feeds it; kept here for the merge.
+pub use crate::session::FrameSink;
 
 use anyhow::{bail, Context, Result};
 use nalgebra::Vector6;
 
-use crate::engine::Frame;
 use crate::mca::AlgorithmId;
 use crate::safety::SafetyState;
-
-/// Where frames go: a recording (the MCAP recorder), a live view (the Foxglove server).
-pub trait FrameSink: Send {
-    fn record(&mut self, frame: &Frame) -> anyhow::Result<()>;
-    /// Closes the file; returns a line for the user (typically the path and what was written).
-    fn finish(self: Box<Self>) -> anyhow::Result<String>;
-    /// The frames start over (the source rewound or sought): the next one does not follow
-    /// the last.
-    fn rewound(&mut self) {}
-    /// An event of a live session (input lost, e-stop, washout, …) at session time `t_s`;
-    /// sinks that have nowhere to put it ignore it.
-    fn event(&mut self, _event: &crate::events::Event) -> anyhow::Result<()> {
-        Ok(())
-    }
-    /// A fact about the whole session known only at its end (the platform's fault), under
-    /// `key`; sinks that keep metadata (the recording) keep it, others ignore it.
-    fn annotate(&mut self, _key: &'static str, _value: &str) {}
-}
 
 /// Where a platform that reports its state is in its own sequence.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

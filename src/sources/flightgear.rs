@@ -9,7 +9,7 @@
 //! body rate in rad/s. docs/live.md cites FlightGear's source for every field;
 //! tests/live_inputs.rs builds datagrams from the protocol file as FlightGear does.
 
-use super::live::{Decoded, Decoder};
+use super::decode::{Decoded, Decoder};
 use crate::trace::AircraftSample;
 
 /// Bytes of one frame.

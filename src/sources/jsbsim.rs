@@ -10,7 +10,7 @@
 //! (x forward, y right, z down; −32.17 ft/s² on z in level flight), ft/s² → m/s² ×0.3048;
 //! `p/q/r-rad_sec` body rates in rad/s, `phi/theta/psi-rad` attitude in rad, as hexcue's.
 
-use super::live::{Decoded, Decoder};
+use super::decode::{Decoded, Decoder};
 use crate::trace::AircraftSample;
 
 const FT_TO_M: f64 = 0.3048;

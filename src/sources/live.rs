@@ -9,41 +9,12 @@ use anyhow::{bail, Context, Result};
 
 use crate::trace::AircraftSample;
 
+use super::decode::{Decoded, Decoder};
+
 /// Largest believable magnitudes (SI) in a live sample; past them a datagram is malformed,
 /// the same bounds as a trace file's.
 const MAX_SPECIFIC_FORCE_MPS2: f64 = 1000.0;
 const MAX_RATE_RADPS: f64 = 100.0;
-
-/// What one datagram said.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Decoded {
-    /// A sample in hexcue's units and frame (DESIGN §1); its `t_s` is the simulator's time,
-    /// when it sends one (else NaN). `paused` when the simulator says it is paused.
-    Sample {
-        sample: AircraftSample,
-        paused: bool,
-    },
-    /// Well formed but carrying no sample (JSBSim's labels line, an X-Plane reply before
-    /// every subscribed value has arrived once).
-    Nothing,
-}
-
-/// One simulator's protocol, pure: bytes in, a sample out.
-pub trait Decoder: Send {
-    /// The protocol, as the operator knows it (for "no input from …" messages).
-    fn protocol(&self) -> &'static str;
-    /// Decodes one datagram; an error is a malformed datagram, with the reason.
-    fn decode(&mut self, datagram: &[u8]) -> Result<Decoded, String>;
-    /// Datagrams to send to the simulator now (X-Plane's subscription); `receiving` says
-    /// whether samples have arrived lately.
-    fn requests(&mut self, _now_s: f64, _receiving: bool) -> Vec<Vec<u8>> {
-        Vec::new()
-    }
-    /// Datagrams to send on the way out (X-Plane: unsubscribe).
-    fn farewell(&mut self) -> Vec<Vec<u8>> {
-        Vec::new()
-    }
-}
 
 /// Where the socket binds and where requests go, from the URL.
 pub enum Endpoint {

@@ -3,9 +3,11 @@
 //! over UDP (JSBSim, FlightGear, X-Plane), each converting its units and signs to hexcue's
 //! at the edge (DESIGN §1).
 
+pub mod decode;
 pub mod flightgear;
 pub mod jsbsim;
 pub mod live;
+pub mod recording;
 pub mod trace_file;
 pub mod xplane;
 

@@ -9,7 +9,7 @@
 //! x forward, y right, z down, as HIL plugins that feed autopilots from them do; `P`, `Q`, `R`
 //! body rates (deg/s); `phi`, `theta`, `psi` attitude (deg); `sim/time/paused` 0 or 1.
 
-use super::live::{Decoded, Decoder};
+use super::decode::{Decoded, Decoder};
 use crate::trace::AircraftSample;
 use crate::G_MPS2;
 

@@ -1,130 +1,21 @@
 //! The interface's state machine: keys become [`Command`]s for the engine thread, snapshots
 //! become screens. No terminal here, so all of it runs under `TestBackend`.
 
-use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use ratatui::backend::Backend;
 use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
 use ratatui::Terminal;
 
 use crate::metrics::CHANNELS;
-use crate::profile::Profile;
 
-use super::player::{Command, Session, Snapshot, SEEK_STEP_S};
-use super::{SessionInfo, Theme};
+use super::player::{Command, Session, SEEK_STEP_S};
 
-/// At most this many redraws a second: over SSH every frame costs bandwidth.
-pub const FRAME_INTERVAL: Duration = Duration::from_millis(33);
-/// How long a notice stays in the footer.
-pub const NOTICE_FOR: Duration = Duration::from_secs(6);
-
-/// What the interface reacts to.
-#[derive(Clone, Debug, PartialEq)]
-pub enum UiEvent {
-    Key(KeyEvent),
-    Resize,
-    /// SIGTERM, SIGHUP or SIGINT: quit as `q` does, recording finished.
-    Signal(&'static str),
-}
-
-/// Where events come from: the terminal and signals, or a script in tests.
-pub trait EventSource {
-    /// The next event, or `None` after `timeout` without one.
-    fn next(&mut self, timeout: Duration) -> anyhow::Result<Option<UiEvent>>;
-}
-
-/// The leg gauges' geometry and thresholds. The bars show each leg's usage as `plot` and the
-/// summary do: the fraction of the stroke from neutral to the nearer end stop (0 at neutral,
-/// 1 at the end stop); the marks go by the margin left.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LegScale {
-    pub stewart: crate::model::stewart::Stewart,
-    /// Margin of each leg at the neutral pose (m).
-    pub neutral_margin_m: [f64; 6],
-    /// Below this the leg is marked `!` (m).
-    pub warn_m: f64,
-    /// Below this it is marked `!!`: at the limiter's own margin, or outside the stroke (m).
-    pub crit_m: f64,
-}
-
-impl LegScale {
-    pub fn of(profile: &Profile) -> Self {
-        let stewart = profile.stewart();
-        let neutral = stewart.margins(&stewart.neutral_lengths_m);
-        let neutral_margin_m: [f64; 6] = std::array::from_fn(|i| neutral[i].max(1e-6));
-        let least = neutral_margin_m
-            .iter()
-            .copied()
-            .fold(f64::INFINITY, f64::min);
-        let limiter = profile.limiter.leg_margin_m.max(0.0);
-        // Critical: the limiter is about to act (or has); warning: a fifth of the stroke left.
-        let crit_m = (1.5 * limiter).max(0.005);
-        LegScale {
-            stewart: stewart.clone(),
-            neutral_margin_m,
-            warn_m: (0.2 * least).max(2.0 * crit_m),
-            crit_m,
-        }
-    }
-}
-
-pub struct App {
-    pub info: Arc<SessionInfo>,
-    pub snapshot: Arc<Snapshot>,
-    /// Index into [`CHANNELS`].
-    pub channel: usize,
-    pub help: bool,
-    /// The help's page, where it does not fit in one (`?` turns them).
-    pub help_page: usize,
-    /// Playback was running when the help opened: closing it plays again.
-    help_paused_playback: bool,
-    /// The go-to-time prompt (`g`), with what has been typed.
-    pub goto: Option<String>,
-    pub theme: Theme,
-    pub legs: LegScale,
-    /// Each DoF's excursion limit (m, rad; x, y, z, roll, pitch, yaw), for the pose panel.
-    pub pose_limits: [f64; 6],
-    /// The pose panel is shown (`p`): beside the leg gauges where there is room, in their
-    /// place where there is not.
-    pub pose: bool,
-    /// A live session's header (`hexcue live`); `None` for playback and review.
-    pub live: Option<super::live::LiveStatus>,
-    quit: Option<&'static str>,
-}
+// The state the interface's parts share lives in `state`, below them all; here it is given
+// its behaviour (keys, the loop). Kept at the old paths for the tests and the merge.
+pub use super::state::{App, EventSource, LegScale, UiEvent, FRAME_INTERVAL, NOTICE_FOR};
 
 impl App {
-    pub fn new(info: Arc<SessionInfo>, profile: &Profile, theme: Theme) -> Self {
-        App {
-            info,
-            snapshot: Arc::new(Snapshot::empty(Vec::new(), 0, profile.rate_hz)),
-            channel: 0,
-            help: false,
-            help_page: 0,
-            help_paused_playback: false,
-            goto: None,
-            theme,
-            legs: LegScale::of(profile),
-            pose_limits: profile.limits.si().excursion.into(),
-            pose: false,
-            live: None,
-            quit: None,
-        }
-    }
-
-    pub fn should_quit(&self) -> bool {
-        self.quit.is_some()
-    }
-
-    /// The signal that ended the session, if one did.
-    pub fn quit_signal(&self) -> Option<&'static str> {
-        self.quit.filter(|q| q.starts_with("SIG"))
-    }
-
-    pub fn channel_name(&self) -> &'static str {
-        CHANNELS[self.channel % CHANNELS.len()]
-    }
-
     /// Applies a key to the interface; returns the command for the engine thread, if any.
     pub fn on_key(&mut self, key: KeyEvent) -> Option<Command> {
         if key.kind == KeyEventKind::Release {

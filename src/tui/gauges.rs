@@ -8,8 +8,8 @@ use ratatui::text::{Line, Span};
 
 use crate::engine::LaneFrame;
 
-use super::app::App;
 use super::player::WindowRow;
+use super::state::App;
 
 /// Longer gauge bars only spread the same information.
 const MAX_BAR_W: usize = 30;

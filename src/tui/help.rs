@@ -6,7 +6,7 @@ use ratatui::layout::{Constraint, Flex, Layout, Rect};
 use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Clear, Paragraph};
 
-use super::app::App;
+use super::state::App;
 
 pub const KEYS: &[(&str, &str)] = &[
     ("space", "pause / play (at the end: from the start)"),

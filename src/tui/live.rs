@@ -5,12 +5,12 @@
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc, Mutex};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use ratatui::backend::Backend;
-use ratatui::crossterm::event::{self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
+use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
 use ratatui::style::Modifier;
 use ratatui::text::{Line, Span};
 use ratatui::Terminal;
@@ -24,40 +24,12 @@ use crate::safety::SafetyState;
 use crate::sinks::PlatformPhase;
 use crate::summary::{Summary, SummaryBuilder};
 
-use super::app::{App, EventSource, UiEvent, FRAME_INTERVAL};
 use super::player::{Snapshot, WindowRow, WINDOW_S};
+use super::state::{App, EventSource, UiEvent, FRAME_INTERVAL, NOTICE_FOR};
 use super::{SessionInfo, Theme};
 
-/// What the header shows of a live session, as of one step.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LiveStatus {
-    pub input: String,
-    /// Where input is expected: protocol and address (`LiveSession::input_source`).
-    pub input_source: String,
-    pub outputs: Vec<String>,
-    pub drive: AlgorithmId,
-    pub state: SafetyState,
-    pub time_in_state_s: f64,
-    /// Age of the held sample (s); `None` before the first.
-    pub input_age_s: Option<f64>,
-    pub sim_paused: bool,
-    pub samples_in: u64,
-    pub commands_out: u64,
-    pub deadline_misses: u64,
-    pub malformed: u64,
-    pub latency_p99_ms: f64,
-    pub step_p99_ms: f64,
-    /// An e-stop or quit was asked for: the platform is on its way to park.
-    pub stopping: bool,
-    /// The first seconds of input suggest a unit or sign mistake (the summary says which).
-    pub unit_warning: bool,
-    /// What the platform says of itself (a Moog base), if it answers.
-    pub platform: Option<crate::sinks::PlatformStatus>,
-    /// Session time (s), for how long input has been awaited.
-    pub t_s: f64,
-    /// A short answer to a key (`r`), shown in the footer for a few seconds.
-    pub notice: Option<String>,
-}
+/// At its old path for the tests and the merge.
+pub use super::state::LiveStatus;
 
 impl LiveStatus {
     fn of(report: &StepReport, input: (&str, &str), outputs: &[String], stopping: bool) -> Self {
@@ -446,7 +418,7 @@ where
                 app.live = Some(lf.status);
                 dirty = true;
             }
-            let shown = notice.filter(|at| at.elapsed() < super::app::NOTICE_FOR);
+            let shown = notice.filter(|at| at.elapsed() < NOTICE_FOR);
             if let Some(live) = app.live.as_mut() {
                 let want = shown.map(|_| record_notice.clone());
                 if live.notice != want {
@@ -540,26 +512,8 @@ pub fn on_key(app: &mut App, key: KeyEvent) -> LiveKey {
     }
 }
 
-/// Keys and resizes from crossterm, signals from signal-hook: as the playback console.
-pub struct TerminalEvents {
-    pub signals: mpsc::Receiver<i32>,
-}
-
-impl EventSource for TerminalEvents {
-    fn next(&mut self, timeout: Duration) -> Result<Option<UiEvent>> {
-        if let Ok(sig) = self.signals.try_recv() {
-            return Ok(Some(UiEvent::Signal(super::signal_name(sig))));
-        }
-        if event::poll(timeout)? {
-            return Ok(match event::read()? {
-                Event::Key(key) => Some(UiEvent::Key(key)),
-                Event::Resize(..) => Some(UiEvent::Resize),
-                _ => None,
-            });
-        }
-        Ok(None)
-    }
-}
+/// The console's terminal events, at their old path.
+pub use super::terminal::TerminalEvents;
 
 #[cfg(test)]
 mod tests {

@@ -18,6 +18,7 @@ use super::app::{run_ui, EventSource, UiEvent};
 use super::player::{self, Command, Player, PlayerOptions, RecordingSetup, Snapshot, Wait};
 use super::*;
 use crate::engine::tests::manoeuvre;
+use crate::engine::Frame;
 use crate::mca::{AlgorithmState, Mode, SolverReport};
 use crate::profile::tests::full_flight;
 

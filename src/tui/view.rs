@@ -13,9 +13,9 @@ use crate::engine::LaneFrame;
 use crate::mca::{AlgorithmId, Mode};
 use crate::metrics::CHANNELS;
 
-use super::app::App;
 use super::gauges::{leg_lines, pose_lines, FULL_ROWS, PAIRED_ROWS};
 use super::player::{speed_label, Snapshot, WINDOW_S};
+use super::state::App;
 use super::Theme;
 
 /// Narrowest useful algorithm column; narrower terminals show fewer columns.

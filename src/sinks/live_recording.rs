@@ -1,7 +1,8 @@
 //! A live session recorded like a playback: the MCAP recorder as a frame sink, with the
 //! session's input written as it comes (hexcue's CSV, at the step rate: the held sample each
 //! step used) to a file beside the recording, attached as `trace.csv` at the end and then
-//! removed. `review` opens the result as it opens a playback's.
+//! removed. `review` opens the result as it opens a playback's. A sink among the others
+//! (the playback's [`super::recorder::McapSink`], Foxglove), fed by the live clock loop.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -13,7 +14,7 @@ use crate::engine::Frame;
 use crate::formats::recording::{Recorder, RecordingMeta};
 use crate::formats::trace::NATIVE_HEADER;
 use crate::mca::AlgorithmId;
-use crate::sinks::FrameSink;
+use crate::session::FrameSink;
 
 pub struct LiveRecording {
     recorder: Recorder,

@@ -14,6 +14,8 @@ use crate::mca::AlgorithmId;
 use crate::profile::Profile;
 use crate::summary::{Summary, SummaryBuilder};
 
+use super::runner::{Runner, SinkFailure};
+
 use super::{FrameSink, FrameSource, RecordingRequest, SessionInfo, SinkFactory, SourceCheckpoint};
 
 /// Playback speeds offered by `+`/`-`; `None` is "as fast as possible".
@@ -55,6 +57,11 @@ const CHECKPOINT_EVERY_S: f64 = 0.5;
 /// so that memory stays bounded on long traces (a checkpoint of three algorithms is ~0.2 MB,
 /// mostly the running metrics).
 pub const MAX_CHECKPOINTS: usize = 256;
+
+/// The pace of a headless run at speed index `idx`: × real time, `None` at max (unpaced).
+pub fn pace(idx: usize) -> Option<f64> {
+    SPEEDS.get(idx).copied().unwrap_or(Some(1.0))
+}
 
 pub fn speed_label(idx: usize) -> String {
     match SPEEDS.get(idx).copied().flatten() {
@@ -214,6 +221,9 @@ pub struct RecordingSetup {
 
 pub struct PlayerOptions {
     pub start_paused: bool,
+    /// Sinks fed every frame for the whole session, as the source makes them (a live view:
+    /// `--foxglove`), beside any recording; told when the frames start over.
+    pub sinks: Vec<Box<dyn FrameSink>>,
     pub recording: Option<RecordingSetup>,
     /// Index into [`SPEEDS`] to start at.
     pub speed: usize,
@@ -225,6 +235,7 @@ impl Default for PlayerOptions {
     fn default() -> Self {
         PlayerOptions {
             start_paused: false,
+            sinks: Vec::new(),
             recording: None,
             speed: REAL_TIME,
             looping: false,
@@ -249,12 +260,11 @@ struct ActiveRecording {
 /// The playback state machine. Synchronous: [`spawn`] runs it on its own thread, tests drive it
 /// directly.
 pub struct Player {
-    source: Box<dyn FrameSource>,
+    runner: Runner,
     algorithms: Vec<AlgorithmId>,
     rate_hz: f64,
     profile: Profile,
     trace_name: String,
-    summary: SummaryBuilder,
     summary_cache: Option<Arc<Summary>>,
     summary_at: Option<Instant>,
     summary_dirty: bool,
@@ -299,11 +309,16 @@ impl Player {
         let now = Instant::now();
         let mut player = Player {
             algorithms: source.algorithms(),
-            source,
+            runner: Runner::new(
+                source,
+                profile,
+                &info.trace_name,
+                opts.sinks,
+                SinkFailure::Drop,
+            ),
             rate_hz,
             profile: profile.clone(),
             trace_name: info.trace_name.clone(),
-            summary: SummaryBuilder::new(profile, &info.trace_name),
             summary_cache: None,
             summary_at: None,
             summary_dirty: true,
@@ -342,7 +357,7 @@ impl Player {
     }
 
     pub fn position(&self) -> usize {
-        self.source.position()
+        self.runner.source.position()
     }
 
     pub fn is_quit(&self) -> bool {
@@ -354,7 +369,7 @@ impl Player {
     }
 
     fn at_end(&self) -> bool {
-        self.source.position() >= self.source.len()
+        self.runner.source.position() >= self.runner.source.len()
     }
 
     fn notify(&mut self, text: impl Into<String>, now: Instant) {
@@ -365,7 +380,7 @@ impl Player {
     }
 
     fn reanchor(&mut self, now: Instant) {
-        let k = self.source.position();
+        let k = self.runner.source.position();
         self.anchor = (now, k);
         self.meter = (now, k);
     }
@@ -389,23 +404,23 @@ impl Player {
                 }
             }
             Command::SeekBy(dt) => {
-                let base = self.target.unwrap_or(self.source.position()) as f64;
+                let base = self.target.unwrap_or(self.runner.source.position()) as f64;
                 let k = (base + dt * self.rate_hz).round();
-                let k = k.clamp(0.0, self.source.len() as f64) as usize;
+                let k = k.clamp(0.0, self.runner.source.len() as f64) as usize;
                 self.seek_to(k, now);
             }
             Command::SeekTo(t_s) => {
                 // Position k shows frame k − 1: the one at trace time t.
-                let k = ((t_s - self.source.start_t_s()) * self.rate_hz).round() + 1.0;
+                let k = ((t_s - self.runner.source.start_t_s()) * self.rate_hz).round() + 1.0;
                 let k = if k.is_finite() {
-                    k.clamp(0.0, self.source.len() as f64) as usize
+                    k.clamp(0.0, self.runner.source.len() as f64) as usize
                 } else {
                     0
                 };
                 self.seek_to(k, now);
             }
             Command::Home => self.seek_to(0, now),
-            Command::End => self.seek_to(self.source.len(), now),
+            Command::End => self.seek_to(self.runner.source.len(), now),
             Command::SetPaused(paused) => {
                 if !paused && self.paused && self.at_end() && self.target.is_none() {
                     self.seek_to(0, now);
@@ -439,7 +454,7 @@ impl Player {
     /// current position when not recording; the stepping happens in [`Player::pump`], a slice
     /// at a time.
     fn seek_to(&mut self, k: usize, now: Instant) {
-        let position = self.source.position();
+        let position = self.runner.source.position();
         let back = k < position;
         let nearest = self.checkpoints.iter().rposition(|c| c.position <= k);
         // Forward, a checkpoint past the current position saves stepping, unless a recording
@@ -454,17 +469,16 @@ impl Player {
             }
             let restored = nearest.is_some_and(|i| {
                 let c = &self.checkpoints[i];
-                self.source.restore(&c.source)
+                self.runner.restore(&c.source)
             });
             match nearest.filter(|_| restored) {
                 Some(i) => {
                     let c = &self.checkpoints[i];
-                    self.summary = c.summary.clone();
+                    self.runner.summary = c.summary.clone();
                     self.last = c.last.clone();
                 }
                 None => {
-                    self.source.rewind();
-                    self.summary = SummaryBuilder::new(&self.profile, &self.trace_name);
+                    self.runner.rewind();
                     self.last = None;
                 }
             }
@@ -472,14 +486,14 @@ impl Player {
             self.work_since_checkpoint = Duration::ZERO;
             self.steps_since_checkpoint = 0;
         }
-        self.target = (k != self.source.position()).then_some(k);
+        self.target = (k != self.runner.source.position()).then_some(k);
         self.achieved = None;
     }
 
     /// Keeps a checkpoint at the current position when enough work has been done since the
     /// last one and the position is new ground.
     fn maybe_checkpoint(&mut self) {
-        let position = self.source.position();
+        let position = self.runner.source.position();
         let due = self.work_since_checkpoint >= self.checkpoint_work
             || self.steps_since_checkpoint >= self.checkpoint_steps;
         if !due
@@ -492,13 +506,13 @@ impl Player {
         }
         self.work_since_checkpoint = Duration::ZERO;
         self.steps_since_checkpoint = 0;
-        let Some(source) = self.source.checkpoint() else {
+        let Some(source) = self.runner.source.checkpoint() else {
             return;
         };
         self.checkpoints.push(Checkpoint {
             position,
             source,
-            summary: self.summary.clone(),
+            summary: self.runner.summary.clone(),
             last: self.last.clone(),
         });
         if self.checkpoints.len() > MAX_CHECKPOINTS {
@@ -519,20 +533,20 @@ impl Player {
 
     /// The chart rows of the last [`WINDOW_S`] before the current position.
     fn window(&self) -> &[WindowRow] {
-        let end = self.source.position().min(self.history.len());
+        let end = self.runner.source.position().min(self.history.len());
         &self.history[end.saturating_sub(self.window_len)..end]
     }
 
     /// Steps one frame into the summary, the window and the recording.
     fn advance(&mut self, now: Instant) -> bool {
-        let k = self.source.position();
+        let k = self.runner.source.position();
         let started = Instant::now();
-        let Some(frame) = self.source.next_frame() else {
+        // Session-wide sinks (a live view) that fail are dropped by the runner: no error here.
+        let Ok(Some(frame)) = self.runner.step() else {
             return false;
         };
         self.work_since_checkpoint += started.elapsed();
         self.steps_since_checkpoint += 1;
-        self.summary.push(&frame);
         self.summary_dirty = true;
         let row = WindowRow::of(&frame);
         match self.history.get_mut(k) {
@@ -595,7 +609,7 @@ impl Player {
             path: path.clone(),
             trace_name: self.trace_name.clone(),
             profile_name: self.profile.name.clone(),
-            start_t_s: self.source.position() as f64 / self.rate_hz,
+            start_t_s: self.runner.source.position() as f64 / self.rate_hz,
         };
         match (setup.factory)(&request) {
             Ok(sink) => {
@@ -638,12 +652,12 @@ impl Player {
     pub fn pump(&mut self, now: Instant) -> Wait {
         let deadline = now + SLICE;
         if let Some(target) = self.target {
-            while self.source.position() < target && Instant::now() < deadline {
+            while self.runner.source.position() < target && Instant::now() < deadline {
                 if !self.advance(now) {
                     break;
                 }
             }
-            if self.source.position() >= target || self.at_end() {
+            if self.runner.source.position() >= target || self.at_end() {
                 self.target = None;
                 self.reanchor(Instant::now());
             }
@@ -653,12 +667,11 @@ impl Player {
             return Wait::Idle;
         }
         if self.at_end() {
-            if self.looping && !self.source.is_empty() {
+            if self.looping && !self.runner.source.is_empty() {
                 if self.recording.is_some() {
                     self.stop_recording(now, "recording closed at the end of the loop");
                 }
-                self.source.rewind();
-                self.summary = SummaryBuilder::new(&self.profile, &self.trace_name);
+                self.runner.rewind();
                 self.last = None;
                 self.reanchor(now);
                 return Wait::Busy;
@@ -678,17 +691,18 @@ impl Player {
                 let per_s = self.rate_hz * factor;
                 let (t0, k0) = self.anchor;
                 let due = k0 + (now.saturating_duration_since(t0).as_secs_f64() * per_s) as usize;
-                while self.source.position() < due && Instant::now() < deadline {
+                while self.runner.source.position() < due && Instant::now() < deadline {
                     if !self.advance(now) {
                         break;
                     }
                 }
-                let behind = due.saturating_sub(self.source.position()) as f64 / per_s;
+                let behind = due.saturating_sub(self.runner.source.position()) as f64 / per_s;
                 if behind > MAX_DEBT.as_secs_f64() {
-                    self.anchor = (now, self.source.position());
+                    self.anchor = (now, self.runner.source.position());
                 }
                 // The next step is due when the schedule reaches the next index.
-                let ahead = (self.source.position() + 1).saturating_sub(self.anchor.1) as f64;
+                let ahead =
+                    (self.runner.source.position() + 1).saturating_sub(self.anchor.1) as f64;
                 let at = self.anchor.0 + Duration::from_secs_f64(ahead / per_s);
                 Wait::Until(at)
             }
@@ -696,9 +710,9 @@ impl Player {
         let (m0, mk) = self.meter;
         let elapsed = now.saturating_duration_since(m0);
         if elapsed >= METER_WINDOW {
-            let steps = self.source.position().saturating_sub(mk) as f64;
+            let steps = self.runner.source.position().saturating_sub(mk) as f64;
             self.achieved = Some(steps / self.rate_hz / elapsed.as_secs_f64());
-            self.meter = (now, self.source.position());
+            self.meter = (now, self.runner.source.position());
         }
         wait
     }
@@ -719,17 +733,17 @@ impl Player {
                     .summary_at
                     .is_none_or(|t| now.saturating_duration_since(t) >= SUMMARY_EVERY));
         if refresh {
-            self.summary_cache = Some(Arc::new(self.summary.finish()));
+            self.summary_cache = Some(Arc::new(self.runner.summary.finish()));
             self.summary_at = Some(now);
             self.summary_dirty = false;
         }
         self.version += 1;
         Snapshot {
             version: self.version,
-            position: self.source.position(),
-            len: self.source.len(),
+            position: self.runner.source.position(),
+            len: self.runner.source.len(),
             rate_hz: self.rate_hz,
-            start_t_s: self.source.start_t_s(),
+            start_t_s: self.runner.source.start_t_s(),
             algorithms: self.algorithms.clone(),
             paused: self.paused,
             speed: self.speed,
@@ -737,7 +751,7 @@ impl Player {
             at_end: self.at_end(),
             seeking_to_s: self
                 .target
-                .map(|k| self.source.start_t_s() + k as f64 / self.rate_hz),
+                .map(|k| self.runner.source.start_t_s() + k as f64 / self.rate_hz),
             can_record: self.recording_setup.is_some(),
             recording: self.recording.as_ref().map(|r| RecordingStatus {
                 path: r.path.display().to_string(),

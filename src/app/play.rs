@@ -1,0 +1,224 @@
+//! `hexcue play`: a trace through the algorithms, headless (the session runner stepped to the
+//! end, into the summary, the recording, the progress bar and Foxglove) or in the console.
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+
+use anyhow::{Context, Result};
+
+use crate::app::common::{check_session_outputs, headless_or_console, inputs, stop_flag};
+use crate::cli::{parse_algorithms, PlayArgs};
+use crate::engine::Engine;
+use crate::formats::profile::{default_profile, load_profile, DEFAULT_PROFILE_TOML};
+use crate::formats::recording::{Recorder, RecordingMeta};
+use crate::formats::trace::default_trace;
+use crate::foxglove::FoxgloveServer;
+use crate::mca::AlgorithmId;
+use crate::profile::Profile;
+use crate::session::{player, FrameSink, Runner, SinkFailure};
+use crate::sinks::recorder::{McapSink, ProgressSink, Quiet};
+use crate::summary::Summary;
+use crate::tui::terminal::{exit_for_signal, require_terminal};
+use crate::tui::{self, LiveConfig, SessionInfo};
+
+/// The whole command: the outputs checked, then headless (summary, table) or the console.
+pub fn run(args: &PlayArgs) -> Result<()> {
+    check_session_outputs(
+        args.record.as_deref(),
+        args.summary.as_deref(),
+        args.headless,
+        args.force,
+        &inputs(&[
+            (args.trace.as_deref(), "--trace"),
+            (args.profile.as_deref(), "--profile"),
+        ]),
+    )?;
+    headless_or_console(
+        args.headless,
+        args.summary.as_deref(),
+        || run_headless(args),
+        || run_console(args),
+    )
+}
+
+/// The profile (with its TOML) and the algorithms of a play session.
+pub fn load_play(args: &PlayArgs) -> Result<(Profile, String, Vec<AlgorithmId>)> {
+    let (mut profile, profile_toml) = match &args.profile {
+        Some(path) => load_profile(path)?,
+        None => (default_profile(), DEFAULT_PROFILE_TOML.to_string()),
+    };
+    let algorithms = parse_algorithms(&args.algorithms)?;
+    if args.preview {
+        profile.mpc.reference = crate::mca::mpc::params::ReferenceMode::Preview;
+    }
+    Ok((profile, profile_toml, algorithms))
+}
+
+/// A play session's samples, streamed from the trace file (or the embedded trace), with
+/// what the user is told about it.
+pub struct PlaySource {
+    pub source: Box<dyn crate::source::SampleSource>,
+    pub name: String,
+    pub len: usize,
+    pub notices: Vec<String>,
+    pub info: Option<crate::trace::TraceInfo>,
+}
+
+/// Opens `--trace` as a stream: checked whole on a first pass, then read as it is stepped, so
+/// memory does not grow with its length (docs/performance.md).
+pub fn open_play_source(args: &PlayArgs, rate_hz: f64) -> Result<PlaySource> {
+    Ok(match &args.trace {
+        Some(path) => {
+            let file = crate::sources::trace_file::TraceFile::open(path, rate_hz)?;
+            let plan = file.plan().clone();
+            PlaySource {
+                source: Box::new(file),
+                name: plan.name,
+                len: plan.len,
+                notices: plan.notices,
+                info: plan.info,
+            }
+        }
+        None => {
+            let trace = default_trace(rate_hz).trace;
+            PlaySource {
+                name: trace.name.clone(),
+                len: trace.len(),
+                notices: trace.notices.clone(),
+                info: trace.info.clone(),
+                source: Box::new(crate::source::TraceSamples::new(Arc::new(trace))),
+            }
+        }
+    })
+}
+
+/// What a play recording attaches, all but the trace's text (read only while a recording
+/// starts, then dropped: [`trace_csv`]).
+fn recording_meta(
+    profile: &Profile,
+    profile_toml: String,
+    play: &PlaySource,
+    algorithms: &[AlgorithmId],
+) -> RecordingMeta {
+    RecordingMeta {
+        profile_name: profile.name.clone(),
+        profile_toml,
+        trace_name: play.name.clone(),
+        trace_csv: String::new(),
+        trace_sidecar: play
+            .info
+            .as_ref()
+            .and_then(|i| serde_json::to_string_pretty(i).ok()),
+        algorithms: algorithms.to_vec(),
+        rate_hz: profile.rate_hz,
+    }
+}
+
+/// The trace's text as read, for a recording's attachment.
+fn trace_csv(trace: Option<&std::path::Path>) -> Result<String> {
+    Ok(match trace {
+        Some(t) => std::fs::read_to_string(t)
+            .with_context(|| format!("{}: cannot read the trace", t.display()))?,
+        None => crate::formats::trace::DEFAULT_TRACE_CSV.to_string(),
+    })
+}
+
+pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
+    let (profile, profile_toml, algorithms) = load_play(args)?;
+    let play = open_play_source(args, profile.rate_hz)?;
+    for notice in &play.notices {
+        eprintln!("note: {}: {notice}", play.name);
+    }
+    let (name, len) = (play.name.clone(), play.len);
+    let recorder = match &args.record {
+        Some(path) => {
+            let mut meta = recording_meta(&profile, profile_toml, &play, &algorithms);
+            // The attachment is the trace's text as read; it is held only while written.
+            meta.trace_csv = trace_csv(args.trace.as_deref())?;
+            Some(McapSink::headless(Recorder::create(path, &meta)?))
+        }
+        None => None,
+    };
+    let engine = Engine::with_source(&profile, play.source, &algorithms)?;
+    // In closing order: the bar cleared before the recording's line is printed.
+    let mut sinks: Vec<Box<dyn FrameSink>> = Vec::new();
+    if let Some(bar) = ProgressSink::on_terminal(&name, len) {
+        sinks.push(Box::new(bar));
+    }
+    if let Some(addr) = args.foxglove {
+        let server = start_foxglove(addr, &profile, &algorithms)?;
+        sinks.push(Box::new(Quiet(Box::new(server))));
+    }
+    if let Some(recorder) = recorder {
+        sinks.push(Box::new(recorder));
+    }
+    // Paced only for a Foxglove viewer to follow; otherwise as fast as possible.
+    let pace = args.foxglove.and(player::pace(args.start.speed));
+    let stop = stop_flag()?;
+    let mut runner = Runner::new(Box::new(engine), &profile, &name, sinks, SinkFailure::Stop);
+    let end = runner.run(pace, &stop)?;
+    for line in runner.finish()? {
+        eprintln!("{line}");
+    }
+    if let Some(e) = runner.take_error() {
+        return Err(e);
+    }
+    let summary = runner.summary();
+    if let Some(line) = summary.clipping_line() {
+        eprintln!(
+            "note: {}: input clipped by the profile's [input] limits (±{} m/s², ±{}°/s), \
+             samples per axis: {line}",
+            name, profile.input.specific_force_limit_mps2, profile.input.angular_velocity_limit_dps
+        );
+    }
+    if end.interrupted {
+        eprintln!(
+            "stopped by a signal after {} of {} steps; the summary covers those",
+            summary.steps, len
+        );
+    }
+    Ok(summary)
+}
+
+/// Play in the console: the runner on its engine thread, a recording on `r` (or
+/// `--record`) through the sink factory.
+pub fn run_console(args: &PlayArgs) -> Result<()> {
+    require_terminal()?;
+    let (profile, profile_toml, algorithms) = load_play(args)?;
+    let play = open_play_source(args, profile.rate_hz)?;
+    let info = SessionInfo::described(&play.name, play.info.as_ref(), &profile.name);
+    let mut meta = recording_meta(&profile, profile_toml, &play, &algorithms);
+    let trace_path = args.trace.clone();
+    let mut cfg = LiveConfig::streaming(profile, play.source, info, algorithms);
+    cfg.record = args.record.clone();
+    cfg.start_paused = args.start.paused;
+    cfg.speed = args.start.speed;
+    cfg.looping = args.start.looping;
+    if let Some(addr) = args.foxglove {
+        let server = start_foxglove(addr, &cfg.profile, &cfg.algorithms)?;
+        cfg.sinks.push(Box::new(server));
+    }
+    let factory: tui::SinkFactory = Box::new(move |request: &tui::RecordingRequest| {
+        // The trace's text is read for the attachment only while a recording starts.
+        meta.trace_csv = trace_csv(trace_path.as_deref())?;
+        let recorder = Recorder::create(&request.path, &meta);
+        meta.trace_csv = String::new();
+        Ok(Box::new(McapSink::console(recorder?)) as Box<dyn FrameSink>)
+    });
+    let outcome = tui::run_live(cfg, factory)?;
+    exit_for_signal(outcome.signal)
+}
+
+/// Starts the live Foxglove server and tells the user where it is.
+pub fn start_foxglove(
+    addr: SocketAddr,
+    profile: &Profile,
+    algorithms: &[AlgorithmId],
+) -> Result<FoxgloveServer> {
+    let server = FoxgloveServer::start(addr, profile, algorithms)?;
+    eprintln!(
+        "foxglove: serving ws://{} (in Foxglove: Open connection → Foxglove WebSocket)",
+        server.addr()
+    );
+    Ok(server)
+}

@@ -1,0 +1,152 @@
+//! `hexcue review`: a recording made by `play` or `live`, its summary recomputed headless
+//! (and served to Foxglove at a pace) or opened in the console: the session runner with the
+//! recording as its frame source.
+
+use std::net::SocketAddr;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+use anyhow::{bail, Result};
+
+use crate::app::common::{headless_or_console, stop_flag};
+use crate::app::play::start_foxglove;
+use crate::cli::ReviewArgs;
+use crate::engine::Frame;
+use crate::formats::recording::Recording;
+use crate::outputs::{check_output_of, Input};
+use crate::session::{player, FrameSink, RecordedFrames, Runner, SinkFailure};
+use crate::sinks::recorder::Quiet;
+use crate::sources::recording::RecordingStream;
+use crate::summary::Summary;
+use crate::tui::terminal::{exit_for_signal, require_terminal};
+use crate::tui::{self, ReviewConfig, SessionInfo};
+
+/// The whole command: the `--summary` check, then headless (summary, table) or the console.
+pub fn run(args: &ReviewArgs) -> Result<()> {
+    if let (Some(path), true) = (&args.summary, args.headless) {
+        let recording = [Input::new(&args.file, "recording")];
+        check_output_of(path, args.force, "--summary", &recording)?;
+    }
+    headless_or_console(
+        args.headless,
+        args.summary.as_deref(),
+        || match args.foxglove {
+            Some(addr) => review_served(&args.file, addr, player::pace(args.start.speed)),
+            None => review_summary(&args.file),
+        },
+        || run_console(args),
+    )
+}
+
+/// `review --headless --foxglove`: sends the recording's frames at `speed` × real time (as
+/// fast as it can with `None`) while computing the summary.
+pub fn review_served(path: &Path, addr: SocketAddr, speed: Option<f64>) -> Result<Summary> {
+    let recording = Recording::open(path)?;
+    let profile = recording
+        .profile
+        .as_ref()
+        .map_err(|e| anyhow::anyhow!("{e}; the rigs cannot be drawn without it"))?;
+    let server = start_foxglove(addr, profile, &recording.algorithms)?;
+    let sinks: Vec<Box<dyn FrameSink>> = vec![Box::new(Quiet(Box::new(server)))];
+    let stop = stop_flag()?;
+    let source = RecordingStream::new(
+        recording.frames()?,
+        recording.algorithms.clone(),
+        profile.rate_hz,
+    );
+    let mut runner = Runner::new(
+        Box::new(source),
+        profile,
+        &recording.trace_name,
+        sinks,
+        SinkFailure::Stop,
+    );
+    runner.run(speed, &stop)?;
+    runner.finish()?;
+    if let Some(e) = runner.take_error() {
+        return Err(e);
+    }
+    Ok(runner.summary())
+}
+
+pub fn review_summary(path: &Path) -> Result<Summary> {
+    let recording = Recording::open(path)?;
+    if !recording.finished {
+        // Where and why reading stopped tells a file cut by a crash (ends mid-record) from
+        // one damaged in place (garbage after good chunks).
+        eprintln!(
+            "warning: {}: the recording was not finished (no end magic; reading stopped {}); \
+             reviewing the steps before that",
+            path.display(),
+            recording.stopped.as_deref().unwrap_or("at its end")
+        );
+    }
+    let profile = recording.profile.as_ref().map_err(|e| {
+        anyhow::anyhow!(
+            "{e}; without a valid profile the leg usage cannot be recomputed from {}",
+            path.display()
+        )
+    })?;
+    let source = RecordingStream::new(
+        recording.frames()?,
+        recording.algorithms.clone(),
+        profile.rate_hz,
+    );
+    let mut runner = Runner::new(
+        Box::new(source),
+        profile,
+        &recording.trace_name,
+        Vec::new(),
+        SinkFailure::Stop,
+    );
+    // Reading a file is quick and writes nothing: a signal may simply end the process.
+    runner.run(None, &AtomicBool::new(false))?;
+    if let Some(e) = runner.take_error() {
+        return Err(e);
+    }
+    Ok(runner.summary())
+}
+
+/// Review in the console: the recording's frames in memory, to seek and loop through.
+pub fn run_console(args: &ReviewArgs) -> Result<()> {
+    let path = args.file.as_path();
+    require_terminal()?;
+    let recording = Recording::open(path)?;
+    let profile = recording
+        .profile
+        .as_ref()
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .clone();
+    let frames = recording.frames()?.collect::<Result<Vec<Frame>, _>>()?;
+    if frames.is_empty() {
+        bail!("{}: the recording holds no complete step", path.display());
+    }
+    // The attached sidecar gives the header its aircraft, scenario and event markers, as live.
+    let sidecar = recording.trace_sidecar.as_deref().and_then(|json| {
+        crate::formats::trace::parse_sidecar(json, &path.display().to_string()).ok()
+    });
+    let mut info = SessionInfo::described(&recording.trace_name, sidecar.as_ref(), &profile.name);
+    info.review_of = Some(path.display().to_string());
+    if !recording.finished {
+        info.description = Some("unfinished recording (cut short): showing what it holds".into());
+    }
+    let source = Box::new(RecordedFrames::new(frames, profile.rate_hz));
+    let mut sinks: Vec<Box<dyn FrameSink>> = Vec::new();
+    if let Some(addr) = args.foxglove {
+        sinks.push(Box::new(start_foxglove(
+            addr,
+            &profile,
+            &recording.algorithms,
+        )?));
+    }
+    let outcome = tui::run_review(ReviewConfig {
+        profile,
+        source,
+        info,
+        start_paused: args.start.paused,
+        speed: args.start.speed,
+        looping: args.start.looping,
+        sinks,
+    })?;
+    exit_for_signal(outcome.signal)
+}
