@@ -266,13 +266,16 @@ impl Engine {
     /// the first here and the others on rayon's pool. A live session does: its stepping
     /// thread runs at real-time priority and the pool's threads do not, so a step handed to
     /// them could wait behind any other work of the machine; the lanes together take well
-    /// under a period.
+    /// under a period. The S-MPC likewise solves its two QPs one after the other.
     pub fn set_parallel(&mut self, parallel: bool) {
         let heavy = self
             .lanes
             .iter()
             .any(|l| l.algorithm.id() != AlgorithmId::Cwf);
         self.parallel = parallel && heavy;
+        for lane in &mut self.lanes {
+            lane.algorithm.set_parallel(parallel);
+        }
     }
 
     pub fn algorithms(&self) -> Vec<AlgorithmId> {

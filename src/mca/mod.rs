@@ -171,6 +171,10 @@ pub trait MotionCueing: Send {
     fn restore(&mut self, _snapshot: &AlgorithmSnapshot) -> bool {
         false
     }
+    /// Whether the algorithm may hand part of a step to rayon's pool (true by default). A
+    /// live session says no: its stepping thread runs at real-time priority and the pool's
+    /// threads do not, so the step would wait behind whatever else the machine runs.
+    fn set_parallel(&mut self, _parallel: bool) {}
 }
 
 /// An algorithm's running state, opaque to everyone but the algorithm that took it.

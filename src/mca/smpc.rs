@@ -31,6 +31,8 @@ pub struct Smpc {
     mode: Mode,
     time_in_mode_s: f64,
     reports: [super::SolverReport; 2],
+    /// Both QPs on two cores when they are both solved (see [`MotionCueing::set_parallel`]).
+    parallel: bool,
 }
 
 /// [`MotionCueing::snapshot`] of an S-MPC: both MPCs' running states and the switching's.
@@ -72,6 +74,7 @@ impl Smpc {
                 super::SolverReport::default(),
                 super::SolverReport::default(),
             ],
+            parallel: true,
         })
     }
 
@@ -89,6 +92,11 @@ impl Smpc {
     /// to this thread rather than continue with one controller silently missing.
     fn solve_both(&mut self, input: &CueInput) -> (MpcOutcome, MpcOutcome) {
         let (cotc, free) = (&mut self.cotc, &mut self.free);
+        if !self.parallel {
+            // Same arithmetic, one after the other on the caller's (real-time) thread.
+            let c = cotc.solve(input);
+            return (c, free.solve(input));
+        }
         let mut f = None;
         let c = rayon::in_place_scope(|scope| {
             scope.spawn(|_| f = Some(free.solve(input)));
@@ -108,6 +116,10 @@ fn mode_of(c: Controller) -> Mode {
 impl MotionCueing for Smpc {
     fn id(&self) -> AlgorithmId {
         AlgorithmId::Smpc
+    }
+
+    fn set_parallel(&mut self, parallel: bool) {
+        self.parallel = parallel;
     }
 
     fn step(&mut self, input: &CueInput) -> PlatformCommand {
@@ -297,6 +309,30 @@ mod tests {
         )
         .unwrap();
         assert!(Arc::ptr_eq(smpc.cotc.cache(), smpc.free.cache()));
+    }
+
+    /// A live session steps the S-MPC's two QPs one after the other on its real-time thread;
+    /// that must change nothing but where they run.
+    #[test]
+    fn sequential_and_parallel_solves_give_the_same_commands() {
+        let mut profile = full_flight();
+        profile.mpc.reference = crate::mca::mpc::params::ReferenceMode::Hold;
+        profile.mpc.time_limit_ms = f64::INFINITY;
+        let trace = Arc::new(sustained_surge());
+        let run = |parallel: bool| {
+            let mut engine = Engine::new(&profile, trace.clone(), &[AlgorithmId::Smpc]).unwrap();
+            engine.set_parallel(parallel);
+            let mut poses = Vec::new();
+            // Through the switch away from COTC at about 2 s, where both QPs are solved.
+            while let Some(frame) = engine.step() {
+                poses.push(frame.lanes[0].command.pose);
+                if frame.t_s > 4.0 {
+                    break;
+                }
+            }
+            poses
+        };
+        assert_eq!(run(true), run(false));
     }
 
     #[test]
