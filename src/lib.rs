@@ -6,6 +6,7 @@
 //! `docs/design.md`.
 
 pub mod app;
+pub mod channels;
 pub mod cli;
 pub mod compare;
 pub mod console;

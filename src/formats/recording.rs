@@ -17,17 +17,20 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use mcap::records::{MessageHeader, Metadata, Record};
 use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use mcap::{Attachment, Compression, McapError, WriteOptions};
-use nalgebra::{Vector3, Vector6};
-use serde::{Deserialize, Deserializer, Serialize};
-use serde_json::{json, Value};
+use serde::Deserialize;
 use sha2::{Digest, Sha256};
 
+use crate::channels::json::{
+    self, ActuatorsMsg, AircraftMsg, ControllerMsg, Message, PerceivedMsg, PlatformMsg,
+};
+use crate::channels::scene::{self, SceneBuilder};
+use crate::channels::{
+    self, Channel, EncodeError, Kind, SceneMessage, AIRCRAFT_TOPIC, REFERENCE_TOPIC,
+};
 use crate::engine::{Frame, LaneFrame, Legs};
 use crate::events::EventLevel;
 use crate::formats::profile::{parse_profile, ProfileLoadError};
-use crate::foxglove::record::{SceneChannels, SceneWriteError};
 use crate::mca::{AlgorithmId, AlgorithmState, Mode, PlatformCommand, SolverReport};
-use crate::model::vestibular::Perceived;
 use crate::profile::Profile;
 use crate::trace::AircraftSample;
 
@@ -41,10 +44,6 @@ pub const TRACE_ATTACHMENT: &str = "trace.csv";
 pub const SIDECAR_ATTACHMENT: &str = "trace.json";
 /// Version of the topic layout below; bumped when a field changes meaning.
 pub const FORMAT_VERSION: &str = "1";
-
-const AIRCRAFT_TOPIC: &str = "/aircraft";
-const REFERENCE_TOPIC: &str = "/aircraft/perceived";
-const LANE_KINDS: [&str; 4] = ["perceived", "platform", "actuators", "controller"];
 
 /// Uncompressed chunk size. The one-second flush normally closes chunks first (a step of
 /// three algorithms is about 5 KB of JSON); this bounds the writer's memory otherwise.
@@ -152,418 +151,31 @@ pub struct RecordingStats {
     pub wall_s: f64,
 }
 
-// ---------------------------------------------------------------------------------------------
-// Messages, as written and as read. Non-finite numbers become JSON `null` on the way out and
-// NaN on the way back: JSON has no NaN, and a recording must never fail for a value.
-
-fn nan_f64<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
-}
-
-fn nan_array<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
-    let values = Vec::<Option<f64>>::deserialize(d)?;
-    if values.len() != N {
-        return Err(serde::de::Error::invalid_length(
-            values.len(),
-            &format!("an array of {N} numbers").as_str(),
-        ));
-    }
-    Ok(std::array::from_fn(|i| values[i].unwrap_or(f64::NAN)))
-}
-
-/// Writes an array of the platform's motion or its legs rounded to 6 decimals in SI: 1 µm,
-/// 1 µrad, 1 µm/s, 10⁻⁶ m/s², far below what a platform resolves. The digits beyond are noise
-/// that zstd cannot shrink, and they were most of the file (docs/recordings.md, "Size per
-/// minute"). Files written before keep their full digits and read the same way.
-fn micro_array<S: serde::Serializer, const N: usize>(
-    v: &[f64; N],
-    s: S,
-) -> Result<S::Ok, S::Error> {
-    s.collect_seq(v.iter().map(|&x| micro(x)))
-}
-
-/// A value as the recording keeps the platform's: rounded to 6 decimals.
-fn micro(x: f64) -> f64 {
-    (x * 1e6).round() / 1e6
-}
-
-/// Writes an array of the aircraft's or a perceived signal in single precision (the shortest
-/// form that reads back to the same f32, 7 significant digits): relative, not absolute,
-/// because a quiet flight's perceived rates are a few µrad/s and their metrics (AAS, RAE) are
-/// ratios of sums of them.
-fn f32_array<S: serde::Serializer, const N: usize>(v: &[f64; N], s: S) -> Result<S::Ok, S::Error> {
-    s.collect_seq(v.iter().map(|&x| x as f32))
-}
-
-fn v3(v: &Vector3<f64>) -> [f64; 3] {
-    [v.x, v.y, v.z]
-}
-
-fn v6(v: &Vector6<f64>) -> [f64; 6] {
-    std::array::from_fn(|i| v[i])
-}
-
-#[derive(Debug, Serialize, Deserialize)]
-struct AircraftMsg {
-    #[serde(deserialize_with = "nan_f64")]
-    t: f64,
-    /// Step index; absent from files other tools wrote, then counted.
-    #[serde(default)]
-    k: Option<u64>,
-    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
-    specific_force: [f64; 3],
-    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
-    angular_velocity: [f64; 3],
-    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
-    attitude: [f64; 3],
-}
-
-#[derive(Debug, Serialize, Deserialize)]
-struct PerceivedMsg {
-    #[serde(deserialize_with = "nan_f64")]
-    t: f64,
-    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
-    specific_force: [f64; 3],
-    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
-    angular_velocity: [f64; 3],
-}
-
-impl PerceivedMsg {
-    fn new(t: f64, p: &Perceived) -> Self {
-        PerceivedMsg {
-            t,
-            specific_force: v3(&p.specific_force_mps2),
-            angular_velocity: v3(&p.angular_velocity_radps),
-        }
-    }
-
-    fn perceived(&self) -> Perceived {
-        Perceived {
-            specific_force_mps2: self.specific_force.into(),
-            angular_velocity_radps: self.angular_velocity.into(),
-        }
-    }
-}
-
-impl AircraftMsg {
-    fn new(frame: &Frame) -> Self {
-        let a = &frame.aircraft;
-        AircraftMsg {
-            t: frame.t_s,
-            k: Some(frame.k as u64),
-            specific_force: v3(&a.specific_force_mps2),
-            angular_velocity: v3(&a.angular_velocity_radps),
-            attitude: v3(&a.attitude_rad),
-        }
-    }
-}
-
-#[derive(Debug, Serialize, Deserialize)]
-struct PlatformMsg {
-    #[serde(deserialize_with = "nan_f64")]
-    t: f64,
-    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
-    pose: [f64; 6],
-    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
-    velocity: [f64; 6],
-    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
-    acceleration: [f64; 6],
-}
-
-impl PlatformMsg {
-    fn new(t: f64, c: &PlatformCommand) -> Self {
-        PlatformMsg {
-            t,
-            pose: v6(&c.pose),
-            velocity: v6(&c.velocity),
-            acceleration: v6(&c.acceleration),
-        }
-    }
-}
-
-#[derive(Debug, Serialize, Deserialize)]
-struct ActuatorsMsg {
-    #[serde(deserialize_with = "nan_f64")]
-    t: f64,
-    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
-    length: [f64; 6],
-    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
-    velocity: [f64; 6],
-    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
-    margin: [f64; 6],
-}
-
-impl ActuatorsMsg {
-    fn new(t: f64, l: &Legs) -> Self {
-        ActuatorsMsg {
-            t,
-            length: v6(&l.length_m),
-            velocity: v6(&l.velocity_mps),
-            margin: v6(&l.margin_m),
-        }
-    }
-}
-
-#[derive(Debug, Serialize, Deserialize)]
-struct SolverMsg {
-    name: String,
-    status: String,
-    iterations: u32,
-    #[serde(deserialize_with = "nan_f64")]
-    solve_time_us: f64,
-}
-
-#[derive(Debug, Serialize, Deserialize)]
-struct ControllerMsg {
-    #[serde(deserialize_with = "nan_f64")]
-    t: f64,
-    mode: String,
-    blend: Option<f64>,
-    /// The solvers' statuses joined by `+` (`none` without a QP): one word to plot.
-    status: String,
-    /// Iterations and solve time of all of the step's QPs together.
-    iterations: u64,
-    #[serde(deserialize_with = "nan_f64")]
-    solve_time_us: f64,
-    limiter_active: bool,
-    #[serde(deserialize_with = "nan_f64")]
-    step_time_us: f64,
-    #[serde(deserialize_with = "nan_f64")]
-    time_in_mode_s: f64,
-    switch_count: u32,
-    last_switch_reason: Option<String>,
-    solvers: Vec<SolverMsg>,
-}
-
-impl ControllerMsg {
-    fn new(t: f64, lane: &LaneFrame) -> Self {
-        let s = &lane.state;
-        let status = if s.solvers.is_empty() {
-            "none".to_string()
-        } else {
-            s.solvers
-                .iter()
-                .map(|r| r.status.as_str())
-                .collect::<Vec<_>>()
-                .join("+")
-        };
-        ControllerMsg {
-            t,
-            mode: s.mode.word().to_string(),
-            blend: s.blend,
-            status,
-            iterations: s.solvers.iter().map(|r| u64::from(r.iterations)).sum(),
-            solve_time_us: s.solvers.iter().map(|r| r.solve_time_us).sum(),
-            limiter_active: lane.limiter_active,
-            step_time_us: lane.step_time_us,
-            time_in_mode_s: s.time_in_mode_s,
-            switch_count: s.switch_count,
-            last_switch_reason: s.last_switch_reason.clone(),
-            solvers: s
-                .solvers
-                .iter()
-                .map(|r| SolverMsg {
-                    name: r.name.clone(),
-                    status: r.status.clone(),
-                    iterations: r.iterations,
-                    solve_time_us: r.solve_time_us,
-                })
-                .collect(),
-        }
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// JSON schemas (Foxglove's `jsonschema` encoding), one a topic kind.
-
-fn numbers(n: usize, description: &str) -> Value {
-    json!({
-        "type": "array",
-        "items": { "type": ["number", "null"] },
-        "minItems": n,
-        "maxItems": n,
-        "description": description,
-    })
-}
-
-fn time_field() -> Value {
-    json!({ "type": "number", "description": "trace time (s)" })
-}
-
-fn schema(title: &str, description: &str, properties: Value) -> Vec<u8> {
-    let required: Vec<&String> = properties
-        .as_object()
-        .map(|o| o.keys().collect())
-        .unwrap_or_default();
-    serde_json::to_vec(&json!({
-        "$schema": "https://json-schema.org/draft/2020-12/schema",
-        "title": title,
-        "description": description,
-        "type": "object",
-        "properties": properties,
-        "required": required,
-    }))
-    .unwrap_or_default()
-}
-
-struct SchemaDef {
-    name: &'static str,
-    data: Vec<u8>,
-}
-
-fn schemas() -> [SchemaDef; 5] {
-    let perceived = || {
-        json!({
-            "t": time_field(),
-            "specific_force": numbers(3, "otoliths' output for Δf, x y z head frame (m/s²)"),
-            "angular_velocity": numbers(3, "canals' output, x y z head frame (rad/s)"),
-        })
-    };
-    [
-        SchemaDef {
-            name: "hexcue.Aircraft",
-            data: schema(
-                "hexcue.Aircraft",
-                "Aircraft motion at the pilot's head, head frame (x forward, y right, z down)",
-                json!({
-                    "t": time_field(),
-                    "k": { "type": "integer", "description": "step index" },
-                    "specific_force": numbers(3, "f = a − g, x y z (m/s²); (0, 0, −9.81) at rest"),
-                    "angular_velocity": numbers(3, "body rates p q r (rad/s)"),
-                    "attitude": numbers(3, "roll pitch yaw φ θ ψ (rad)"),
-                }),
-            ),
-        },
-        SchemaDef {
-            name: "hexcue.Perceived",
-            data: schema(
-                "hexcue.Perceived",
-                "Perceived motion: vestibular model output",
-                perceived(),
-            ),
-        },
-        SchemaDef {
-            name: "hexcue.Platform",
-            data: schema(
-                "hexcue.Platform",
-                "Platform command after the limiter, simulator inertial frame \
-                 (x y z (m), roll pitch yaw (rad), Z-Y-X Euler)",
-                json!({
-                    "t": time_field(),
-                    "pose": numbers(6, "x y z (m), roll pitch yaw (rad) from neutral"),
-                    "velocity": numbers(6, "first derivative of pose (m/s, rad/s)"),
-                    "acceleration": numbers(6, "second derivative of pose (m/s², rad/s²)"),
-                }),
-            ),
-        },
-        SchemaDef {
-            name: "hexcue.Actuators",
-            data: schema(
-                "hexcue.Actuators",
-                "Legs 1..6 of the Stewart platform",
-                json!({
-                    "t": time_field(),
-                    "length": numbers(6, "leg lengths (m)"),
-                    "velocity": numbers(6, "leg velocities (m/s)"),
-                    "margin": numbers(6, "distance to the nearer end stop (m); < 0 outside"),
-                }),
-            ),
-        },
-        SchemaDef {
-            name: "hexcue.Controller",
-            data: schema(
-                "hexcue.Controller",
-                "State of a motion cueing algorithm",
-                json!({
-                    "t": time_field(),
-                    "mode": { "type": "string",
-                        "enum": ["washout", "mpc", "cotc", "free", "blend", "fallback"] },
-                    "blend": { "type": ["number", "null"],
-                        "description": "mixer weight w while blending (0 previous, 1 next)" },
-                    "status": { "type": "string",
-                        "description": "solver statuses joined by +, `none` without a QP" },
-                    "iterations": { "type": "integer", "description": "all QPs of the step" },
-                    "solve_time_us": { "type": ["number", "null"],
-                        "description": "all QPs of the step (µs)" },
-                    "limiter_active": { "type": "boolean" },
-                    "step_time_us": { "type": ["number", "null"],
-                        "description": "wall time of the step, limiter included (µs)" },
-                    "time_in_mode_s": { "type": ["number", "null"] },
-                    "switch_count": { "type": "integer" },
-                    "last_switch_reason": { "type": ["string", "null"] },
-                    "solvers": { "type": "array", "items": {
-                        "type": "object",
-                        "properties": {
-                            "name": { "type": "string" },
-                            "status": { "type": "string" },
-                            "iterations": { "type": "integer" },
-                            "solve_time_us": { "type": ["number", "null"] },
-                        },
-                    }},
-                }),
-            ),
-        },
-    ]
-}
-
 /// The JSON schemas of hexcue's own topics, by schema name: what the live Foxglove server
 /// advertises for the same channels.
 pub fn json_schemas() -> Vec<(&'static str, Vec<u8>)> {
-    schemas().into_iter().map(|d| (d.name, d.data)).collect()
+    Kind::JSON_SCHEMAS
+        .into_iter()
+        .map(|k| {
+            let s = k.schema();
+            (s.name, s.data)
+        })
+        .collect()
 }
 
 /// A frame's messages on hexcue's own topics, in the recorder's order and with the recorder's
 /// bytes: (topic, schema name, JSON).
 pub fn json_messages(frame: &Frame) -> serde_json::Result<Vec<(String, &'static str, Vec<u8>)>> {
-    let t = frame.t_s;
-    let mut out = Vec::with_capacity(2 + 4 * frame.lanes.len());
-    out.push((
-        AIRCRAFT_TOPIC.to_string(),
-        "hexcue.Aircraft",
-        serde_json::to_vec(&AircraftMsg::new(frame))?,
-    ));
-    out.push((
-        REFERENCE_TOPIC.to_string(),
-        "hexcue.Perceived",
-        serde_json::to_vec(&PerceivedMsg::new(t, &frame.reference))?,
-    ));
-    for lane in &frame.lanes {
-        let topic = |kind: &str| format!("/{}/{kind}", lane.id.key());
-        out.push((
-            topic(LANE_KINDS[0]),
-            "hexcue.Perceived",
-            serde_json::to_vec(&PerceivedMsg::new(t, &lane.perceived))?,
-        ));
-        out.push((
-            topic(LANE_KINDS[1]),
-            "hexcue.Platform",
-            serde_json::to_vec(&PlatformMsg::new(t, &lane.command))?,
-        ));
-        out.push((
-            topic(LANE_KINDS[2]),
-            "hexcue.Actuators",
-            serde_json::to_vec(&ActuatorsMsg::new(t, &lane.legs))?,
-        ));
-        out.push((
-            topic(LANE_KINDS[3]),
-            "hexcue.Controller",
-            serde_json::to_vec(&ControllerMsg::new(t, lane))?,
-        ));
-    }
-    Ok(out)
+    json::messages(frame)
+        .map(|(ch, m)| Ok((ch.topic(), ch.kind.schema_name(), serde_json::to_vec(&m)?)))
+        .collect()
 }
 
-fn scene_error(path: &Path, e: SceneWriteError) -> RecordingError {
-    match e {
-        SceneWriteError::Mcap(error) => RecordingError::Write {
-            path: shown(path),
-            error,
-        },
-        SceneWriteError::Encode { .. } => RecordingError::Io {
-            path: shown(path),
-            action: "encode a message",
-            error: io::Error::other(e.to_string()),
-        },
+fn encode_error(path: &Path, e: EncodeError) -> RecordingError {
+    RecordingError::Io {
+        path: shown(path),
+        action: "encode a message",
+        error: io::Error::other(e.to_string()),
     }
 }
 
@@ -603,22 +215,14 @@ impl Seek for SessionFile {
     }
 }
 
-struct LaneChannels {
-    perceived: u16,
-    platform: u16,
-    actuators: u16,
-    controller: u16,
-}
-
 /// Writes frames to one MCAP file. Call [`Recorder::finish`] on every way out: dropping it
 /// finishes the file too, but cannot report an error.
 pub struct Recorder {
     path: PathBuf,
     writer: Option<mcap::Writer<SessionFile>>,
-    schema_ids: [u16; 5],
-    aircraft: u16,
-    reference: u16,
-    lanes: BTreeMap<AlgorithmId, LaneChannels>,
+    /// Schema ids by name and channel ids, added as the table lists them.
+    schema_ids: BTreeMap<&'static str, u16>,
+    channel_ids: BTreeMap<Channel, u16>,
     start_ns: u64,
     messages: u64,
     steps: u64,
@@ -630,9 +234,9 @@ pub struct Recorder {
     buf: Vec<u8>,
     /// The metadata written at the start; a live session writes it again, completed, at the end.
     metadata: BTreeMap<String, String>,
-    /// Foxglove's 3D topics (`/ALG/tf`, `/ALG/scene`, `/events`); `None` when the attached
-    /// profile does not load, so that the rigs' geometry is unknown.
-    foxglove: Option<SceneChannels>,
+    /// Builds Foxglove's 3D topics (`/ALG/tf`, `/ALG/scene`, `/events`); `None` when the
+    /// attached profile does not load, so that the rigs' geometry is unknown.
+    scene: Option<SceneBuilder>,
 }
 
 impl Recorder {
@@ -707,28 +311,11 @@ impl Recorder {
                 })
                 .map_err(wr)?;
         }
-        let mut schema_ids = [0; 5];
-        for (id, def) in schema_ids.iter_mut().zip(schemas()) {
-            *id = writer
-                .add_schema(def.name, "jsonschema", &def.data)
-                .map_err(wr)?;
-        }
-        let none = BTreeMap::new();
-        let aircraft = writer
-            .add_channel(schema_ids[0], AIRCRAFT_TOPIC, "json", &none)
-            .map_err(wr)?;
-        let reference = writer
-            .add_channel(schema_ids[1], REFERENCE_TOPIC, "json", &none)
-            .map_err(wr)?;
-        // The metadata, attachments and channels reach the disk now, not a second later.
-        writer.flush().map_err(wr)?;
         let mut recorder = Recorder {
             path: path.to_path_buf(),
             writer: Some(writer),
-            schema_ids,
-            aircraft,
-            reference,
-            lanes: BTreeMap::new(),
+            schema_ids: BTreeMap::new(),
+            channel_ids: BTreeMap::new(),
             start_ns,
             messages: 0,
             steps: 0,
@@ -739,17 +326,32 @@ impl Recorder {
             created: Instant::now(),
             buf: Vec::with_capacity(1024),
             metadata: metadata_kept,
-            foxglove: None,
+            scene: None,
         };
-        for &id in &meta.algorithms {
-            recorder.lane_channels(id)?;
+        // Schemas first, then channels, JSON before Foxglove's: the order recordings have
+        // always had.
+        let session = channels::session(&meta.algorithms);
+        for kind in Kind::JSON_SCHEMAS {
+            recorder.schema_id(kind)?;
+        }
+        for channel in [Channel::AIRCRAFT, Channel::REFERENCE] {
+            recorder.channel_id(channel)?;
+        }
+        // The metadata, attachments and channels reach the disk now, not a second later.
+        recorder.writer().flush().map_err(wr)?;
+        for &channel in session.iter().filter(|c| c.kind.is_json()) {
+            recorder.channel_id(channel)?;
         }
         // The rigs are drawn from the attached profile, so that a recovered copy gets the
         // same scene as the original.
         if let Ok(profile) = parse_profile(&meta.profile_toml, PROFILE_ATTACHMENT) {
-            let scene = SceneChannels::new(recorder.writer(), &profile, &meta.algorithms)
-                .map_err(|e| recorder.write_error(e))?;
-            recorder.foxglove = Some(scene);
+            for kind in Kind::SCENE_SCHEMAS {
+                recorder.schema_id(kind)?;
+            }
+            for &channel in session.iter().filter(|c| !c.kind.is_json()) {
+                recorder.channel_id(channel)?;
+            }
+            recorder.scene = Some(SceneBuilder::new(&profile, &meta.algorithms));
         }
         Ok(recorder)
     }
@@ -768,43 +370,58 @@ impl Recorder {
             .unwrap_or_else(|| unreachable!("the recorder is finished"))
     }
 
-    fn lane_channels(&mut self, id: AlgorithmId) -> Result<&LaneChannels, RecordingError> {
-        if !self.lanes.contains_key(&id) {
-            let none = BTreeMap::new();
-            let mut ids = [0u16; 4];
-            for (i, kind) in LANE_KINDS.iter().enumerate() {
-                let topic = format!("/{}/{kind}", id.key());
-                let schema = self.schema_ids[i + 1];
-                ids[i] = self
-                    .writer()
-                    .add_channel(schema, &topic, "json", &none)
-                    .map_err(|e| self.write_error(e))?;
-            }
-            self.lanes.insert(
-                id,
-                LaneChannels {
-                    perceived: ids[0],
-                    platform: ids[1],
-                    actuators: ids[2],
-                    controller: ids[3],
-                },
-            );
+    fn schema_id(&mut self, kind: Kind) -> Result<u16, RecordingError> {
+        let name = kind.schema_name();
+        if let Some(&id) = self.schema_ids.get(name) {
+            return Ok(id);
         }
-        Ok(&self.lanes[&id])
+        let schema = kind.schema();
+        let id = self
+            .writer()
+            .add_schema(schema.name, &schema.encoding, &schema.data)
+            .map_err(|e| self.write_error(e))?;
+        self.schema_ids.insert(name, id);
+        Ok(id)
     }
 
-    fn write<T: Serialize>(
+    /// The channel's id, added (with its schema) the first time it is needed: a lane the
+    /// session did not announce still gets its topics.
+    fn channel_id(&mut self, channel: Channel) -> Result<u16, RecordingError> {
+        if let Some(&id) = self.channel_ids.get(&channel) {
+            return Ok(id);
+        }
+        let schema = self.schema_id(channel.kind)?;
+        let id = self
+            .writer()
+            .add_channel(
+                schema,
+                &channel.topic(),
+                channel.kind.message_encoding(),
+                &BTreeMap::new(),
+            )
+            .map_err(|e| self.write_error(e))?;
+        self.channel_ids.insert(channel, id);
+        Ok(id)
+    }
+
+    fn write_json(
         &mut self,
-        channel_id: u16,
+        channel: Channel,
         log_time: u64,
-        message: &T,
+        message: &Message,
     ) -> Result<(), RecordingError> {
+        let channel_id = self.channel_id(channel)?;
         self.buf.clear();
         serde_json::to_writer(&mut self.buf, message).map_err(|e| RecordingError::Io {
             path: shown(&self.path),
             action: "encode a message",
             error: e.into(),
         })?;
+        self.write_buf(channel_id, log_time)
+    }
+
+    /// Writes `self.buf` as a message on `channel_id`.
+    fn write_buf(&mut self, channel_id: u16, log_time: u64) -> Result<(), RecordingError> {
         let header = MessageHeader {
             channel_id,
             // MCAP sequences are u32; wrapping after 2^32 steps (over a year at 100 Hz) is fine.
@@ -835,27 +452,15 @@ impl Recorder {
         let log_time = self
             .start_ns
             .saturating_add((t * 1e9).round().min(u64::MAX as f64 / 2.0) as u64);
-        self.write(self.aircraft, log_time, &AircraftMsg::new(frame))?;
-        self.write(
-            self.reference,
-            log_time,
-            &PerceivedMsg::new(t, &frame.reference),
-        )?;
-        for lane in &frame.lanes {
-            let ch = self.lane_channels(lane.id)?;
-            let (perceived, platform, actuators, controller) =
-                (ch.perceived, ch.platform, ch.actuators, ch.controller);
-            self.write(perceived, log_time, &PerceivedMsg::new(t, &lane.perceived))?;
-            self.write(platform, log_time, &PlatformMsg::new(t, &lane.command))?;
-            self.write(actuators, log_time, &ActuatorsMsg::new(t, &lane.legs))?;
-            self.write(controller, log_time, &ControllerMsg::new(t, lane))?;
+        for (channel, message) in json::messages(frame) {
+            self.write_json(channel, log_time, &message)?;
         }
-        if let (Some(scene), Some(writer)) = (self.foxglove.as_mut(), self.writer.as_mut()) {
+        if let Some(mut scene) = self.scene.take() {
             let draw = self.steps.is_multiple_of(SCENE_EVERY_STEPS);
-            match scene.write(writer, frame, log_time, self.steps as u32, draw) {
-                Ok(n) => self.messages += n,
-                Err(e) => return Err(scene_error(&self.path, e)),
-            }
+            let step = scene.step(frame, log_time);
+            let written = self.write_scene(step.by_channel(draw), log_time);
+            self.scene = Some(scene);
+            written?;
         }
         self.steps += 1;
         self.first_t.get_or_insert(t);
@@ -882,11 +487,24 @@ impl Recorder {
         let log_time = self
             .start_ns
             .saturating_add((t_s.max(0.0) * 1e9).round().min(u64::MAX as f64 / 2.0) as u64);
-        if let (Some(scene), Some(writer)) = (self.foxglove.as_mut(), self.writer.as_mut()) {
-            scene
-                .write_event(writer, log_time, self.steps as u32, level, source, text)
-                .map_err(|e| scene_error(&self.path, e))?;
-            self.messages += 1;
+        if self.scene.is_some() {
+            let log = scene::event(log_time, level, source, text);
+            self.write_scene([(Channel::EVENTS, SceneMessage::Log(&log))], log_time)?;
+        }
+        Ok(())
+    }
+
+    fn write_scene<'a>(
+        &mut self,
+        messages: impl IntoIterator<Item = (Channel, SceneMessage<'a>)>,
+        log_time: u64,
+    ) -> Result<(), RecordingError> {
+        for (channel, message) in messages {
+            let channel_id = self.channel_id(channel)?;
+            message
+                .encode(&mut self.buf)
+                .map_err(|e| encode_error(&self.path, e))?;
+            self.write_buf(channel_id, log_time)?;
         }
         Ok(())
     }
@@ -1178,13 +796,9 @@ enum Role {
 /// `/aircraft`, `/aircraft/perceived` or `/ALG/KIND`; the algorithm is a key, which may be
 /// one this build does not know.
 fn parse_topic(topic: &str) -> Option<Result<(AlgorithmId, usize), &str>> {
-    let rest = topic.strip_prefix('/')?;
-    let (alg, kind) = rest.split_once('/')?;
-    if alg == "aircraft" {
-        return None;
-    }
-    let kind = LANE_KINDS.iter().position(|k| *k == kind)?;
-    Some(AlgorithmId::from_key(alg).ok_or(alg).map(|id| (id, kind)))
+    let (kind, alg) = Channel::parse_lane(topic)?;
+    let kind = Kind::LANE_JSON.iter().position(|k| *k == kind)?;
+    Some(alg.map(|id| (id, kind)))
 }
 
 fn role_of(topic: &str, algorithms: &[AlgorithmId]) -> Option<Role> {
@@ -1405,9 +1019,8 @@ impl Recording {
         for (id, found) in &kinds {
             if let Some(kind) = found.iter().position(|f| !f) {
                 return Err(missing(&format!(
-                    "topic `/{}/{}`",
-                    id.key(),
-                    LANE_KINDS[kind]
+                    "topic `{}`",
+                    Channel::lane(Kind::LANE_JSON[kind], *id).topic()
                 )));
             }
         }
@@ -1679,7 +1292,7 @@ impl Frames {
                 .iter()
                 .position(|(l, _)| *l == id)
                 .map(|i| &step.lanes[i].1);
-            let topic = |kind: usize| format!("/{}/{}", id.key(), LANE_KINDS[kind]);
+            let topic = |kind: usize| Channel::lane(Kind::LANE_JSON[kind], id).topic();
             let lane = lane.ok_or_else(|| incomplete(topic(0), t_s))?;
             let perceived = lane
                 .perceived
@@ -1883,7 +1496,13 @@ pub fn recover(input: &Path, output: &Path) -> Result<RecoverStats, RecordingErr
 }
 
 #[cfg(test)]
+mod scene_tests;
+
+#[cfg(test)]
 mod tests {
+    use crate::channels::json::micro;
+    use crate::model::vestibular::Perceived;
+    use serde_json::Value;
     use std::sync::Arc;
 
     use super::*;
