@@ -2,8 +2,9 @@
 //! schemas): the messages a frame becomes, as written and as read back, and their schemas.
 
 use nalgebra::{Vector3, Vector6};
+use schemars::generate::SchemaSettings;
+use schemars::JsonSchema;
 use serde::{Deserialize, Deserializer, Serialize};
-use serde_json::{json, Value};
 
 use crate::engine::{Frame, LaneFrame, Legs};
 use crate::mca::PlatformCommand;
@@ -62,28 +63,53 @@ fn v6(v: &Vector6<f64>) -> [f64; 6] {
     std::array::from_fn(|i| v[i])
 }
 
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Debug, Serialize, Deserialize, JsonSchema)]
+#[schemars(
+    title = "hexcue.Aircraft",
+    description = "Aircraft motion at the pilot's head, head frame (x forward, y right, z down)"
+)]
 pub struct AircraftMsg {
     #[serde(deserialize_with = "nan_f64")]
+    #[schemars(with = "f64", description = "trace time (s)")]
     pub t: f64,
     /// Step index; absent from files other tools wrote, then counted.
     #[serde(default)]
+    #[schemars(description = "step index")]
     pub k: Option<u64>,
     #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
+    #[schemars(
+        with = "[Option<f64>; 3]",
+        description = "f = a − g, x y z (m/s²); (0, 0, −9.81) at rest"
+    )]
     pub specific_force: [f64; 3],
     #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
+    #[schemars(with = "[Option<f64>; 3]", description = "body rates p q r (rad/s)")]
     pub angular_velocity: [f64; 3],
     #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
+    #[schemars(with = "[Option<f64>; 3]", description = "roll pitch yaw φ θ ψ (rad)")]
     pub attitude: [f64; 3],
 }
 
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Debug, Serialize, Deserialize, JsonSchema)]
+#[schemars(
+    title = "hexcue.Perceived",
+    description = "Perceived motion: vestibular model output"
+)]
 pub struct PerceivedMsg {
     #[serde(deserialize_with = "nan_f64")]
+    #[schemars(with = "f64", description = "trace time (s)")]
     pub t: f64,
     #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
+    #[schemars(
+        with = "[Option<f64>; 3]",
+        description = "otoliths' output for Δf, x y z head frame (m/s²)"
+    )]
     pub specific_force: [f64; 3],
     #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
+    #[schemars(
+        with = "[Option<f64>; 3]",
+        description = "canals' output, x y z head frame (rad/s)"
+    )]
     pub angular_velocity: [f64; 3],
 }
 
@@ -117,15 +143,32 @@ impl AircraftMsg {
     }
 }
 
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Debug, Serialize, Deserialize, JsonSchema)]
+#[schemars(
+    title = "hexcue.Platform",
+    description = "Platform command after the limiter, simulator inertial frame (x y z (m), roll pitch yaw (rad), Z-Y-X Euler)"
+)]
 pub struct PlatformMsg {
     #[serde(deserialize_with = "nan_f64")]
+    #[schemars(with = "f64", description = "trace time (s)")]
     pub t: f64,
     #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
+    #[schemars(
+        with = "[Option<f64>; 6]",
+        description = "x y z (m), roll pitch yaw (rad) from neutral"
+    )]
     pub pose: [f64; 6],
     #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
+    #[schemars(
+        with = "[Option<f64>; 6]",
+        description = "first derivative of pose (m/s, rad/s)"
+    )]
     pub velocity: [f64; 6],
     #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
+    #[schemars(
+        with = "[Option<f64>; 6]",
+        description = "second derivative of pose (m/s², rad/s²)"
+    )]
     pub acceleration: [f64; 6],
 }
 
@@ -140,15 +183,26 @@ impl PlatformMsg {
     }
 }
 
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Debug, Serialize, Deserialize, JsonSchema)]
+#[schemars(
+    title = "hexcue.Actuators",
+    description = "Legs 1..6 of the Stewart platform"
+)]
 pub struct ActuatorsMsg {
     #[serde(deserialize_with = "nan_f64")]
+    #[schemars(with = "f64", description = "trace time (s)")]
     pub t: f64,
     #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
+    #[schemars(with = "[Option<f64>; 6]", description = "leg lengths (m)")]
     pub length: [f64; 6],
     #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
+    #[schemars(with = "[Option<f64>; 6]", description = "leg velocities (m/s)")]
     pub velocity: [f64; 6],
     #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
+    #[schemars(
+        with = "[Option<f64>; 6]",
+        description = "distance to the nearer end stop (m); < 0 outside"
+    )]
     pub margin: [f64; 6],
 }
 
@@ -163,31 +217,52 @@ impl ActuatorsMsg {
     }
 }
 
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Debug, Serialize, Deserialize, JsonSchema)]
 pub struct SolverMsg {
     pub name: String,
     pub status: String,
     pub iterations: u32,
     #[serde(deserialize_with = "nan_f64")]
+    #[schemars(with = "Option<f64>", required)]
     pub solve_time_us: f64,
 }
 
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Debug, Serialize, Deserialize, JsonSchema)]
+#[schemars(
+    title = "hexcue.Controller",
+    description = "State of a motion cueing algorithm"
+)]
 pub struct ControllerMsg {
     #[serde(deserialize_with = "nan_f64")]
+    #[schemars(with = "f64", description = "trace time (s)")]
     pub t: f64,
+    #[schemars(extend("enum" = ["washout", "mpc", "cotc", "free", "blend", "fallback"]))]
     pub mode: String,
+    #[schemars(description = "mixer weight w while blending (0 previous, 1 next)")]
     pub blend: Option<f64>,
     /// The solvers' statuses joined by `+` (`none` without a QP): one word to plot.
+    #[schemars(description = "solver statuses joined by +, `none` without a QP")]
     pub status: String,
     /// Iterations and solve time of all of the step's QPs together.
+    #[schemars(description = "all QPs of the step")]
     pub iterations: u64,
     #[serde(deserialize_with = "nan_f64")]
+    #[schemars(
+        with = "Option<f64>",
+        required,
+        description = "all QPs of the step (µs)"
+    )]
     pub solve_time_us: f64,
     pub limiter_active: bool,
     #[serde(deserialize_with = "nan_f64")]
+    #[schemars(
+        with = "Option<f64>",
+        required,
+        description = "wall time of the step, limiter included (µs)"
+    )]
     pub step_time_us: f64,
     #[serde(deserialize_with = "nan_f64")]
+    #[schemars(with = "Option<f64>", required)]
     pub time_in_mode_s: f64,
     pub switch_count: u32,
     pub last_switch_reason: Option<String>,
@@ -233,116 +308,25 @@ impl ControllerMsg {
 }
 
 // ---------------------------------------------------------------------------------------------
-// JSON schemas (Foxglove's `jsonschema` encoding), one a topic kind.
+// JSON schemas (Foxglove's `jsonschema` encoding), one a topic kind, generated from the
+// message types above so that a field cannot be added without its schema.
 
-fn numbers(n: usize, description: &str) -> Value {
-    json!({
-        "type": "array",
-        "items": { "type": ["number", "null"] },
-        "minItems": n,
-        "maxItems": n,
-        "description": description,
-    })
-}
-
-fn time_field() -> Value {
-    json!({ "type": "number", "description": "trace time (s)" })
-}
-
-fn schema(title: &str, description: &str, properties: Value) -> Vec<u8> {
-    let required: Vec<&String> = properties
-        .as_object()
-        .map(|o| o.keys().collect())
-        .unwrap_or_default();
-    serde_json::to_vec(&json!({
-        "$schema": "https://json-schema.org/draft/2020-12/schema",
-        "title": title,
-        "description": description,
-        "type": "object",
-        "properties": properties,
-        "required": required,
-    }))
-    .unwrap_or_default()
+fn generated<T: JsonSchema>() -> Vec<u8> {
+    // Inlined: a schema is self-contained, with no `$ref` for a viewer to resolve.
+    let generator = SchemaSettings::draft2020_12()
+        .with(|s| s.inline_subschemas = true)
+        .into_generator();
+    serde_json::to_vec(&generator.into_root_schema_for::<T>()).unwrap_or_default()
 }
 
 /// The schema of a JSON topic kind; `None` for Foxglove's protobuf kinds.
 pub fn schema_of(kind: Kind) -> Option<Vec<u8>> {
-    let perceived = || {
-        json!({
-            "t": time_field(),
-            "specific_force": numbers(3, "otoliths' output for Δf, x y z head frame (m/s²)"),
-            "angular_velocity": numbers(3, "canals' output, x y z head frame (rad/s)"),
-        })
-    };
     Some(match kind {
-        Kind::Aircraft => schema(
-            "hexcue.Aircraft",
-            "Aircraft motion at the pilot's head, head frame (x forward, y right, z down)",
-            json!({
-                "t": time_field(),
-                "k": { "type": "integer", "description": "step index" },
-                "specific_force": numbers(3, "f = a − g, x y z (m/s²); (0, 0, −9.81) at rest"),
-                "angular_velocity": numbers(3, "body rates p q r (rad/s)"),
-                "attitude": numbers(3, "roll pitch yaw φ θ ψ (rad)"),
-            }),
-        ),
-        Kind::Perceived | Kind::Reference => schema(
-            "hexcue.Perceived",
-            "Perceived motion: vestibular model output",
-            perceived(),
-        ),
-        Kind::Platform => schema(
-            "hexcue.Platform",
-            "Platform command after the limiter, simulator inertial frame \
-                 (x y z (m), roll pitch yaw (rad), Z-Y-X Euler)",
-            json!({
-                "t": time_field(),
-                "pose": numbers(6, "x y z (m), roll pitch yaw (rad) from neutral"),
-                "velocity": numbers(6, "first derivative of pose (m/s, rad/s)"),
-                "acceleration": numbers(6, "second derivative of pose (m/s², rad/s²)"),
-            }),
-        ),
-        Kind::Actuators => schema(
-            "hexcue.Actuators",
-            "Legs 1..6 of the Stewart platform",
-            json!({
-                "t": time_field(),
-                "length": numbers(6, "leg lengths (m)"),
-                "velocity": numbers(6, "leg velocities (m/s)"),
-                "margin": numbers(6, "distance to the nearer end stop (m); < 0 outside"),
-            }),
-        ),
-        Kind::Controller => schema(
-            "hexcue.Controller",
-            "State of a motion cueing algorithm",
-            json!({
-                "t": time_field(),
-                "mode": { "type": "string",
-                    "enum": ["washout", "mpc", "cotc", "free", "blend", "fallback"] },
-                "blend": { "type": ["number", "null"],
-                    "description": "mixer weight w while blending (0 previous, 1 next)" },
-                "status": { "type": "string",
-                    "description": "solver statuses joined by +, `none` without a QP" },
-                "iterations": { "type": "integer", "description": "all QPs of the step" },
-                "solve_time_us": { "type": ["number", "null"],
-                    "description": "all QPs of the step (µs)" },
-                "limiter_active": { "type": "boolean" },
-                "step_time_us": { "type": ["number", "null"],
-                    "description": "wall time of the step, limiter included (µs)" },
-                "time_in_mode_s": { "type": ["number", "null"] },
-                "switch_count": { "type": "integer" },
-                "last_switch_reason": { "type": ["string", "null"] },
-                "solvers": { "type": "array", "items": {
-                    "type": "object",
-                    "properties": {
-                        "name": { "type": "string" },
-                        "status": { "type": "string" },
-                        "iterations": { "type": "integer" },
-                        "solve_time_us": { "type": ["number", "null"] },
-                    },
-                }},
-            }),
-        ),
+        Kind::Aircraft => generated::<AircraftMsg>(),
+        Kind::Perceived | Kind::Reference => generated::<PerceivedMsg>(),
+        Kind::Platform => generated::<PlatformMsg>(),
+        Kind::Actuators => generated::<ActuatorsMsg>(),
+        Kind::Controller => generated::<ControllerMsg>(),
         Kind::Tf | Kind::Scene | Kind::Events => return None,
     })
 }
