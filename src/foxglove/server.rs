@@ -1,6 +1,6 @@
 //! A frame sink that serves a session live over the Foxglove WebSocket protocol, with the
 //! `foxglove` crate's server: the recording's channels (hexcue's JSON topics and the 3D
-//! topics of [`super::scene`]) with the same schemas, so that a layout made for recordings
+//! topics of [`super::scene`]) from the same table, [`crate::channels`], with the same schemas, so that a layout made for recordings
 //! works on a live session too.
 //!
 //! Attach it to any loop that makes frames: call [`FoxgloveServer::publish`] with each frame
@@ -12,17 +12,16 @@ use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-use ::foxglove::messages::{FrameTransforms, Log, SceneUpdate};
 use ::foxglove::websocket::Capability;
 use ::foxglove::{
-    Channel, Context, FoxgloveError, PartialMetadata, RawChannel, Schema, WebSocketServer,
+    Context, FoxgloveError, PartialMetadata, RawChannel, Schema, WebSocketServer,
     WebSocketServerHandle,
 };
 
-use super::scene::{self, SceneBuilder, SESSION_SOURCE};
+use crate::channels::scene::{self, SceneBuilder, SESSION_SOURCE};
+use crate::channels::{self, json, Channel, SceneMessage};
 use crate::engine::Frame;
 use crate::events::EventLevel;
-use crate::formats::recording::{json_messages, json_schemas};
 use crate::mca::AlgorithmId;
 use crate::profile::Profile;
 
@@ -67,21 +66,14 @@ impl Clock {
     }
 }
 
-struct LaneChannels {
-    tf: Channel<FrameTransforms>,
-    scene: Channel<SceneUpdate>,
-}
-
 /// The live Foxglove server of one session.
 pub struct FoxgloveServer {
     context: Arc<Context>,
     handle: Option<WebSocketServerHandle>,
     addr: SocketAddr,
     builder: SceneBuilder,
-    json: BTreeMap<String, Arc<RawChannel>>,
-    schemas: BTreeMap<&'static str, Vec<u8>>,
-    lanes: BTreeMap<AlgorithmId, LaneChannels>,
-    events: Channel<Log>,
+    channels: BTreeMap<Channel, Arc<RawChannel>>,
+    buf: Vec<u8>,
     clock: Clock,
 }
 
@@ -94,7 +86,6 @@ impl FoxgloveServer {
         algorithms: &[AlgorithmId],
     ) -> Result<Self, ServerError> {
         let context = Context::new();
-        let events = context.channel_builder(scene::EVENTS_TOPIC).build::<Log>();
         let start_ns = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(1, |d| d.as_nanos().min(u128::from(u64::MAX / 2)) as u64);
@@ -102,10 +93,8 @@ impl FoxgloveServer {
             handle: None,
             addr,
             builder: SceneBuilder::new(profile, algorithms),
-            json: BTreeMap::new(),
-            schemas: json_schemas().into_iter().collect(),
-            lanes: BTreeMap::new(),
-            events,
+            channels: BTreeMap::new(),
+            buf: Vec::with_capacity(4096),
             clock: Clock {
                 origin_ns: start_ns,
                 last_ns: None,
@@ -114,12 +103,8 @@ impl FoxgloveServer {
             context,
         };
         // Every channel exists before the first client comes, so that it sees them all.
-        let topics: Vec<(String, &'static str)> = json_topics(algorithms);
-        for (topic, schema) in topics {
-            server.json_channel(&topic, schema)?;
-        }
-        for &id in algorithms {
-            server.lane(id);
+        for channel in channels::session(algorithms) {
+            server.channel(channel)?;
         }
         let info = [
             ("hexcue_version", env!("CARGO_PKG_VERSION").to_string()),
@@ -152,59 +137,53 @@ impl FoxgloveServer {
         self.handle.as_ref().map_or(0, |h| h.client_count())
     }
 
-    fn json_channel(
-        &mut self,
-        topic: &str,
-        schema: &'static str,
-    ) -> Result<Arc<RawChannel>, ServerError> {
-        if let Some(ch) = self.json.get(topic) {
+    fn channel(&mut self, channel: Channel) -> Result<Arc<RawChannel>, ServerError> {
+        if let Some(ch) = self.channels.get(&channel) {
             return Ok(ch.clone());
         }
-        let data = self.schemas.get(schema).cloned().unwrap_or_default();
-        let channel = self
+        let topic = channel.topic();
+        let schema = channel.kind.schema();
+        let raw = self
             .context
-            .channel_builder(topic)
-            .message_encoding("json")
-            .schema(Schema::new(schema, "jsonschema", data))
+            .channel_builder(&topic)
+            .message_encoding(channel.kind.message_encoding())
+            .schema(Schema::new(schema.name, schema.encoding, schema.data))
             .build_raw()
-            .map_err(|error| ServerError::Channel {
-                topic: topic.to_string(),
-                error,
-            })?;
-        self.json.insert(topic.to_string(), channel.clone());
-        Ok(channel)
+            .map_err(|error| ServerError::Channel { topic, error })?;
+        self.channels.insert(channel, raw.clone());
+        Ok(raw)
     }
 
-    fn lane(&mut self, id: AlgorithmId) -> &LaneChannels {
-        let context = &self.context;
-        self.lanes.entry(id).or_insert_with(|| LaneChannels {
-            tf: context.channel_builder(scene::tf_topic(id)).build(),
-            scene: context.channel_builder(scene::scene_topic(id)).build(),
-        })
+    /// Encodes a Foxglove message for the clients subscribed to its channel, if any.
+    fn send_scene(&mut self, channel: Channel, message: SceneMessage<'_>, t_ns: u64) {
+        // A lane that was not announced gets its channels now; only the crate's refusal
+        // of a channel (none for these topics) would skip it.
+        let Ok(raw) = self.channel(channel) else {
+            return;
+        };
+        if raw.has_sinks() && message.encode(&mut self.buf).is_ok() {
+            raw.log_with_meta(&self.buf, PartialMetadata::with_log_time(t_ns));
+        }
     }
 
     /// Sends one frame on every channel (to the clients subscribed to it).
     pub fn publish(&mut self, frame: &Frame) {
         let t_ns = self.clock.at(frame.t_s);
         let meta = || PartialMetadata::with_log_time(t_ns);
-        if self.json.values().any(|c| c.has_sinks()) {
-            // Only a serialisation error (none for these messages) would skip the step.
-            if let Ok(messages) = json_messages(frame) {
-                for (topic, schema, data) in messages {
-                    if let Ok(channel) = self.json_channel(&topic, schema) {
-                        channel.log_with_meta(&data, meta());
-                    }
+        for (channel, message) in json::messages(frame) {
+            let Ok(raw) = self.channel(channel) else {
+                continue;
+            };
+            // Only a serialisation error (none for these messages) would skip a message.
+            if raw.has_sinks() {
+                if let Ok(data) = serde_json::to_vec(&message) {
+                    raw.log_with_meta(&data, meta());
                 }
             }
         }
         let step = self.builder.step(frame, t_ns);
-        for lane in &step.lanes {
-            let channels = self.lane(lane.id);
-            channels.tf.log_with_time(&lane.transforms, t_ns);
-            channels.scene.log_with_time(&lane.scene, t_ns);
-        }
-        for event in &step.events {
-            self.events.log_with_time(event, t_ns);
+        for (channel, message) in step.by_channel(true) {
+            self.send_scene(channel, message, t_ns);
         }
         if let Some(handle) = &self.handle {
             handle.broadcast_time(t_ns);
@@ -214,8 +193,8 @@ impl FoxgloveServer {
     /// Sends an event of the session on `/events`, at the time of the last frame.
     pub fn event(&mut self, level: EventLevel, text: &str) {
         let t_ns = self.clock.last_ns.unwrap_or(self.clock.origin_ns);
-        self.events
-            .log_with_time(&scene::event(t_ns, level, SESSION_SOURCE, text), t_ns);
+        let log = scene::event(t_ns, level, SESSION_SOURCE, text);
+        self.send_scene(Channel::EVENTS, SceneMessage::Log(&log), t_ns);
     }
 
     /// The next frame starts a new run (the source rewound): no changes are reported
@@ -263,24 +242,6 @@ impl crate::session::FrameSink for FoxgloveServer {
         FoxgloveServer::event(self, event.level, &event.text);
         Ok(())
     }
-}
-
-/// hexcue's own topics for `algorithms`, with their schema names, in the recorder's order.
-fn json_topics(algorithms: &[AlgorithmId]) -> Vec<(String, &'static str)> {
-    let mut out = vec![
-        ("/aircraft".to_string(), "hexcue.Aircraft"),
-        ("/aircraft/perceived".to_string(), "hexcue.Perceived"),
-    ];
-    for id in algorithms {
-        let key = id.key();
-        out.extend([
-            (format!("/{key}/perceived"), "hexcue.Perceived"),
-            (format!("/{key}/platform"), "hexcue.Platform"),
-            (format!("/{key}/actuators"), "hexcue.Actuators"),
-            (format!("/{key}/controller"), "hexcue.Controller"),
-        ]);
-    }
-    out
 }
 
 #[cfg(test)]

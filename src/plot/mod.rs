@@ -97,24 +97,13 @@ pub(crate) fn finish<E: std::error::Error + Send + Sync>(
 pub type Area<DB> = DrawingArea<DB, Shift>;
 pub type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
 
-/// Okabe–Ito colours: distinguishable with the common colour-vision deficiencies.
-const PALETTE: [RGBColor; 6] = [
-    RGBColor(0, 114, 178),
-    RGBColor(213, 94, 0),
-    RGBColor(0, 158, 115),
-    RGBColor(204, 121, 167),
-    RGBColor(230, 159, 0),
-    RGBColor(86, 180, 233),
-];
-
 /// The perceived reference: what the pilot feels in the aircraft.
 pub const REFERENCE_COLOR: RGBColor = RGBColor(0, 0, 0);
 
-/// An algorithm's colour, from its place in [`AlgorithmId::ALL`] so that it is the same in
-/// every figure whatever subset was recorded.
+/// An algorithm's colour, the same in every figure and in Foxglove.
 pub fn algorithm_color(id: AlgorithmId) -> RGBColor {
-    let i = AlgorithmId::ALL.iter().position(|a| *a == id).unwrap_or(0);
-    PALETTE[i % PALETTE.len()]
+    let (r, g, b) = crate::channels::algorithm_rgb(id);
+    RGBColor(r, g, b)
 }
 
 pub fn font(size: f64) -> TextStyle<'static> {

@@ -17,6 +17,7 @@ use ::foxglove::messages::{
 };
 use nalgebra::{UnitQuaternion, Vector3, Vector6};
 
+use super::{Channel, Kind};
 use crate::engine::{Frame, LaneFrame};
 use crate::events::EventLevel;
 use crate::mca::{AlgorithmId, Mode};
@@ -25,8 +26,7 @@ use crate::profile::Profile;
 
 /// Foxglove's fixed frame: z up.
 pub const WORLD_FRAME: &str = "world";
-/// Where events go, from every algorithm and from the session.
-pub const EVENTS_TOPIC: &str = "/events";
+pub use super::EVENTS_TOPIC;
 /// `Log.name` of events that belong to the session rather than to an algorithm.
 pub const SESSION_SOURCE: &str = "hexcue";
 
@@ -36,12 +36,12 @@ const LEG_THICKNESS_M: f64 = 0.06;
 
 /// `/ALG/tf`: the algorithm's `FrameTransforms`.
 pub fn tf_topic(id: AlgorithmId) -> String {
-    format!("/{}/tf", id.key())
+    Channel::lane(Kind::Tf, id).topic()
 }
 
 /// `/ALG/scene`: the algorithm's `SceneUpdate`.
 pub fn scene_topic(id: AlgorithmId) -> String {
-    format!("/{}/scene", id.key())
+    Channel::lane(Kind::Scene, id).topic()
 }
 
 pub fn base_frame(id: AlgorithmId) -> String {
@@ -362,7 +362,7 @@ impl SceneBuilder {
     /// Base plate, platform plate with its forward arrow and eye point, the six legs.
     pub fn scene(&self, lane: &LaneFrame, t_ns: u64) -> SceneUpdate {
         let id = lane.id;
-        let c = crate::plot::algorithm_color(id);
+        let c = super::algorithm_rgb(id);
         let (r, g, b) = (
             f64::from(c.0) / 255.0,
             f64::from(c.1) / 255.0,

@@ -1,0 +1,710 @@
+//! Recordings: one MCAP file a session (DESIGN §7, `docs/recordings.md`).
+//!
+//! The writer puts the metadata and the attachments (profile, trace) first, before any chunk,
+//! so that a file cut short by a crash still carries them; it closes a chunk and flushes at
+//! least every second of wall time and of trace time, so a crash loses at most a second.
+//!
+//! The reader streams the file record by record (never the whole file in memory) with the
+//! sans-io linear reader, which needs no summary section: finished and unfinished files are
+//! read the same way, the latter up to their last complete chunk.
+
+mod reader;
+mod recover;
+mod source;
+mod writer;
+
+use std::io;
+use std::path::Path;
+
+use mcap::McapError;
+use sha2::{Digest, Sha256};
+
+use crate::channels::json;
+use crate::channels::{Kind, REFERENCE_TOPIC};
+use crate::engine::Frame;
+use crate::mca::AlgorithmId;
+use crate::profile::Profile;
+use crate::trace::TraceInfo;
+
+pub use reader::{Frames, JsonMessage, JsonMessages, Recording};
+pub use recover::{recover, RecoverStats};
+pub use writer::Recorder;
+
+/// Name of the metadata record hexcue writes.
+pub const METADATA_NAME: &str = "hexcue";
+/// Attachment holding the profile's TOML as it was used.
+pub const PROFILE_ATTACHMENT: &str = "profile.toml";
+/// Attachment holding the trace's text as it was read.
+pub const TRACE_ATTACHMENT: &str = "trace.csv";
+/// Attachment holding the trace's JSON sidecar, when it had one.
+pub const SIDECAR_ATTACHMENT: &str = "trace.json";
+/// Version of the topic layout below; bumped when a field changes meaning.
+pub const FORMAT_VERSION: &str = "1";
+
+#[derive(Debug, thiserror::Error)]
+pub enum RecordingError {
+    #[error("{path}: cannot {action}: {error}")]
+    Io {
+        path: String,
+        action: &'static str,
+        error: io::Error,
+    },
+    #[error("{path}: cannot write the recording: {error}")]
+    Write { path: String, error: McapError },
+    #[error("{path}: not an MCAP file: it does not start with the MCAP magic bytes")]
+    NotMcap { path: String },
+    #[error(
+        "{path}: not a hexcue recording: expected a `{REFERENCE_TOPIC}` topic, found {topics}"
+    )]
+    NotHexcue { path: String, topics: String },
+    #[error("{path}: the file ends after {bytes} bytes, before its first message ({reason})")]
+    Truncated {
+        path: String,
+        bytes: u64,
+        reason: String,
+    },
+    #[error("{path}: damaged MCAP after {bytes} bytes: {error}")]
+    Damaged {
+        path: String,
+        bytes: u64,
+        error: McapError,
+    },
+    #[error("{path}: not a complete hexcue recording: {what} is missing")]
+    Missing { path: String, what: String },
+    #[error("{path}: {what}: expected {expected}")]
+    Invalid {
+        path: String,
+        what: String,
+        expected: String,
+    },
+    #[error(
+        "{path}: message on `{topic}` at log time {log_time} ns: expected {expected}: {error}"
+    )]
+    BadMessage {
+        path: String,
+        topic: String,
+        log_time: u64,
+        expected: &'static str,
+        error: String,
+    },
+    #[error("{path}: the step at t = {t_s} s has no `{topic}` message")]
+    IncompleteStep {
+        path: String,
+        t_s: f64,
+        topic: String,
+    },
+    #[error("{path}: cannot record t = {t_s} s: expected a finite trace time ≥ 0")]
+    BadTime { path: String, t_s: f64 },
+    #[error("{path}: refusing to overwrite the recording being recovered")]
+    SameFile { path: String },
+}
+
+fn shown(path: &Path) -> String {
+    path.display().to_string()
+}
+
+/// What a session records about itself at its start.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RecordingMeta {
+    pub profile_name: String,
+    /// The profile's TOML as it was loaded (attached).
+    pub profile_toml: String,
+    pub trace_name: String,
+    /// The trace's text as it was read (attached).
+    pub trace_csv: String,
+    /// The trace's JSON sidecar, when it has one (attached).
+    pub trace_sidecar: Option<String>,
+    pub algorithms: Vec<AlgorithmId>,
+    pub rate_hz: f64,
+}
+
+impl RecordingMeta {
+    /// What a session records: the profile as loaded from `profile_toml`, the trace's name,
+    /// its text (empty or a header when it is only known at the end, as in a live session)
+    /// and its sidecar, written as JSON the way it was read.
+    pub fn session(
+        profile: &Profile,
+        profile_toml: impl Into<String>,
+        trace_name: impl Into<String>,
+        trace_csv: impl Into<String>,
+        sidecar: Option<&TraceInfo>,
+        algorithms: &[AlgorithmId],
+    ) -> Self {
+        RecordingMeta {
+            profile_name: profile.name.clone(),
+            profile_toml: profile_toml.into(),
+            trace_name: trace_name.into(),
+            trace_csv: trace_csv.into(),
+            trace_sidecar: sidecar.and_then(|i| serde_json::to_string_pretty(i).ok()),
+            algorithms: algorithms.to_vec(),
+            rate_hz: profile.rate_hz,
+        }
+    }
+}
+
+/// What a finished recording holds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RecordingStats {
+    pub steps: u64,
+    pub messages: u64,
+    /// Size of the finished file.
+    pub bytes: u64,
+    /// Trace time from the first recorded step to the last (s).
+    pub duration_s: f64,
+    /// Wall time from `create` to `finish` (s).
+    pub wall_s: f64,
+}
+
+/// The JSON schemas of hexcue's own topics, by schema name: what the live Foxglove server
+/// advertises for the same channels.
+pub fn json_schemas() -> Vec<(&'static str, Vec<u8>)> {
+    Kind::JSON_SCHEMAS
+        .into_iter()
+        .map(|k| {
+            let s = k.schema();
+            (s.name, s.data)
+        })
+        .collect()
+}
+
+/// A frame's messages on hexcue's own topics, in the recorder's order and with the recorder's
+/// bytes: (topic, schema name, JSON).
+pub fn json_messages(frame: &Frame) -> serde_json::Result<Vec<(String, &'static str, Vec<u8>)>> {
+    json::messages(frame)
+        .map(|(ch, m)| Ok((ch.topic(), ch.kind.schema_name(), serde_json::to_vec(&m)?)))
+        .collect()
+}
+
+fn sha256_hex(text: &str) -> String {
+    Sha256::digest(text.as_bytes())
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+#[cfg(test)]
+mod scene_tests;
+
+#[cfg(test)]
+mod tests {
+    use std::collections::BTreeMap;
+    use std::fs::File;
+    use std::io::BufWriter;
+    use std::path::PathBuf;
+
+    use super::source::check_attachment_body;
+    use super::writer::SCENE_EVERY_STEPS;
+    use crate::channels::json::micro;
+    use crate::mca::{AlgorithmState, Mode, SolverReport};
+    use crate::model::vestibular::Perceived;
+    use mcap::records::MessageHeader;
+    use serde_json::Value;
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::engine::tests::manoeuvre;
+    use crate::engine::Engine;
+    use crate::formats::profile::DEFAULT_PROFILE_TOML;
+    use crate::profile::tests::full_flight;
+    use crate::summary::SummaryBuilder;
+    use crate::trace::Trace;
+
+    fn trace_csv(trace: &Trace) -> String {
+        let mut csv = String::from("t,fx,fy,fz,p,q,r,phi,theta,psi\n");
+        for s in &trace.samples {
+            let v: Vec<String> = [s.t_s]
+                .into_iter()
+                .chain(s.specific_force_mps2.iter().copied())
+                .chain(s.angular_velocity_radps.iter().copied())
+                .chain(s.attitude_rad.iter().copied())
+                .map(|x| x.to_string())
+                .collect();
+            csv.push_str(&v.join(","));
+            csv.push('\n');
+        }
+        csv
+    }
+
+    /// An MCAP whose only record after the header is an attachment of `body`.
+    fn mcap_with_attachment_body(body: &[u8]) -> Vec<u8> {
+        let mut bytes = mcap::MAGIC.to_vec();
+        // Header: empty profile and library strings.
+        bytes.push(mcap::records::op::HEADER);
+        bytes.extend(8u64.to_le_bytes());
+        bytes.extend([0u8; 8]);
+        bytes.push(mcap::records::op::ATTACHMENT);
+        bytes.extend((body.len() as u64).to_le_bytes());
+        bytes.extend(body);
+        bytes
+    }
+
+    #[test]
+    fn an_attachment_shorter_than_its_header_is_an_error_not_a_panic() {
+        // The shape of the fuzzer's finding: every field present but the CRC, so that the
+        // mcap crate's `body[header_len..len - 4]` starts past its end. Then other cuts.
+        let mut full = Vec::new();
+        full.extend(1u64.to_le_bytes());
+        full.extend(2u64.to_le_bytes());
+        full.extend(4u32.to_le_bytes());
+        full.extend(b"name");
+        full.extend(0u32.to_le_bytes());
+        full.extend(3u64.to_le_bytes());
+        full.extend(b"abc");
+        full.extend(0u32.to_le_bytes());
+        assert!(check_attachment_body(&full).is_ok());
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("short-attachment.mcap");
+        for cut in 0..full.len() {
+            std::fs::write(&path, mcap_with_attachment_body(&full[..cut])).unwrap();
+            let e = Recording::open(&path).unwrap_err().to_string();
+            assert!(e.contains("short-attachment.mcap"), "cut {cut}: {e}");
+        }
+        // A length field so large that adding to it overflows.
+        let mut huge = full.clone();
+        huge[16..20].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(check_attachment_body(&huge).is_err());
+        let mut huge = full;
+        let at = 16 + 4 + 4 + 4;
+        huge[at..at + 8].copy_from_slice(&u64::MAX.to_le_bytes());
+        assert!(check_attachment_body(&huge).is_err());
+    }
+
+    fn meta(trace: &Trace) -> RecordingMeta {
+        RecordingMeta {
+            profile_name: "full-flight".into(),
+            profile_toml: DEFAULT_PROFILE_TOML.into(),
+            trace_name: trace.name.clone(),
+            trace_csv: trace_csv(trace),
+            trace_sidecar: Some(r#"{"aircraft": "synthetic"}"#.into()),
+            algorithms: vec![AlgorithmId::Cwf],
+            rate_hz: 100.0,
+        }
+    }
+
+    /// The frames as a recording keeps them: the aircraft and perceived arrays in single
+    /// precision, the platform's and the legs' rounded to 6 decimals.
+    fn engine_frames() -> (Trace, Vec<Frame>) {
+        let trace = manoeuvre();
+        let mut engine =
+            Engine::new(&full_flight(), Arc::new(trace.clone()), &[AlgorithmId::Cwf]).unwrap();
+        let frames = std::iter::from_fn(|| engine.step())
+            .map(|mut f| {
+                // Single precision written as its shortest decimal, read back as an f64.
+                let single = |x: f64| {
+                    serde_json::to_string(&(x as f32))
+                        .ok()
+                        .and_then(|t| t.parse::<f64>().ok())
+                        .unwrap_or(x)
+                };
+                let a = &mut f.aircraft;
+                a.specific_force_mps2 = a.specific_force_mps2.map(single);
+                a.angular_velocity_radps = a.angular_velocity_radps.map(single);
+                a.attitude_rad = a.attitude_rad.map(single);
+                let p = |p: &mut Perceived| {
+                    p.specific_force_mps2 = p.specific_force_mps2.map(single);
+                    p.angular_velocity_radps = p.angular_velocity_radps.map(single);
+                };
+                p(&mut f.reference);
+                for lane in &mut f.lanes {
+                    p(&mut lane.perceived);
+                    let c = &mut lane.command;
+                    c.pose = c.pose.map(micro);
+                    c.velocity = c.velocity.map(micro);
+                    c.acceleration = c.acceleration.map(micro);
+                    let l = &mut lane.legs;
+                    l.length_m = l.length_m.map(micro);
+                    l.velocity_mps = l.velocity_mps.map(micro);
+                    l.margin_m = l.margin_m.map(micro);
+                }
+                f
+            })
+            .collect();
+        (trace, frames)
+    }
+
+    /// The synthetic manoeuvre, recorded once for every test that reads it.
+    fn recorded() -> &'static (Trace, Vec<Frame>, Vec<u8>, RecordingStats) {
+        static RECORDED: std::sync::OnceLock<(Trace, Vec<Frame>, Vec<u8>, RecordingStats)> =
+            std::sync::OnceLock::new();
+        RECORDED.get_or_init(|| {
+            let (trace, frames) = engine_frames();
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("session.mcap");
+            let mut recorder = Recorder::create(&path, &meta(&trace)).unwrap();
+            for frame in &frames {
+                recorder.record(frame).unwrap();
+            }
+            let stats = recorder.finish().unwrap();
+            let bytes = std::fs::read(&path).unwrap();
+            (trace, frames, bytes, stats)
+        })
+    }
+
+    fn write_temp(dir: &tempfile::TempDir, name: &str, bytes: &[u8]) -> PathBuf {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).unwrap();
+        path
+    }
+
+    fn read_all(rec: &Recording) -> Vec<Frame> {
+        rec.frames()
+            .unwrap()
+            .collect::<Result<Vec<_>, _>>()
+            .unwrap()
+    }
+
+    #[test]
+    fn frames_round_trip_with_the_same_summary() {
+        let (trace, frames, bytes, stats) = recorded();
+        assert_eq!(stats.steps, 3000);
+        // hexcue's six topics a step, Foxglove's two (`/cwf/tf`, `/cwf/scene`) every
+        // SCENE_EVERY_STEPS steps, and an `/events` message each time the limiter starts or
+        // stops acting.
+        let edges = frames
+            .windows(2)
+            .filter(|w| w[0].lanes[0].limiter_active != w[1].lanes[0].limiter_active)
+            .count() as u64;
+        let drawn = 2 * 3000 / SCENE_EVERY_STEPS;
+        assert_eq!(stats.messages, 3000 * 6 + drawn + edges);
+        assert_eq!(stats.bytes, bytes.len() as u64);
+        assert!((stats.duration_s - 29.99).abs() < 1e-9);
+        let dir = tempfile::tempdir().unwrap();
+        let rec = Recording::open(&write_temp(&dir, "r.mcap", bytes)).unwrap();
+        assert!(rec.finished && rec.stopped.is_none(), "{:?}", rec.notices);
+        assert!(rec.notices.is_empty(), "{:?}", rec.notices);
+        assert_eq!(rec.algorithms, vec![AlgorithmId::Cwf]);
+        assert_eq!((rec.steps, rec.messages), (3000, 3000 * 6 + drawn + edges));
+        assert!((rec.last_t_s - 29.99).abs() < 1e-6);
+        let back = read_all(&rec);
+        assert_eq!(back.len(), frames.len());
+        for (a, b) in frames.iter().zip(&back) {
+            assert_eq!(a, b, "step {}", a.k);
+        }
+        let profile = full_flight();
+        let summarise = |frames: &[Frame]| {
+            let mut s = SummaryBuilder::new(&profile, &trace.name);
+            frames.iter().for_each(|f| s.push(f));
+            s.finish()
+        };
+        assert_eq!(summarise(frames), summarise(&back));
+    }
+
+    #[test]
+    fn metadata_and_attachments_make_it_self_contained() {
+        let (trace, _, bytes, _) = recorded();
+        let dir = tempfile::tempdir().unwrap();
+        let rec = Recording::open(&write_temp(&dir, "r.mcap", bytes)).unwrap();
+        let m = &rec.metadata;
+        assert_eq!(m["tool_version"], env!("CARGO_PKG_VERSION"));
+        assert_eq!(rec.tool_version, env!("CARGO_PKG_VERSION"));
+        assert_eq!(m["profile_name"], "full-flight");
+        assert_eq!(m["trace_name"], "manoeuvre");
+        assert_eq!(m["algorithms"], "cwf");
+        assert_eq!(rec.rate_hz, 100.0);
+        assert_eq!(m["trace_sha256"], sha256_hex(&trace_csv(trace)));
+        assert_eq!(m["trace_sha256"].len(), 64);
+        assert_eq!(rec.profile_toml, DEFAULT_PROFILE_TOML);
+        assert_eq!(
+            rec.profile.as_ref().unwrap(),
+            &crate::formats::profile::default_profile()
+        );
+        assert_eq!(rec.trace_csv, trace_csv(trace));
+        assert_eq!(
+            rec.trace_sidecar.as_deref(),
+            Some(r#"{"aircraft": "synthetic"}"#)
+        );
+        // Other readers find them through the summary of a finished file.
+        let summary = mcap::Summary::read(bytes).unwrap().unwrap();
+        assert_eq!(summary.attachment_indexes.len(), 3);
+        assert_eq!(summary.metadata_indexes.len(), 1);
+        let topics: Vec<&str> = summary
+            .channels
+            .values()
+            .map(|c| c.topic.as_str())
+            .collect();
+        for t in [
+            "/aircraft",
+            "/aircraft/perceived",
+            "/cwf/perceived",
+            "/cwf/platform",
+            "/cwf/actuators",
+            "/cwf/controller",
+        ] {
+            assert!(topics.contains(&t), "{t} in {topics:?}");
+        }
+        for c in summary.channels.values() {
+            let schema = c.schema.as_ref().unwrap();
+            if schema.name.starts_with("foxglove.") {
+                // The 3D topics (src/foxglove): Foxglove's well-known protobuf schemas.
+                assert_eq!(c.message_encoding, "protobuf");
+                continue;
+            }
+            assert_eq!(
+                (c.message_encoding.as_str(), schema.encoding.as_str()),
+                ("json", "jsonschema")
+            );
+            let parsed: Value = serde_json::from_slice(&schema.data).unwrap();
+            assert_eq!(parsed["type"], "object");
+        }
+    }
+
+    #[test]
+    fn log_times_are_positive_and_increasing() {
+        let (_, _, bytes, _) = recorded();
+        let mut last: BTreeMap<String, u64> = BTreeMap::new();
+        let mut count = 0;
+        for message in mcap::MessageStream::new(bytes).unwrap() {
+            let message = message.unwrap();
+            assert!(
+                message.log_time > 1_000_000_000_000_000_000,
+                "{}",
+                message.log_time
+            );
+            let previous = last.insert(message.channel.topic.clone(), message.log_time);
+            assert!(previous.is_none_or(|p| p < message.log_time));
+            if message.channel.message_encoding == "protobuf" {
+                continue;
+            }
+            let json: Value = serde_json::from_slice(&message.data).unwrap();
+            assert!(json["t"].is_number());
+            count += 1;
+        }
+        assert_eq!(count, 18000);
+        let start = last["/aircraft"] - 29_990_000_000;
+        let dir = tempfile::tempdir().unwrap();
+        let rec = Recording::open(&write_temp(&dir, "r.mcap", bytes)).unwrap();
+        assert_eq!(rec.start_unix_ns, start);
+    }
+
+    #[test]
+    fn a_file_cut_anywhere_gives_a_prefix_or_a_clear_error() {
+        let (_, frames, bytes, _) = recorded();
+        let dir = tempfile::tempdir().unwrap();
+        let mut readable = 0;
+        for tenth in 0..10 {
+            let cut = bytes.len() * tenth / 10;
+            let path = write_temp(&dir, &format!("cut{tenth}.mcap"), &bytes[..cut]);
+            match Recording::open(&path) {
+                Ok(rec) => {
+                    assert!(!rec.finished && rec.stopped.is_some(), "cut at {cut}");
+                    assert!(rec.notices.iter().any(|n| n.contains("not finished")));
+                    let back = read_all(&rec);
+                    assert_eq!(back[..], frames[..back.len()], "cut at {cut}");
+                    if tenth >= 5 {
+                        assert!(
+                            back.len() >= 3000 * (tenth - 3) / 10,
+                            "{tenth}: {}",
+                            back.len()
+                        );
+                    }
+                    readable += 1;
+                }
+                Err(e) => {
+                    let message = e.to_string();
+                    assert!(
+                        message.starts_with(&path.display().to_string()),
+                        "{message}"
+                    );
+                    assert!(
+                        matches!(
+                            e,
+                            RecordingError::NotMcap { .. } | RecordingError::Truncated { .. }
+                        ),
+                        "cut at {cut}: {message}"
+                    );
+                }
+            }
+        }
+        assert!(readable >= 8, "{readable}");
+        // A file missing only its last bytes still has every step but the one being cut.
+        let path = write_temp(&dir, "end.mcap", &bytes[..bytes.len() - 3]);
+        let rec = Recording::open(&path).unwrap();
+        assert!(!rec.finished);
+        assert_eq!(read_all(&rec).len(), 3000);
+    }
+
+    #[test]
+    fn a_killed_session_loses_at_most_a_second() {
+        let (trace, frames) = engine_frames();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("killed.mcap");
+        let mut recorder = Recorder::create(&path, &meta(&trace)).unwrap();
+        for frame in &frames[..1234] {
+            recorder.record(frame).unwrap();
+        }
+        // As SIGKILL does: nothing in the process's buffers reaches the file.
+        std::mem::forget(recorder);
+        let rec = Recording::open(&path).unwrap();
+        assert!(!rec.finished);
+        let back = read_all(&rec);
+        assert!(back.len() >= 1234 - 100, "{}", back.len());
+        assert_eq!(back[..], frames[..back.len()]);
+        assert_eq!(rec.trace_csv, trace_csv(&trace));
+    }
+
+    #[test]
+    fn recover_writes_a_finished_copy() {
+        let (_, frames, bytes, _) = recorded();
+        let dir = tempfile::tempdir().unwrap();
+        let cut = write_temp(&dir, "cut.mcap", &bytes[..bytes.len() * 7 / 10]);
+        let out = dir.path().join("recovered.mcap");
+        let stats = recover(&cut, &out).unwrap();
+        assert!(!stats.input_finished && stats.input_stopped.is_some());
+        let rec = Recording::open(&out).unwrap();
+        assert!(rec.finished, "{:?}", rec.notices);
+        let back = read_all(&rec);
+        assert_eq!(back.len() as u64, stats.output.steps);
+        assert!(back.len() > 1000);
+        assert_eq!(back[..], frames[..back.len()]);
+        assert_eq!(rec.metadata["recovered_from"], "cut.mcap");
+        assert_eq!(rec.trace_csv, Recording::open(&cut).unwrap().trace_csv);
+        assert!(rec.profile.is_ok());
+        let original = Recording::open(&cut).unwrap();
+        assert_eq!(rec.start_unix_ns, original.start_unix_ns);
+        assert!(matches!(
+            recover(&out, &out),
+            Err(RecordingError::SameFile { .. })
+        ));
+    }
+
+    #[test]
+    fn garbage_and_foreign_files_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let not_mcap = |name: &str, bytes: &[u8]| {
+            let path = write_temp(&dir, name, bytes);
+            match Recording::open(&path) {
+                Err(e @ RecordingError::NotMcap { .. }) => {
+                    assert!(e.to_string().contains(name), "{e}")
+                }
+                other => panic!("{name}: {other:?}"),
+            }
+        };
+        not_mcap("empty.mcap", b"");
+        not_mcap("short.mcap", &mcap::MAGIC[..5]);
+        not_mcap("profile.mcap", DEFAULT_PROFILE_TOML.as_bytes());
+        // Random bytes, bare and behind a valid magic: an error, never a panic.
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut random = |n: usize| -> Vec<u8> {
+            (0..n)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    state as u8
+                })
+                .collect()
+        };
+        not_mcap("random.mcap", &random(100_000));
+        for i in 0..20 {
+            let mut bytes = mcap::MAGIC.to_vec();
+            bytes.extend(random(1000 * i + 1));
+            let path = write_temp(&dir, "magic.mcap", &bytes);
+            assert!(Recording::open(&path).is_err());
+        }
+    }
+
+    #[test]
+    fn an_mcap_without_hexcue_topics_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("other.mcap");
+        let mut w = mcap::Writer::new(BufWriter::new(File::create(&path).unwrap())).unwrap();
+        let channel = w.add_channel(0, "/imu", "json", &BTreeMap::new()).unwrap();
+        for i in 1..10u64 {
+            let header = MessageHeader {
+                channel_id: channel,
+                sequence: i as u32,
+                log_time: i,
+                publish_time: i,
+            };
+            w.write_to_known_channel(&header, b"{}").unwrap();
+        }
+        w.finish().unwrap();
+        drop(w);
+        match Recording::open(&path) {
+            Err(e @ RecordingError::NotHexcue { .. }) => {
+                let message = e.to_string();
+                assert!(message.contains("/imu") && message.contains("/aircraft/perceived"));
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_profile_that_no_longer_loads_keeps_the_recording_readable() {
+        let (trace, frames) = engine_frames();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.mcap");
+        let mut m = meta(&trace);
+        m.profile_toml = DEFAULT_PROFILE_TOML.replacen("rate_hz = 100.0", "rate_hz = -1.0", 1);
+        let mut recorder = Recorder::create(&path, &m).unwrap();
+        for frame in &frames[..50] {
+            recorder.record(frame).unwrap();
+        }
+        recorder.finish().unwrap();
+        let rec = Recording::open(&path).unwrap();
+        assert!(rec.profile.is_err());
+        assert_eq!(rec.profile_toml, m.profile_toml);
+        assert!(
+            rec.notices.iter().any(|n| n.contains("rate_hz")),
+            "{:?}",
+            rec.notices
+        );
+        assert_eq!(read_all(&rec), frames[..50]);
+    }
+
+    #[test]
+    fn controller_state_and_non_finite_values_survive() {
+        let (trace, mut frames) = engine_frames();
+        frames.truncate(3);
+        let lane = &mut frames[1].lanes[0];
+        lane.state = AlgorithmState {
+            mode: Mode::Blend,
+            blend: Some(0.25),
+            time_in_mode_s: 1.5,
+            switch_count: 3,
+            last_switch_reason: Some("COTC infeasible".into()),
+            solvers: vec![
+                SolverReport {
+                    name: "cotc".into(),
+                    status: "primal_infeasible".into(),
+                    iterations: 5,
+                    solve_time_us: 120.5,
+                },
+                SolverReport {
+                    name: "free".into(),
+                    status: "solved".into(),
+                    iterations: 9,
+                    solve_time_us: 800.25,
+                },
+            ],
+        };
+        frames[2].lanes[0].step_time_us = f64::NAN;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("state.mcap");
+        let mut recorder = Recorder::create(&path, &meta(&trace)).unwrap();
+        for frame in &frames {
+            recorder.record(frame).unwrap();
+        }
+        let mut bad = frames[0].clone();
+        bad.t_s = f64::NAN;
+        assert!(matches!(
+            recorder.record(&bad),
+            Err(RecordingError::BadTime { .. })
+        ));
+        recorder.finish().unwrap();
+        let back = read_all(&Recording::open(&path).unwrap());
+        assert_eq!(back[..2], frames[..2]);
+        assert!(back[2].lanes[0].step_time_us.is_nan());
+        let bytes = std::fs::read(&path).unwrap();
+        let controller = mcap::MessageStream::new(&bytes)
+            .unwrap()
+            .map(|m| m.unwrap())
+            .filter(|m| m.channel.topic == "/cwf/controller")
+            .nth(1)
+            .unwrap();
+        let json: Value = serde_json::from_slice(&controller.data).unwrap();
+        assert_eq!(json["mode"], "blend");
+        assert_eq!(json["status"], "primal_infeasible+solved");
+        assert_eq!(json["iterations"], 14);
+    }
+}

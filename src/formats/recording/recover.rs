@@ -1,0 +1,53 @@
+//! Recovery: a finished copy of what an unfinished recording holds.
+
+use std::path::Path;
+
+use super::{shown, Recorder, Recording, RecordingError, RecordingStats};
+
+/// What [`recover`] wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RecoverStats {
+    /// Whether the input was already finished (then the output is a plain copy).
+    pub input_finished: bool,
+    /// Why the input's data ended early, when it did.
+    pub input_stopped: Option<String>,
+    pub output: RecordingStats,
+}
+
+/// Writes a finished copy of what a (possibly unfinished) recording holds: metadata,
+/// attachments and every complete step, with the original log times.
+pub fn recover(input: &Path, output: &Path) -> Result<RecoverStats, RecordingError> {
+    let same = match (input.canonicalize(), output.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same {
+        return Err(RecordingError::SameFile {
+            path: shown(output),
+        });
+    }
+    let recording = Recording::open(input)?;
+    let mut metadata = recording.metadata.clone();
+    let keys: Vec<&str> = recording.algorithms.iter().map(|a| a.key()).collect();
+    metadata.insert("algorithms".into(), keys.join(","));
+    metadata.insert(
+        "recovered_by_version".into(),
+        env!("CARGO_PKG_VERSION").to_string(),
+    );
+    metadata.insert(
+        "recovered_from".into(),
+        input
+            .file_name()
+            .map_or_else(|| shown(input), |n| n.to_string_lossy().into_owned()),
+    );
+    let mut recorder =
+        Recorder::create_with(output, &recording.meta(), recording.start_unix_ns, metadata)?;
+    for frame in recording.frames()? {
+        recorder.record(&frame?)?;
+    }
+    Ok(RecoverStats {
+        input_finished: recording.finished,
+        input_stopped: recording.stopped.clone(),
+        output: recorder.finish()?,
+    })
+}
