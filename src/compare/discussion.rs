@@ -3,8 +3,8 @@
 
 use std::fmt::Write;
 
+use super::common::{channel_name, label, metric, ordered, TraceResult};
 use super::verdict::*;
-use super::{channel_name, label, metric, ordered, TraceResult};
 use crate::metrics::CHANNELS;
 use crate::summary::AlgorithmSummary;
 use crate::vocab::AlgorithmId;

@@ -2,81 +2,25 @@
 //! workspace use and step times, and a discussion generated from those numbers so that it
 //! stays true when the report is regenerated.
 
-use crate::summary::{AlgorithmSummary, Summary};
-use crate::vocab::{AlgorithmId, Channel};
-
+mod common;
 mod discussion;
 mod tables;
 mod verdict;
 
+pub use self::common::TraceResult;
 pub use self::tables::{pilot_table, render_markdown};
 pub use self::verdict::{ERROR_TOLERANCE_ABS, ERROR_TOLERANCE_REL, FALSE_CUE_MARGIN};
 
-/// One trace's results with what the report says about the trace.
-pub struct TraceResult {
-    pub summary: Summary,
-    /// One line from the trace's sidecar (aircraft and scenario), if it has one.
-    pub description: Option<String>,
-}
-
-/// An algorithm's name for people; a key this version does not know, as it is.
-pub(super) fn label(key: &str) -> &str {
-    match known(key) {
-        Some(id) => id.label(),
-        None => key,
-    }
-}
-
-/// The algorithm a summary's key names exactly.
-pub(super) fn known(key: &str) -> Option<AlgorithmId> {
-    AlgorithmId::ALL.iter().copied().find(|id| id.key() == key)
-}
-
-/// The summary's algorithms in the order the report shows them ([`AlgorithmId::ALL`]), keys
-/// this version does not know last.
-pub(super) fn ordered(summary: &Summary) -> Vec<(&str, &AlgorithmSummary)> {
-    let mut v: Vec<(&str, &AlgorithmSummary)> = AlgorithmId::ALL
-        .iter()
-        .filter_map(|id| {
-            summary
-                .algorithms
-                .get_key_value(id.key())
-                .map(|(k, a)| (k.as_str(), a))
-        })
-        .collect();
-    for (k, a) in &summary.algorithms {
-        if known(k).is_none() {
-            v.push((k.as_str(), a));
-        }
-    }
-    v
-}
-
-pub(super) fn metric(
-    a: &AlgorithmSummary,
-    ch: &str,
-    f: fn(&crate::metrics::ChannelMetrics) -> f64,
-) -> f64 {
-    a.metrics.get(ch).map_or(f64::NAN, f)
-}
-
-/// What each channel is called in the report ([`Channel::label`]); a key this version does
-/// not know, as it is.
-pub(super) fn channel_name(ch: &str) -> &str {
-    match Channel::from_key(ch) {
-        Some(c) => c.label(),
-        None => ch,
-    }
-}
-
 #[cfg(test)]
 mod tests {
+    use super::common::channel_name;
     use super::tables::*;
     use super::verdict::*;
     use super::*;
     use crate::metrics::{ChannelMetrics, StepTimes, CHANNELS};
     use crate::profile::tests::full_flight;
     use crate::summary::AlgorithmSummary;
+    use crate::summary::Summary;
     use std::collections::BTreeMap;
 
     /// An algorithm whose threshold-aware error equals its RAE on every channel (a stand-in:

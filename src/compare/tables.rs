@@ -3,9 +3,9 @@
 
 use std::fmt::Write;
 
+use super::common::{channel_name, label, metric, ordered, TraceResult};
 use super::discussion::*;
 use super::verdict::*;
-use super::{channel_name, label, metric, ordered, TraceResult};
 use crate::metrics::CHANNELS;
 use crate::summary::Summary;
 

@@ -3,7 +3,7 @@
 
 use std::fmt::Write;
 
-use super::{label, metric, ordered};
+use super::common::{label, metric, ordered};
 use crate::metrics::ChannelMetrics;
 use crate::summary::Summary;
 

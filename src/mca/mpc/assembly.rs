@@ -138,12 +138,12 @@ impl Mpc {
 
     /// Column of input u_i (interval i).
     pub(super) fn u_col(i: usize) -> usize {
-        i * (NU + NX)
+        super::model::u_col(i)
     }
 
     /// Column of state x_{i+1} (end of interval i).
     pub(super) fn x_col(i: usize) -> usize {
-        i * (NU + NX) + NU
+        super::model::x_col(i)
     }
 
     /// Upper triangle of P (cost ½ zᵀPz + qᵀz) in a fixed order.

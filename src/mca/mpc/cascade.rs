@@ -166,7 +166,7 @@ impl Mpc {
             match status {
                 QpStatus::Solved => {
                     let z = c.z();
-                    Self::fill_plan(&mut self.run.plan, &self.grid, &self.run.x, z);
+                    self.run.plan.fill(&self.grid, &self.run.x, z);
                     return Some(DVector::from_row_slice(&z[0..NU]));
                 }
                 QpStatus::Infeasible => return None,
@@ -211,7 +211,7 @@ impl Mpc {
         if !ok {
             return None;
         }
-        Self::fill_plan(&mut self.run.plan, &self.grid, &self.run.x, &sol.x);
+        self.run.plan.fill(&self.grid, &self.run.x, &sol.x);
         Some(DVector::from_row_slice(&sol.x[0..NU]))
     }
 }

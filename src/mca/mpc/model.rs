@@ -139,6 +139,16 @@ pub const POSE_STATE: [usize; 6] = [
     state::YAW,
 ];
 
+/// Column of input u_i (interval i) in the QP's variables z = [u_0, x_1, u_1, x_2, …].
+pub fn u_col(i: usize) -> usize {
+    i * (NU + NX)
+}
+
+/// Column of state x_{i+1} (end of interval i) in z.
+pub fn x_col(i: usize) -> usize {
+    i * (NU + NX) + NU
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
