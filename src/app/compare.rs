@@ -1,7 +1,6 @@
 //! `hexcue compare`: every algorithm on every trace of a folder, and the Markdown report.
 
 use std::path::PathBuf;
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
@@ -12,7 +11,8 @@ use crate::engine::Engine;
 use crate::formats::profile::{default_profile, load_profile};
 use crate::formats::trace::load_trace;
 use crate::outputs::check_output_of;
-use crate::summary::SummaryBuilder;
+use crate::session::{FrameSink, Runner, SinkFailure};
+use crate::sinks::recorder::ProgressSink;
 
 /// Runs every algorithm on every trace of the folder and writes the report.
 pub fn run(args: &CompareArgs) -> Result<()> {
@@ -63,21 +63,24 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         let trace = Arc::new(trace);
         bar.set_message(trace.name.clone());
         let started = std::time::Instant::now();
-        let mut engine = Engine::new(&profile, trace.clone(), &algorithms)?;
-        let mut summary = SummaryBuilder::new(&profile, &trace.name);
-        while let Some(frame) = engine.step() {
-            summary.push(&frame);
-            if frame.k % 50 == 0 {
-                bar.set_position((done + frame.k) as u64);
-            }
-            if stop.load(Ordering::Relaxed) {
-                bar.finish_and_clear();
-                bail!(
-                    "stopped by a signal during {}; no report written",
-                    trace.name
-                );
-            }
+        let engine = Engine::new(&profile, trace.clone(), &algorithms)?;
+        let progress: Box<dyn FrameSink> = Box::new(ProgressSink::part(bar.clone(), done));
+        let mut runner = Runner::new(
+            Box::new(engine),
+            &profile,
+            &trace.name,
+            vec![progress],
+            SinkFailure::Stop,
+        );
+        if runner.run(None, &stop)?.interrupted {
+            bar.finish_and_clear();
+            bail!(
+                "stopped by a signal during {}; no report written",
+                trace.name
+            );
         }
+        runner.finish()?;
+        let summary = runner.summary();
         done += trace.len();
         let wall = started.elapsed().as_secs_f64();
         progress_line(
@@ -98,7 +101,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
                 .join(": ")
         });
         results.push(crate::compare::TraceResult {
-            summary: summary.finish(),
+            summary,
             description: description.filter(|d| !d.is_empty()),
         });
     }

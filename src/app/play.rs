@@ -6,7 +6,9 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result};
 
-use crate::app::common::{check_session_outputs, headless_or_console, inputs, stop_flag};
+use crate::app::common::{
+    check_session_outputs, headless_or_console, inputs, progress_bar, stop_flag,
+};
 use crate::cli::{parse_algorithms, PlayArgs};
 use crate::engine::Engine;
 use crate::formats::profile::{default_profile, load_profile, DEFAULT_PROFILE_TOML};
@@ -142,8 +144,13 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
     let engine = Engine::with_source(&profile, play.source, &algorithms)?;
     // In closing order: the bar cleared before the recording's line is printed.
     let mut sinks: Vec<Box<dyn FrameSink>> = Vec::new();
-    if let Some(bar) = ProgressSink::on_terminal(&name, len) {
-        sinks.push(Box::new(bar));
+    let bar = progress_bar(
+        len as u64,
+        "{spinner} {msg} [{bar:40}] {pos}/{len} steps ({rate} steps/s, {eta} left)",
+    );
+    if !bar.is_hidden() {
+        bar.set_message(name.clone());
+        sinks.push(Box::new(ProgressSink::whole(bar)));
     }
     if let Some(addr) = args.foxglove {
         let server = start_foxglove(addr, &profile, &algorithms)?;

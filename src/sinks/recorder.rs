@@ -54,45 +54,45 @@ impl FrameSink for McapSink {
 /// A headless run's progress on a terminal's stderr: steps done of the trace's, and the rate.
 pub struct ProgressSink {
     bar: indicatif::ProgressBar,
+    /// Steps before this run's first on the bar (compare's bar spans every trace).
+    offset: u64,
+    /// Cleared when the run closes; a bar shared with later runs is its owner's to clear.
+    clear: bool,
 }
 
 impl ProgressSink {
-    /// A bar for `len` steps of the trace `name`; `None` when stderr is not a terminal (a
-    /// log file must not fill with redraws).
-    pub fn on_terminal(name: &str, len: usize) -> Option<Self> {
-        use std::io::IsTerminal;
-        if !std::io::stderr().is_terminal() {
-            return None;
+    /// Moves `bar` (made by the command, `app::common::progress_bar`) over one whole run, and
+    /// clears it when the run closes.
+    pub fn whole(bar: indicatif::ProgressBar) -> Self {
+        ProgressSink {
+            bar,
+            offset: 0,
+            clear: true,
         }
-        let bar = indicatif::ProgressBar::new(len as u64);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} {msg} [{bar:40}] {pos}/{len} steps ({rate}, {eta} left)",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-            .with_key(
-                "rate",
-                |state: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
-                    // indicatif's own {per_sec} prints four decimals of steps per second.
-                    let _ = write!(w, "{:.0} steps/s", state.per_sec());
-                },
-            ),
-        );
-        bar.set_message(name.to_string());
-        Some(ProgressSink { bar })
+    }
+
+    /// Moves `bar` over one run of several, `offset` steps in.
+    pub fn part(bar: indicatif::ProgressBar, offset: usize) -> Self {
+        ProgressSink {
+            bar,
+            offset: offset as u64,
+            clear: false,
+        }
     }
 }
 
 impl FrameSink for ProgressSink {
     fn record(&mut self, frame: &Frame) -> Result<()> {
         if frame.k.is_multiple_of(50) {
-            self.bar.set_position(frame.k as u64);
+            self.bar.set_position(self.offset + frame.k as u64);
         }
         Ok(())
     }
 
     fn finish(self: Box<Self>) -> Result<String> {
-        self.bar.finish_and_clear();
+        if self.clear {
+            self.bar.finish_and_clear();
+        }
         Ok(String::new())
     }
 }
