@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 
-use crate::metrics::CHANNELS;
+use crate::vocab::Channel;
 use crate::outputs::{check_distinct, check_not_input, check_output_of, Input};
 use crate::summary::Summary;
 
@@ -76,15 +76,12 @@ pub fn format_table(s: &Summary) -> String {
     ));
     let mut at_bound = false;
     for (name, alg) in &s.algorithms {
-        for ch in CHANNELS {
+        for channel in Channel::ALL {
+            let ch = channel.key();
             if let Some(m) = alg.metrics.get(ch) {
                 // AAD and RMSE in the channel's unit as the console and the plots show it
                 // (°/s for rates); the JSON summary keeps SI (rad/s).
-                let (unit, scale) = if ch.starts_with('f') {
-                    ("m/s²", 1.0)
-                } else {
-                    ("°/s", 180.0 / std::f64::consts::PI)
-                };
+                let (unit, scale) = (channel.unit(), channel.display_scale());
                 let ed = if m.ed_at_bound {
                     at_bound = true;
                     format!("{}{:.2}", if m.ed_s > 0.0 { ">" } else { "<" }, m.ed_s)

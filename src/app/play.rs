@@ -102,18 +102,14 @@ fn recording_meta(
     play: &PlaySource,
     algorithms: &[AlgorithmId],
 ) -> RecordingMeta {
-    RecordingMeta {
-        profile_name: profile.name.clone(),
+    RecordingMeta::session(
+        profile,
         profile_toml,
-        trace_name: play.name.clone(),
-        trace_csv: String::new(),
-        trace_sidecar: play
-            .info
-            .as_ref()
-            .and_then(|i| serde_json::to_string_pretty(i).ok()),
-        algorithms: algorithms.to_vec(),
-        rate_hz: profile.rate_hz,
-    }
+        play.name.clone(),
+        String::new(),
+        play.info.as_ref(),
+        algorithms,
+    )
 }
 
 /// The trace's text as read, for a recording's attachment.
