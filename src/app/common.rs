@@ -9,9 +9,9 @@ use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 
-use crate::vocab::Channel;
 use crate::outputs::{check_distinct, check_not_input, check_output_of, Input};
 use crate::summary::Summary;
+use crate::vocab::Channel;
 
 /// Set by SIGINT, SIGTERM or SIGHUP so that a headless run stops cleanly and finishes its
 /// recording.
