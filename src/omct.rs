@@ -17,6 +17,7 @@ use crate::mca::{AlgorithmId, BuildError};
 use crate::model::stewart::head_motion;
 use crate::profile::Profile;
 use crate::trace::{AircraftSample, Trace};
+use crate::vocab::Channel;
 use crate::G_MPS2;
 
 /// The twelve OMCT frequencies as the standard's table gives them (rad/s): 0.1·10^(i/5),
@@ -36,34 +37,6 @@ pub fn frequencies_radps() -> [f64; 12] {
 pub fn frequency_label(w_radps: f64) -> String {
     let rounded = (w_radps * 1000.0).round() / 1000.0;
     format!("{rounded}")
-}
-
-/// A channel of aircraft input or platform output at the head: Δf x, y, z (m/s²), ω x, y, z
-/// (rad/s).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub enum Channel {
-    Fx,
-    Fy,
-    Fz,
-    Wx,
-    Wy,
-    Wz,
-}
-
-impl Channel {
-    fn index(self) -> usize {
-        self as usize
-    }
-    pub fn is_rotational(self) -> bool {
-        self.index() >= 3
-    }
-    pub fn unit(self) -> &'static str {
-        if self.is_rotational() {
-            "rad/s"
-        } else {
-            "m/s²"
-        }
-    }
 }
 
 /// The six direct and four cross-coupling tests.
@@ -361,8 +334,8 @@ fn curve(test: OmctTest, algorithm: AlgorithmId, points: Vec<OmctPoint>) -> Omct
     OmctCurve {
         test,
         algorithm,
-        input_unit: i.unit(),
-        output_unit: o.unit(),
+        input_unit: i.si_unit(),
+        output_unit: o.si_unit(),
         points,
     }
 }

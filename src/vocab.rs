@@ -125,6 +125,25 @@ impl Channel {
         matches!(self, Channel::Fx | Channel::Fy | Channel::Fz)
     }
 
+    /// Its place in [`Channel::ALL`], and in a 6-vector (Δf x, y, z; ω x, y, z).
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    /// An angular velocity (rad/s).
+    pub fn is_rotational(self) -> bool {
+        !self.is_force()
+    }
+
+    /// The SI unit the JSON keeps: m/s² or rad/s.
+    pub fn si_unit(self) -> &'static str {
+        if self.is_force() {
+            "m/s²"
+        } else {
+            "rad/s"
+        }
+    }
+
     /// The unit people read it in: m/s² for forces, °/s for rates (summaries keep SI).
     pub fn unit(self) -> &'static str {
         if self.is_force() {

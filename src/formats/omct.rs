@@ -42,8 +42,8 @@ impl OmctReport {
                     "test": test.key(),
                     "description": test.description(),
                     "cross_coupling": test.is_cross_coupling(),
-                    "input_unit": i.unit(),
-                    "output_unit": o.unit(),
+                    "input_unit": i.si_unit(),
+                    "output_unit": o.si_unit(),
                     "results": results,
                 })
             })
@@ -77,10 +77,10 @@ impl OmctReport {
         );
         for &test in &self.tests {
             let (i, o) = test.channels();
-            let gain_unit = if i.unit() == o.unit() {
+            let gain_unit = if i.si_unit() == o.si_unit() {
                 String::new()
             } else {
-                format!(", gain in ({})/({})", o.unit(), i.unit())
+                format!(", gain in ({})/({})", o.si_unit(), i.si_unit())
             };
             let amp_unit = if i.is_rotational() { "°/s" } else { "m/s²" };
             s.push_str(&format!(
