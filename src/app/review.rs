@@ -14,6 +14,7 @@ use crate::cli::ReviewArgs;
 use crate::engine::Frame;
 use crate::formats::recording::Recording;
 use crate::outputs::{check_output_of, Input};
+use crate::profile::Profile;
 use crate::session::{player, FrameSink, RecordedFrames, Runner, SinkFailure};
 use crate::sinks::recorder::Quiet;
 use crate::sources::recording::RecordingStream;
@@ -49,24 +50,7 @@ pub fn review_served(path: &Path, addr: SocketAddr, speed: Option<f64>) -> Resul
     let server = start_foxglove(addr, profile, &recording.algorithms)?;
     let sinks: Vec<Box<dyn FrameSink>> = vec![Box::new(Quiet(Box::new(server)))];
     let stop = stop_flag()?;
-    let source = RecordingStream::new(
-        recording.frames()?,
-        recording.algorithms.clone(),
-        profile.rate_hz,
-    );
-    let mut runner = Runner::new(
-        Box::new(source),
-        profile,
-        &recording.trace_name,
-        sinks,
-        SinkFailure::Stop,
-    );
-    runner.run(speed, &stop)?;
-    runner.finish()?;
-    if let Some(e) = runner.take_error() {
-        return Err(e);
-    }
-    Ok(runner.summary())
+    summarise(&recording, profile, sinks, speed, &stop)
 }
 
 pub fn review_summary(path: &Path) -> Result<Summary> {
@@ -87,6 +71,25 @@ pub fn review_summary(path: &Path) -> Result<Summary> {
             path.display()
         )
     })?;
+    // Reading a file is quick and writes nothing: a signal may simply end the process.
+    summarise(
+        &recording,
+        profile,
+        Vec::new(),
+        None,
+        &AtomicBool::new(false),
+    )
+}
+
+/// The recording's frames through the session runner into `sinks`, at `pace` × real time
+/// (as fast as it can with `None`): the summary, or why the frames stopped early.
+fn summarise(
+    recording: &Recording,
+    profile: &Profile,
+    sinks: Vec<Box<dyn FrameSink>>,
+    pace: Option<f64>,
+    stop: &AtomicBool,
+) -> Result<Summary> {
     let source = RecordingStream::new(
         recording.frames()?,
         recording.algorithms.clone(),
@@ -96,11 +99,11 @@ pub fn review_summary(path: &Path) -> Result<Summary> {
         Box::new(source),
         profile,
         &recording.trace_name,
-        Vec::new(),
+        sinks,
         SinkFailure::Stop,
     );
-    // Reading a file is quick and writes nothing: a signal may simply end the process.
-    runner.run(None, &AtomicBool::new(false))?;
+    runner.run(pace, stop)?;
+    runner.finish()?;
     if let Some(e) = runner.take_error() {
         return Err(e);
     }
