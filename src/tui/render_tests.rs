@@ -82,11 +82,7 @@ fn columns_share_one_scale_per_channel() {
             // And they hold every column's signal and the reference: the union.
             let ch = channel;
             let (lo, hi) = bounds(&caps[0][0]);
-            let scale = if ch < 3 {
-                1.0
-            } else {
-                180.0 / std::f64::consts::PI
-            };
+            let scale = crate::vocab::Channel::ALL[ch].display_scale();
             for r in &s.window {
                 for v in r.lanes.iter().map(|l| l[ch]).chain([r.reference[ch]]) {
                     let v = f64::from(v) * scale;
@@ -120,11 +116,7 @@ fn the_shared_range_is_the_union_of_the_shown_lanes() {
     let all = view::shared_ranges(&s, &[0, 1, 2]);
     let half = view::shared_ranges(&s, &[1]);
     for (ch, &(lo, hi)) in all.iter().enumerate() {
-        let scale = if ch < 3 {
-            1.0
-        } else {
-            180.0 / std::f64::consts::PI
-        };
+        let scale = crate::vocab::Channel::ALL[ch].display_scale();
         for r in &s.window {
             for v in r.lanes.iter().map(|l| l[ch]).chain([r.reference[ch]]) {
                 let v = f64::from(v) * scale;

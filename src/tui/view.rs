@@ -12,6 +12,7 @@ use ratatui::widgets::{Axis, Block, Borders, Chart, Dataset, GraphType, Paragrap
 use crate::engine::LaneFrame;
 use crate::mca::{AlgorithmId, Mode};
 use crate::metrics::CHANNELS;
+use crate::vocab::Channel;
 
 use super::gauges::{leg_lines, pose_lines, FULL_ROWS, PAIRED_ROWS};
 use super::player::{speed_label, Snapshot, WINDOW_S};
@@ -773,11 +774,8 @@ fn compact_metrics(app: &App, lane: usize, frame: Option<&LaneFrame>, w: usize) 
 
 /// Perceived channels are shown in m/s² and °/s.
 fn channel_scale(ch: usize) -> (f64, &'static str) {
-    if ch < 3 {
-        (1.0, "m/s²")
-    } else {
-        (180.0 / std::f64::consts::PI, "°/s")
-    }
+    let channel = Channel::ALL[ch];
+    (channel.display_scale(), channel.unit())
 }
 
 fn render_chart(
