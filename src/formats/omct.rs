@@ -82,7 +82,7 @@ impl OmctReport {
             } else {
                 format!(", gain in ({})/({})", o.si_unit(), i.si_unit())
             };
-            let amp_unit = if i.is_rotational() { "°/s" } else { "m/s²" };
+            let amp_unit = i.unit();
             s.push_str(&format!(
                 "## {}: {}{}\n\n",
                 test.key(),
