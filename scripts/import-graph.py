@@ -68,30 +68,7 @@ for m,s in files.items():
         pth=re.sub(r'\s+as\s+\w+$','',pth.strip())
         r=resolve(m,pth)
         if r and r!=m: edges[m].add(r)
-# cycles among files via tarjan
-idx={};low={};st=[];on=set();res=[];i=[0]
 sys.setrecursionlimit(10000)
-def sc(v):
-    idx[v]=low[v]=i[0];i[0]+=1;st.append(v);on.add(v)
-    for w in edges[v]:
-        if w not in idx: sc(w);low[v]=min(low[v],low[w])
-        elif w in on: low[v]=min(low[v],idx[w])
-    if low[v]==idx[v]:
-        c=[]
-        while True:
-            w=st.pop();on.discard(w);c.append(w)
-            if w==v:break
-        if len(c)>1: res.append(c)
-for v in list(mods):
-    if v not in idx: sc(v)
-file_sccs=res
-print("file circles:",res)
-top=collections.defaultdict(set)
-for a,bs in edges.items():
-    for b in bs:
-        ta,tb=a.split('::')[0],b.split('::')[0]
-        if ta!=tb: top[ta].add(tb)
-print({k:sorted(v) for k,v in top.items()})
 
 def sccs(nodes,edges):
     idx={};low={};st=[];on=set();out=[];n=[0]
@@ -109,6 +86,15 @@ def sccs(nodes,edges):
     for v in nodes:
         if v not in idx: sc(v)
     return out
+file_sccs=sccs(sorted(mods),edges)
+print("file circles:",file_sccs)
+top=collections.defaultdict(set)
+for a,bs in edges.items():
+    for b in bs:
+        ta,tb=a.split('::')[0],b.split('::')[0]
+        if ta!=tb: top[ta].add(tb)
+print({k:sorted(v) for k,v in top.items()})
+
 top_sccs=sccs(sorted(set(top)|{b for v in top.values() for b in v}),top)
 print("top-level circles:",top_sccs)
 big=[]
