@@ -127,21 +127,27 @@ impl Profile {
         }
     }
 
+    /// The S-MPC as this profile tunes it: its free MPC from `[mpc]`, COTC from `[mpc]` with
+    /// `[cotc]`'s overrides, the switching from `[smpc]`.
+    pub fn smpc(&self) -> Result<Smpc, crate::mca::mpc::MpcError> {
+        Smpc::new(&self.mpc, &self.cotc_params(), &self.smpc, &self.setting())
+    }
+
     /// Builds the algorithm `id` as this profile tunes it.
     pub fn algorithm(&self, id: AlgorithmId) -> Result<Box<dyn MotionCueing>, BuildError> {
         let setup = |e: crate::mca::mpc::MpcError| BuildError::Setup {
             algorithm: id,
             reason: e.to_string(),
         };
-        let setting = self.setting();
         match id {
-            AlgorithmId::Smpc => Smpc::new(&self.mpc, &self.cotc_params(), &self.smpc, &setting)
+            AlgorithmId::Smpc => self
+                .smpc()
                 .map(|m| Box::new(m) as Box<dyn MotionCueing>)
                 .map_err(setup),
-            AlgorithmId::Mpc => Mpc::new(&self.mpc, &setting, Terminal::Free)
+            AlgorithmId::Mpc => Mpc::new(&self.mpc, &self.setting(), Terminal::Free)
                 .map(|m| Box::new(m) as Box<dyn MotionCueing>)
                 .map_err(setup),
-            AlgorithmId::Cwf => Ok(Box::new(Washout::new(&self.cwf, &setting))),
+            AlgorithmId::Cwf => Ok(Box::new(Washout::new(&self.cwf, &self.setting()))),
         }
     }
 

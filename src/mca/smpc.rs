@@ -301,13 +301,7 @@ mod tests {
     #[test]
     fn both_controllers_share_one_prediction_cache() {
         let profile = full_flight();
-        let smpc = super::Smpc::new(
-            &profile.mpc,
-            &profile.cotc_params(),
-            &profile.smpc,
-            &profile.setting(),
-        )
-        .unwrap();
+        let smpc = profile.smpc().unwrap();
         assert!(Arc::ptr_eq(smpc.cotc.cache(), smpc.free.cache()));
     }
 
@@ -507,13 +501,7 @@ mod tests {
         let mut profile = full_flight();
         // A zero time budget: every QP of both MPCs ends max_time.
         profile.mpc.time_limit_ms = 1e-9;
-        let mut smpc = super::Smpc::new(
-            &profile.mpc,
-            &profile.cotc_params(),
-            &profile.smpc,
-            &profile.setting(),
-        )
-        .unwrap();
+        let mut smpc = profile.smpc().unwrap();
         let displaced = PlatformCommand {
             pose: nalgebra::Vector6::new(0.5, -0.3, 0.1, 0.05, 0.08, 0.1),
             ..Default::default()
@@ -544,13 +532,7 @@ mod tests {
     fn a_nan_in_the_reference_never_reaches_the_platform() {
         use crate::mca::{CueSample, PlatformCommand};
         let profile = full_flight();
-        let mut smpc = super::Smpc::new(
-            &profile.mpc,
-            &profile.cotc_params(),
-            &profile.smpc,
-            &profile.setting(),
-        )
-        .unwrap();
+        let mut smpc = profile.smpc().unwrap();
         let mut samples = vec![
             CueSample {
                 delta_f_mps2: Vector3::new(2.0, 1.0, 0.0),
