@@ -336,6 +336,9 @@ mod tests {
         // reference the free MPC chases the surge it predicts to fade and misses 12 steps of
         // 383 in the blend (the fallback, then the limiter, carry them): docs/mpc.md.
         profile.mpc.reference = crate::mca::mpc::params::ReferenceMode::Hold;
+        // The timings below are for the whole surge carried by tilt; the shipped share of 0.6
+        // keeps 6 m/s² within COTC's 25° (`the_tilt_carries_its_share_of_a_sustained_surge`).
+        profile.mpc.tilt_share = 1.0;
         let mut engine =
             Engine::new(&profile, Arc::new(sustained_surge()), &[AlgorithmId::Smpc]).unwrap();
         let mut modes = Vec::new();

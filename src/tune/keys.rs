@@ -107,6 +107,9 @@ pub const MPC_KEYS: &[TunableKey] = &[
     // score counts (perceived beyond the threshold); below, a safety margin (#11 ships 0.5).
     // Below 0.2 the MPC would pay for counter-motion far under what a pilot perceives.
     key("mpc.false_cue_margin", &[], 0.2, 1.0, LIN),
+    // How much of the sustained surge and sway the tilt carries: from all of it down to half
+    // the shipped 0.6 (below, the surge cue of a take-off is mostly gone).
+    key("mpc.tilt_share", &[], 0.3, 1.0, LIN),
 ];
 
 /// The S-MPC's own keys: supervisor, mixer, weight regulator and COTC's heave washout. Its

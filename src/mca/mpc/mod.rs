@@ -412,7 +412,7 @@ impl Mpc {
                         // the canals wash a sustained rate out themselves.
                         let sustained = match k {
                             0 | 1 => reference::sustainable_df_mps2(
-                                self.run.sustained_df_mps2[k],
+                                self.params.tilt_share * self.run.sustained_df_mps2[k],
                                 self.limits.excursion[4 - k],
                             ),
                             2 => self.run.sustained_df_mps2[2],
@@ -483,7 +483,7 @@ impl Mpc {
         self.predict_reference(&input.sample, input.preview, dt_s);
         self.update_tilt_bounds();
         let last_bound = self.tilt_bound_rad[self.grid.len() - 1];
-        let tilt = terminal_tilt(&self.run.sustained_df_mps2);
+        let tilt = terminal_tilt(&(self.run.sustained_df_mps2 * self.params.tilt_share));
         // Only the heave guard's tighter bound moves COTC's terminal tilt: a sustained cue
         // beyond the workspace must still make COTC infeasible, which is what hands the
         // S-MPC to the free MPC.

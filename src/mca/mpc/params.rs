@@ -27,6 +27,10 @@ fn default_false_cue_margin() -> f64 {
     1.0
 }
 
+fn default_tilt_share() -> f64 {
+    1.0
+}
+
 fn default_reference_decay_s() -> [f64; 6] {
     [0.3; 6]
 }
@@ -112,6 +116,15 @@ pub struct MpcParams {
     /// Time constant of the low-pass on the aircraft's Δf whose tilt is COTC's terminal
     /// condition: the sustained part of the cue (s).
     pub cotc_sustained_s: f64,
+    /// The share of the aircraft's sustained surge and sway specific force (the low-passed Δf
+    /// above) that the plan carries by tilt: the `decay` reference fades toward this share of
+    /// it, and COTC's terminal tilt is this share's. The linear model cannot see what a tilt
+    /// costs beyond its rotation: the loss of vertical gravity, g·(1 − cos), felt as
+    /// lightness, and the time to tilt back when the force reverses, felt as surge the wrong
+    /// way. 1 tilts for all of it; the CWF's `specific_force_scale` is the same budget
+    /// (docs/mpc.md, "How much tilt").
+    #[serde(default = "default_tilt_share")]
+    pub tilt_share: f64,
     /// Solver time limit per step (ms); beyond it the step is a `max_time` failure.
     pub time_limit_ms: f64,
     /// Solver iteration limit.
@@ -234,6 +247,15 @@ impl MpcParams {
         positive("mpc.fallback_washout_radps", self.fallback_washout_radps)?;
         positive("mpc.time_limit_ms", self.time_limit_ms)?;
         positive("mpc.cotc_sustained_s", self.cotc_sustained_s)?;
+        if !(self.tilt_share > 0.0 && self.tilt_share <= 1.0) {
+            return err(
+                "tilt_share",
+                format!(
+                    "expected a share of the sustained specific force in (0, 1], got {}",
+                    self.tilt_share
+                ),
+            );
+        }
         if !(0.0..=1.0).contains(&self.false_cue_margin) {
             return err(
                 "false_cue_margin",
@@ -283,6 +305,9 @@ pub struct CotcOverrides {
     /// COTC's washout weight on the platform velocity per axis, per (m/s)².
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub washout_velocity_weight: Option<[f64; 3]>,
+    /// COTC's share of the sustained surge and sway carried by tilt: its terminal tilt.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tilt_share: Option<f64>,
 }
 
 impl CotcOverrides {
@@ -301,6 +326,9 @@ impl CotcOverrides {
         if let Some(v) = self.washout_velocity_weight {
             m.washout_velocity_weight = v;
         }
+        if let Some(v) = self.tilt_share {
+            m.tilt_share = v;
+        }
         m
     }
 
@@ -315,6 +343,7 @@ impl CotcOverrides {
                 "coarse_steps" => self.coarse_steps.is_some(),
                 "washout_position_weight" => self.washout_position_weight.is_some(),
                 "washout_velocity_weight" => self.washout_velocity_weight.is_some(),
+                "tilt_share" => self.tilt_share.is_some(),
                 _ => false,
             };
             if overridden {
@@ -395,6 +424,17 @@ mod tests {
             bad.validate().unwrap_err().key,
             "smpc.cotc.washout_velocity_weight[1]"
         );
+        // The tilt's share of the sustained force is a share: (0, 1], in [mpc] and COTC's.
+        let mut bad = p.clone();
+        bad.mpc.tilt_share = 0.0;
+        assert_eq!(bad.validate().unwrap_err().key, "mpc.tilt_share");
+        let mut bad = p.clone();
+        bad.smpc.cotc.tilt_share = Some(1.5);
+        assert_eq!(bad.validate().unwrap_err().key, "smpc.cotc.tilt_share");
+        let mut own = p.clone();
+        own.smpc.cotc.tilt_share = Some(1.0);
+        assert_eq!(own.cotc_params().tilt_share, 1.0);
+        assert_eq!(own.mpc.tilt_share, p.mpc.tilt_share);
     }
 
     #[test]

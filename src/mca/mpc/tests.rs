@@ -205,12 +205,14 @@ fn cotc_meets_its_terminal_equalities_with(p: &crate::profile::Profile, params: 
 
 #[test]
 fn cotc_on_a_sustained_6_mps2_surge_is_infeasible() {
-    let p = full_flight();
+    let mut p = full_flight();
+    p.mpc.tilt_share = 1.0;
     let surge = sample([6.0, 0.0, 0.0], [0.0; 3]);
     for terminal in [Terminal::Cotc, Terminal::Free] {
         let mut mpc = Mpc::new(&p.mpc, &p.setting(), terminal).unwrap();
         // asin(6 / g) = 37.7° of tilt: beyond the 25° the platform has, once the surge has
-        // lasted long enough to count as sustained (3 s, several cotc_sustained_s).
+        // lasted long enough to count as sustained (3 s, several cotc_sustained_s). With the
+        // shipped tilt share of 0.6 it takes 6.9 m/s² (`the_tilt_carries_its_share_...`).
         let outs = run(&mut mpc, 300, |_| surge);
         let last = outs.last().unwrap();
         assert!(outs.iter().all(|o| o.command.is_finite()));
@@ -224,6 +226,51 @@ fn cotc_on_a_sustained_6_mps2_surge_is_infeasible() {
             Terminal::Free => assert!(last.feasible, "{:?}", last.report),
         }
     }
+}
+
+/// The sustained part of a surge is carried by tilt in proportion to `tilt_share`, and COTC
+/// is infeasible once that share, not the whole force, needs more tilt than the platform has.
+#[test]
+fn the_tilt_carries_its_share_of_a_sustained_surge() {
+    let pitch_after = |share: f64, surge_mps2: f64, terminal: Terminal| {
+        let mut p = full_flight();
+        p.mpc.tilt_share = share;
+        let mut mpc = Mpc::new(&p.mpc, &p.setting(), terminal).unwrap();
+        let outs = run(&mut mpc, 800, |_| sample([surge_mps2, 0.0, 0.0], [0.0; 3]));
+        let last = outs.last().unwrap();
+        (
+            last.feasible,
+            last.command.pose[4],
+            mpc.terminal_tilt_rad()[1],
+        )
+    };
+    // 2 m/s² for 8 s: with all of it, the free MPC's pitch settles near asin(2 / g) = 11.8°
+    // (10.5° measured; the translation has washed out by then). With 0.6 it tilts less (8.5°
+    // measured), though more than the share's 7.0°: the plan's first intervals still track
+    // what the pilot feels now, which only the share's prediction lets fade.
+    let (_, full, _) = pitch_after(1.0, 2.0, Terminal::Free);
+    let (_, share, _) = pitch_after(0.6, 2.0, Terminal::Free);
+    let expect = |s: f64| (s * 2.0 / crate::G_MPS2).asin();
+    assert!(
+        (full - expect(1.0)).abs() < 0.15 * expect(1.0),
+        "all: {full}"
+    );
+    assert!(
+        share >= expect(0.6) && share <= 0.9 * full,
+        "0.6: {share} against {} for the share and {full} for all",
+        expect(0.6)
+    );
+    // COTC's terminal tilt is the share's. 4 m/s² asks 24.1° of tilt for all of it, more than
+    // the canals' 3.6 °/s reach within COTC's 4.3 s horizon (15.5°), and COTC gives up; at 0.6
+    // it asks 14.2° and stays feasible. 8 m/s² asks 29.3° at 0.6, beyond the 25°.
+    assert!(!pitch_after(1.0, 4.0, Terminal::Cotc).0);
+    let (feasible, _, terminal) = pitch_after(0.6, 4.0, Terminal::Cotc);
+    assert!(feasible);
+    assert!(
+        (terminal - (0.6 * 4.0 / crate::G_MPS2).asin()).abs() < 0.01,
+        "{terminal}"
+    );
+    assert!(!pitch_after(0.6, 8.0, Terminal::Cotc).0);
 }
 
 /// A 20 s surge / turn / heave manoeuvre, sampled at 10 Hz (the fine prediction step) to keep
@@ -642,7 +689,7 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
     let mut mpc = Mpc::new(&params, &p.setting(), terminal).unwrap();
     let mut awr = AdaptiveWeightRegulator::new(&p.smpc);
     let mut applied = PlatformCommand::default();
-    let (mut solved, mut infeasible, mut fallback) = (0, 0, 0);
+    let (mut solved, mut infeasible, mut fallback, mut flat) = (0, 0, 0, 0);
     let (mut worst_f, mut worst_u) = (0.0f64, 0.0f64);
     let mut gains = std::collections::BTreeSet::new();
     for (k, s) in samples.iter().enumerate() {
@@ -674,10 +721,22 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
                 let rel = (f - fc).abs() / fc.abs().max(1.0);
                 assert!(rel <= 1e-6, "{at}: objective {f} vs Clarabel {fc}");
                 worst_f = worst_f.max(rel);
-                for i in 0..NU {
-                    let du = (z_as[i] - zc[i]).abs() / zc[i].abs().max(1.0);
-                    assert!(du <= 1e-5, "{at}: u0[{i}] {} vs {}", z_as[i], zc[i]);
-                    worst_u = worst_u.max(du);
+                // The first moves agree, or, where the objective is so flat that Clarabel's
+                // tolerance leaves them apart, the active set's objective is the lower: then
+                // Clarabel's is the less exact answer, not the active set's.
+                let close = (0..NU).all(|i| (z_as[i] - zc[i]).abs() / zc[i].abs().max(1.0) <= 1e-5);
+                if close {
+                    for i in 0..NU {
+                        worst_u = worst_u.max((z_as[i] - zc[i]).abs() / zc[i].abs().max(1.0));
+                    }
+                } else {
+                    assert!(
+                        f <= fc + 1e-9 * fc.abs().max(1.0),
+                        "{at}: first move {:?} vs Clarabel's {:?}, objective {f} vs {fc}",
+                        &z_as[..NU],
+                        &zc[..NU]
+                    );
+                    flat += 1;
                 }
                 solved += 1;
             }
@@ -694,11 +753,13 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
     }
     let summary = format!(
         "{name} {terminal:?}: {solved} solved, {infeasible} infeasible, {fallback} to \
-         Clarabel, {} washout gains; worst objective {worst_f:.1e}, worst u0 {worst_u:.1e}",
+         Clarabel, {} washout gains; worst objective {worst_f:.1e}, worst u0 {worst_u:.1e} \
+         (first moves apart on {flat} flat optima, the active set's objective the lower)",
         gains.len()
     );
     assert!(solved > samples.len() / 2, "{summary}");
     assert!(fallback * 1000 <= samples.len(), "{summary}");
+    assert!(flat * 1000 <= samples.len(), "{summary}");
     summary
 }
 
