@@ -34,8 +34,12 @@ pub use writer::Recorder;
 pub const METADATA_NAME: &str = "hexcue";
 /// Attachment holding the profile's TOML as it was used.
 pub const PROFILE_ATTACHMENT: &str = "profile.toml";
-/// Attachment holding the trace's text as it was read.
+/// Attachment holding the trace's text as it was read, in recordings written before the
+/// trace was compressed; they still read.
 pub const TRACE_ATTACHMENT: &str = "trace.csv";
+/// Attachment holding the trace's text as it was read, compressed (one zstd frame): MCAP
+/// leaves attachments uncompressed, and the CSV was 0.5–0.7 MB of a minute's recording.
+pub const TRACE_ZSTD_ATTACHMENT: &str = "trace.csv.zst";
 /// Attachment holding the trace's JSON sidecar, when it had one.
 pub const SIDECAR_ATTACHMENT: &str = "trace.json";
 /// Version of the topic layout below; bumped when a field changes meaning.
