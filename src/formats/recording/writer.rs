@@ -285,11 +285,13 @@ impl Recorder {
     ) -> Result<(), RecordingError> {
         let channel_id = self.channel_id(channel)?;
         self.buf.clear();
-        serde_json::to_writer(&mut self.buf, message).map_err(|e| RecordingError::Io {
-            path: shown(&self.path),
-            action: "encode a message",
-            error: e.into(),
-        })?;
+        message
+            .write_json(&mut self.buf)
+            .map_err(|e| RecordingError::Io {
+                path: shown(&self.path),
+                action: "encode a message",
+                error: e.into(),
+            })?;
         self.write_buf(channel_id, log_time)
     }
 
