@@ -33,14 +33,12 @@ const FLUSH_INTERVAL_S: f64 = 1.0;
 /// at 100 Hz): they draw `/ALG/platform`, which keeps every step, and at every step they were
 /// a third of the file (docs/recordings.md, "Size").
 pub(super) const SCENE_EVERY_STEPS: u64 = 10;
-/// zstd level of the chunks and of a live session's input log (docs/recordings.md, "Size per
-/// minute"): 20 % smaller than level 1 for 0.2 s more of a 60 s flight's writing (16 % of a
-/// three-algorithm headless run); levels 10–15 are no smaller, 16 and above (btopt) 17 %
-/// smaller again but 7× slower, which would take a headless run under 25× real time.
+/// zstd level of the chunks and of the trace attachment (docs/recordings.md, "Size per
+/// minute"): 20 % smaller than level 1 for 0.2 s more of a 60 s flight's writing; levels
+/// 10–15 are no smaller, 16 and above (btopt) 17 % smaller again but 7× slower, which would
+/// take a headless run under 25× real time. Level 19 on the trace alone cost 0.15 s a run
+/// (a CWF-only run takes 0.1 s) for 12 KB on the landing.
 const ZSTD_LEVEL: u32 = 9;
-/// zstd level of a playback's trace attachment, compressed once at the start: 0.2 s for the
-/// 0.7 MB steep-turn trace, a third smaller than at level 9.
-const TRACE_ZSTD_LEVEL: i32 = 19;
 const ZSTD_MEDIA_TYPE: &str = "application/zstd";
 fn encode_error(path: &Path, e: EncodeError) -> RecordingError {
     RecordingError::Io {
@@ -164,14 +162,13 @@ impl Recorder {
                 metadata,
             })
             .map_err(wr)?;
-        let trace =
-            zstd::bulk::compress(meta.trace_csv.as_bytes(), TRACE_ZSTD_LEVEL).map_err(|error| {
-                RecordingError::Io {
-                    path: shown(path),
-                    action: "compress the trace attachment",
-                    error,
-                }
-            })?;
+        let trace = zstd::bulk::compress(meta.trace_csv.as_bytes(), ZSTD_LEVEL as i32).map_err(
+            |error| RecordingError::Io {
+                path: shown(path),
+                action: "compress the trace attachment",
+                error,
+            },
+        )?;
         // The profile and the sidecar stay text: a few KB, readable with any MCAP tool.
         let mut attachments = vec![
             (
