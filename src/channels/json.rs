@@ -59,7 +59,7 @@ pub mod resolution {
     /// threshold, about the noise of an accelerometer on a motion base; over a step that is
     /// 10⁻⁵ m/s, below the velocity's resolution. Nothing `review` computes reads them.
     pub const ACCELERATION_DECIMALS: u32 = 3;
-    /// The aircraft's and the perceived signals: significant digits, relative (5 × 10⁻⁷ at
+    /// The aircraft's and the perceived signals: significant digits, relative (5 × 10⁻⁶ at
     /// worst), because a quiet flight's perceived rates are a few µrad/s and `review`
     /// recomputes their metrics (AAS, RAE: ratios of sums) from them, to agree with the run's
     /// within 10⁻⁵ (`tests/headless.rs`); with 5 digits the take-off's fx NAAD moved by
