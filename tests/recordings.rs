@@ -277,6 +277,17 @@ fn transcode(
     options: mcap::WriteOptions,
     data: impl Fn(&str, Cow<'static, [u8]>) -> Cow<'static, [u8]>,
 ) {
+    transcode_with(src, dst, options, data, |_| {});
+}
+
+/// [`transcode`], passing each attachment through `attachment` too.
+fn transcode_with(
+    src: &Path,
+    dst: &Path,
+    options: mcap::WriteOptions,
+    data: impl Fn(&str, Cow<'static, [u8]>) -> Cow<'static, [u8]>,
+    attachment: impl Fn(&mut mcap::Attachment),
+) {
     let bytes = std::fs::read(src).unwrap();
     let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
     let file = std::io::BufWriter::new(std::fs::File::create(dst).unwrap());
@@ -287,8 +298,9 @@ fn transcode(
         }
     }
     for a in &summary.attachment_indexes {
-        w.attach(&mcap::read::attachment(&bytes, a).unwrap())
-            .unwrap();
+        let mut a = mcap::read::attachment(&bytes, a).unwrap();
+        attachment(&mut a);
+        w.attach(&a).unwrap();
     }
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
@@ -359,6 +371,51 @@ fn an_unchunked_uncompressed_recording_reviews_the_same() {
             |_, d| d,
         );
     }
+}
+
+#[test]
+fn a_recording_with_its_trace_uncompressed_reviews_the_same() {
+    // Recordings written before the trace attachment was compressed hold `trace.csv` as
+    // text; they must still review, recover and check against their SHA-256.
+    let path = scratch().join("plain-trace.mcap");
+    transcode_with(
+        real_recording(),
+        &path,
+        mcap::WriteOptions::new(),
+        |_, d| d,
+        |a| {
+            if a.name == "trace.csv.zst" {
+                a.name = "trace.csv".into();
+                a.media_type = "text/csv".into();
+                a.data = Cow::Owned(zstd::decode_all(&a.data[..]).unwrap());
+            }
+        },
+    );
+    let (a, b) = (review(real_recording()), review(&path));
+    assert!(b.status.success(), "{}", stderr(&b));
+    assert_eq!(stdout(&a), stdout(&b));
+    assert_eq!(stderr(&a), stderr(&b), "no notice about the trace either");
+    let recovered = scratch().join("plain-trace-recovered.mcap");
+    let out = recover(&path, &recovered);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(stdout(&a), stdout(&review(&recovered)));
+}
+
+#[test]
+fn a_trace_attachment_that_does_not_decompress_is_refused_by_name() {
+    let path = scratch().join("bad-trace-zst.mcap");
+    transcode_with(
+        real_recording(),
+        &path,
+        mcap::WriteOptions::new(),
+        |_, d| d,
+        |a| {
+            if a.name == "trace.csv.zst" {
+                a.data = Cow::Borrowed(b"t,fx,fy,fz,p,q,r\n");
+            }
+        },
+    );
+    assert_refused(&review(&path), &path, &["trace.csv.zst", "decompress"]);
 }
 
 #[test]

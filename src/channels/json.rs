@@ -31,28 +31,166 @@ fn nan_array<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N]
     Ok(std::array::from_fn(|i| values[i].unwrap_or(f64::NAN)))
 }
 
-/// Writes an array of the platform's motion or its legs rounded to 6 decimals in SI: 1 µm,
-/// 1 µrad, 1 µm/s, 10⁻⁶ m/s², far below what a platform resolves. The digits beyond are noise
-/// that zstd cannot shrink, and they were most of the file (docs/recordings.md, "Size per
-/// minute"). Files written before keep their full digits and read the same way.
-fn micro_array<S: serde::Serializer, const N: usize>(
-    v: &[f64; N],
-    s: S,
-) -> Result<S::Ok, S::Error> {
-    s.collect_seq(v.iter().map(|&x| micro(x)))
+/// How finely a recording keeps each quantity, and how it writes it: what a frame reads back
+/// as. The digits beyond are noise that zstd cannot shrink, and they were most of the file;
+/// numbers written with all their digits (`0.270900`, `-3.62862e-7`), one format a quantity,
+/// compress 6 % better than the shortest form (docs/recordings.md, "Size per minute"). Files
+/// written before keep their full digits and read the same way. Non-finite values are
+/// written `null` and read back as NaN; −0 is written as 0.
+pub mod resolution {
+    use std::io::Write;
+
+    /// `x` rounded to `10^-decimals` (decimals ≤ 22, where the power of ten is exact, so the
+    /// quotient is the f64 nearest the decimal that [`write_fixed`] writes).
+    fn rounded(x: f64, decimals: u32) -> f64 {
+        let scale = 10f64.powi(decimals as i32);
+        (x * scale).round() / scale + 0.0
+    }
+
+    /// Platform pose and leg lengths and margins: 1 µm and 1 µrad, finer than a hexapod's
+    /// actuator encoders resolve, and finer than `review` needs: its leg usage must agree with
+    /// the run's within 10⁻⁵ relative, and 1 µm is 7 × 10⁻⁶ of the compact rig's half-stroke.
+    pub const POSITION_DECIMALS: u32 = 6;
+    /// Platform and leg velocities: 0.1 mm/s and 10⁻⁴ rad/s (0.006 °/s, 1/500 of the 3 °/s
+    /// rotation threshold); over a 10 ms step that is 1 µm, the pose's resolution. Nothing
+    /// `review` computes reads them.
+    pub const VELOCITY_DECIMALS: u32 = 4;
+    /// Platform accelerations: 1 mm/s² and 10⁻³ rad/s², 1/170 of the 0.17 m/s² specific-force
+    /// threshold, about the noise of an accelerometer on a motion base; over a step that is
+    /// 10⁻⁵ m/s, below the velocity's resolution. Nothing `review` computes reads them.
+    pub const ACCELERATION_DECIMALS: u32 = 3;
+    /// The aircraft's and the perceived signals: significant digits, relative (5 × 10⁻⁶ at
+    /// worst), because a quiet flight's perceived rates are a few µrad/s and `review`
+    /// recomputes their metrics (AAS, RAE: ratios of sums) from them, to agree with the run's
+    /// within 10⁻⁵ (`tests/headless.rs`); with 5 digits the take-off's fx NAAD moved by
+    /// 1.8 × 10⁻⁵.
+    pub const SIGNAL_DIGITS: u32 = 6;
+
+    pub fn position(x: f64) -> f64 {
+        rounded(x, POSITION_DECIMALS)
+    }
+
+    pub fn velocity(x: f64) -> f64 {
+        rounded(x, VELOCITY_DECIMALS)
+    }
+
+    pub fn acceleration(x: f64) -> f64 {
+        rounded(x, ACCELERATION_DECIMALS)
+    }
+
+    /// Durations measured by the wall clock in µs (solve and step times): 0.1 µs, below the
+    /// jitter of a step (µs) and 1/500 of the 50 µs an MPC step is budgeted.
+    pub fn duration_us(x: f64) -> f64 {
+        rounded(x, 1)
+    }
+
+    /// Trace-time durations in s (time in mode): 1 ns, as log times; the digits beyond were
+    /// sums of 0.01 s steps in binary.
+    pub fn time_s(x: f64) -> f64 {
+        rounded(x, 9)
+    }
+
+    /// Writes `x` with exactly `decimals` decimals (`-0.270900`), as [`rounded`] keeps it.
+    pub fn write_fixed(out: &mut Vec<u8>, x: f64, decimals: u32) {
+        let scale = 10f64.powi(decimals as i32);
+        let n = (x * scale).round();
+        // Beyond 2^53 the integer is no longer exact; no platform gets there.
+        if !n.is_finite() || n.abs() >= 9.0e15 {
+            return write_shortest(out, rounded(x, decimals));
+        }
+        let n = n as i64;
+        let unit = 10i64.pow(decimals);
+        let sign = if n < 0 { "-" } else { "" };
+        let (int, frac) = (
+            n.unsigned_abs() / unit as u64,
+            n.unsigned_abs() % unit as u64,
+        );
+        let _ = write!(out, "{sign}{int}.{frac:0width$}", width = decimals as usize);
+    }
+
+    /// The significant digits of `x`: (mantissa as an integer of `digits` digits, decimal
+    /// exponent of its last digit), or `None` for 0 and non-finite values.
+    fn significant(x: f64, digits: u32) -> Option<(i64, i32)> {
+        if x == 0.0 || !x.is_finite() {
+            return None;
+        }
+        let top = 10i64.pow(digits);
+        let mut e = x.abs().log10().floor() as i32 - (digits as i32 - 1);
+        for _ in 0..3 {
+            // Scaled by an exact power of ten (|e| ≤ 22), so that the integer is the decimal's.
+            let m = if (-22..=0).contains(&e) {
+                (x.abs() * 10f64.powi(-e)).round()
+            } else if (1..=22).contains(&e) {
+                (x.abs() / 10f64.powi(e)).round()
+            } else {
+                return None;
+            };
+            if m >= top as f64 {
+                e += 1;
+            } else if m < (top / 10) as f64 {
+                e -= 1;
+            } else {
+                return Some((if x < 0.0 { -(m as i64) } else { m as i64 }, e));
+            }
+        }
+        None
+    }
+
+    /// `x` at [`SIGNAL_DIGITS`] significant digits.
+    pub fn signal(x: f64) -> f64 {
+        match significant(x, SIGNAL_DIGITS) {
+            Some((m, e)) if e <= 0 => m as f64 / 10f64.powi(-e),
+            Some((m, e)) => m as f64 * 10f64.powi(e),
+            None if x == 0.0 || !x.is_finite() => x + 0.0,
+            // Beyond 10^±22 (never a motion), through the decimal text.
+            None => format!("{x:.*e}", SIGNAL_DIGITS as usize - 1)
+                .parse()
+                .unwrap_or(x),
+        }
+    }
+
+    /// Writes `x` at [`SIGNAL_DIGITS`] significant digits, always as `d.ddddde±x`
+    /// (`-3.62862e-7`, `1.28993e1`), the value [`signal`] keeps.
+    pub fn write_signal(out: &mut Vec<u8>, x: f64) {
+        let Some((m, e)) = significant(x, SIGNAL_DIGITS) else {
+            return write_shortest(out, signal(x));
+        };
+        let unit = 10u64.pow(SIGNAL_DIGITS - 1);
+        let sign = if m < 0 { "-" } else { "" };
+        let (int, frac) = (m.unsigned_abs() / unit, m.unsigned_abs() % unit);
+        let exp = e + SIGNAL_DIGITS as i32 - 1;
+        let width = SIGNAL_DIGITS as usize - 1;
+        let _ = write!(out, "{sign}{int}.{frac:0width$}e{exp}");
+    }
+
+    /// serde_json's form: the shortest text that reads back to `x`, `null` if not finite.
+    pub(super) fn write_shortest(out: &mut Vec<u8>, x: f64) {
+        let _ = serde_json::to_writer(out, &x);
+    }
 }
 
-/// A value as the recording keeps the platform's: rounded to 6 decimals.
-pub fn micro(x: f64) -> f64 {
-    (x * 1e6).round() / 1e6
+/// A serialiser of an array written through one of [`resolution`]'s functions.
+macro_rules! array_at {
+    ($name:ident, $f:path) => {
+        fn $name<S: serde::Serializer, const N: usize>(
+            v: &[f64; N],
+            s: S,
+        ) -> Result<S::Ok, S::Error> {
+            s.collect_seq(v.iter().map(|&x| $f(x)))
+        }
+    };
+}
+array_at!(position_array, resolution::position);
+array_at!(velocity_array, resolution::velocity);
+array_at!(acceleration_array, resolution::acceleration);
+array_at!(signal_array, resolution::signal);
+
+fn duration_us<S: serde::Serializer>(x: &f64, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_f64(resolution::duration_us(*x))
 }
 
-/// Writes an array of the aircraft's or a perceived signal in single precision (the shortest
-/// form that reads back to the same f32, 7 significant digits): relative, not absolute,
-/// because a quiet flight's perceived rates are a few µrad/s and their metrics (AAS, RAE) are
-/// ratios of sums of them.
-fn f32_array<S: serde::Serializer, const N: usize>(v: &[f64; N], s: S) -> Result<S::Ok, S::Error> {
-    s.collect_seq(v.iter().map(|&x| x as f32))
+fn time_s<S: serde::Serializer>(x: &f64, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_f64(resolution::time_s(*x))
 }
 
 fn v3(v: &Vector3<f64>) -> [f64; 3] {
@@ -76,16 +214,16 @@ pub struct AircraftMsg {
     #[serde(default)]
     #[schemars(description = "step index")]
     pub k: Option<u64>,
-    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "signal_array")]
     #[schemars(
         with = "[Option<f64>; 3]",
         description = "f = a − g, x y z (m/s²); (0, 0, −9.81) at rest"
     )]
     pub specific_force: [f64; 3],
-    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "signal_array")]
     #[schemars(with = "[Option<f64>; 3]", description = "body rates p q r (rad/s)")]
     pub angular_velocity: [f64; 3],
-    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "signal_array")]
     #[schemars(with = "[Option<f64>; 3]", description = "roll pitch yaw φ θ ψ (rad)")]
     pub attitude: [f64; 3],
 }
@@ -99,13 +237,13 @@ pub struct PerceivedMsg {
     #[serde(deserialize_with = "nan_f64")]
     #[schemars(with = "f64", description = "trace time (s)")]
     pub t: f64,
-    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "signal_array")]
     #[schemars(
         with = "[Option<f64>; 3]",
         description = "otoliths' output for Δf, x y z head frame (m/s²)"
     )]
     pub specific_force: [f64; 3],
-    #[serde(deserialize_with = "nan_array", serialize_with = "f32_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "signal_array")]
     #[schemars(
         with = "[Option<f64>; 3]",
         description = "canals' output, x y z head frame (rad/s)"
@@ -152,19 +290,19 @@ pub struct PlatformMsg {
     #[serde(deserialize_with = "nan_f64")]
     #[schemars(with = "f64", description = "trace time (s)")]
     pub t: f64,
-    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "position_array")]
     #[schemars(
         with = "[Option<f64>; 6]",
         description = "x y z (m), roll pitch yaw (rad) from neutral"
     )]
     pub pose: [f64; 6],
-    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "velocity_array")]
     #[schemars(
         with = "[Option<f64>; 6]",
         description = "first derivative of pose (m/s, rad/s)"
     )]
     pub velocity: [f64; 6],
-    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "acceleration_array")]
     #[schemars(
         with = "[Option<f64>; 6]",
         description = "second derivative of pose (m/s², rad/s²)"
@@ -192,13 +330,13 @@ pub struct ActuatorsMsg {
     #[serde(deserialize_with = "nan_f64")]
     #[schemars(with = "f64", description = "trace time (s)")]
     pub t: f64,
-    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "position_array")]
     #[schemars(with = "[Option<f64>; 6]", description = "leg lengths (m)")]
     pub length: [f64; 6],
-    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "velocity_array")]
     #[schemars(with = "[Option<f64>; 6]", description = "leg velocities (m/s)")]
     pub velocity: [f64; 6],
-    #[serde(deserialize_with = "nan_array", serialize_with = "micro_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "position_array")]
     #[schemars(
         with = "[Option<f64>; 6]",
         description = "distance to the nearer end stop (m); < 0 outside"
@@ -222,7 +360,7 @@ pub struct SolverMsg {
     pub name: String,
     pub status: String,
     pub iterations: u32,
-    #[serde(deserialize_with = "nan_f64")]
+    #[serde(deserialize_with = "nan_f64", serialize_with = "duration_us")]
     #[schemars(with = "Option<f64>", required)]
     pub solve_time_us: f64,
 }
@@ -246,7 +384,7 @@ pub struct ControllerMsg {
     /// Iterations and solve time of all of the step's QPs together.
     #[schemars(description = "all QPs of the step")]
     pub iterations: u64,
-    #[serde(deserialize_with = "nan_f64")]
+    #[serde(deserialize_with = "nan_f64", serialize_with = "duration_us")]
     #[schemars(
         with = "Option<f64>",
         required,
@@ -254,14 +392,14 @@ pub struct ControllerMsg {
     )]
     pub solve_time_us: f64,
     pub limiter_active: bool,
-    #[serde(deserialize_with = "nan_f64")]
+    #[serde(deserialize_with = "nan_f64", serialize_with = "duration_us")]
     #[schemars(
         with = "Option<f64>",
         required,
         description = "wall time of the step, limiter included (µs)"
     )]
     pub step_time_us: f64,
-    #[serde(deserialize_with = "nan_f64")]
+    #[serde(deserialize_with = "nan_f64", serialize_with = "time_s")]
     #[schemars(with = "Option<f64>", required)]
     pub time_in_mode_s: f64,
     pub switch_count: u32,
@@ -342,6 +480,69 @@ pub enum Message {
     Controller(ControllerMsg),
 }
 
+impl Message {
+    /// The message's JSON as a recording (and the Foxglove server) sends it: the fields and
+    /// values of its serde form, each number in its quantity's fixed format
+    /// ([`resolution`]); the controller's through serde.
+    pub fn write_json(&self, out: &mut Vec<u8>) -> serde_json::Result<()> {
+        use resolution::{write_fixed, write_shortest, write_signal};
+        let fixed = |decimals| move |out: &mut Vec<u8>, x| write_fixed(out, x, decimals);
+        let position = fixed(resolution::POSITION_DECIMALS);
+        let velocity = fixed(resolution::VELOCITY_DECIMALS);
+        let acceleration = fixed(resolution::ACCELERATION_DECIMALS);
+        let t = |out: &mut Vec<u8>, t: f64| {
+            out.extend_from_slice(b"{\"t\":");
+            write_shortest(out, t);
+        };
+        match self {
+            Message::Aircraft(m) => {
+                t(out, m.t);
+                if let Some(k) = m.k {
+                    out.extend_from_slice(b",\"k\":");
+                    serde_json::to_writer(&mut *out, &k)?;
+                }
+                array(out, "specific_force", &m.specific_force, write_signal);
+                array(out, "angular_velocity", &m.angular_velocity, write_signal);
+                array(out, "attitude", &m.attitude, write_signal);
+            }
+            Message::Perceived(m) => {
+                t(out, m.t);
+                array(out, "specific_force", &m.specific_force, write_signal);
+                array(out, "angular_velocity", &m.angular_velocity, write_signal);
+            }
+            Message::Platform(m) => {
+                t(out, m.t);
+                array(out, "pose", &m.pose, position);
+                array(out, "velocity", &m.velocity, velocity);
+                array(out, "acceleration", &m.acceleration, acceleration);
+            }
+            Message::Actuators(m) => {
+                t(out, m.t);
+                array(out, "length", &m.length, position);
+                array(out, "velocity", &m.velocity, velocity);
+                array(out, "margin", &m.margin, position);
+            }
+            Message::Controller(m) => return serde_json::to_writer(out, m),
+        }
+        out.push(b'}');
+        Ok(())
+    }
+}
+
+/// Writes `,"key":[a,b,…]`, each number through `number`.
+fn array(out: &mut Vec<u8>, key: &str, values: &[f64], number: impl Fn(&mut Vec<u8>, f64)) {
+    out.extend_from_slice(b",\"");
+    out.extend_from_slice(key.as_bytes());
+    out.extend_from_slice(b"\":[");
+    for (i, &x) in values.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        number(out, x);
+    }
+    out.push(b']');
+}
+
 /// A frame's messages on hexcue's own topics, in the order the recorder writes them: the
 /// aircraft, the reference, then each lane's four kinds in the frame's lane order.
 pub fn messages(frame: &Frame) -> impl Iterator<Item = (Channel, Message)> + '_ {
@@ -378,4 +579,124 @@ pub fn messages(frame: &Frame) -> impl Iterator<Item = (Channel, Message)> + '_ 
         ]
     });
     common.into_iter().chain(lanes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shortest(x: f64) -> String {
+        serde_json::to_string(&x).unwrap()
+    }
+
+    fn text(write: impl Fn(&mut Vec<u8>)) -> String {
+        let mut out = Vec::new();
+        write(&mut out);
+        String::from_utf8(out).unwrap()
+    }
+
+    #[test]
+    fn signals_keep_six_significant_digits_at_any_magnitude() {
+        for (x, written) in [
+            (-3.6286184e-7, "-3.62862e-7"),
+            (0.010555653, "1.05557e-2"),
+            (-10.192777, "-1.01928e1"),
+            (9.999996, "1.00000e1"),
+            (1000.0, "1.00000e3"),
+            (123_456_789.0, "1.23457e8"),
+            (1.234_567_8e-300, "1.23457e-300"),
+        ] {
+            let r = resolution::signal(x);
+            assert_eq!(text(|o| resolution::write_signal(o, x)), written, "{x}");
+            assert_eq!(
+                written.parse::<f64>().unwrap(),
+                r,
+                "{x}: reads back as kept"
+            );
+            assert_eq!(
+                resolution::signal(r),
+                r,
+                "{x}: rounding twice changes nothing"
+            );
+            assert!((r - x).abs() <= 5e-6 * x.abs(), "{x}");
+        }
+        for (x, written) in [(0.0, "0.0"), (-0.0, "0.0"), (f64::NAN, "null")] {
+            assert_eq!(text(|o| resolution::write_signal(o, x)), written, "{x}");
+        }
+    }
+
+    #[test]
+    fn positions_rates_and_durations_are_written_at_their_resolution() {
+        let fixed = |x, d| text(|o| resolution::write_fixed(o, x, d));
+        assert_eq!(fixed(3.392_921_4, 6), "3.392921");
+        assert_eq!(fixed(-0.2709, 6), "-0.270900");
+        assert_eq!(fixed(-4e-7, 6), "0.000000");
+        assert_eq!(fixed(-0.023_773_4, 4), "-0.0238");
+        assert_eq!(fixed(f64::INFINITY, 4), "null");
+        for (x, d, f) in [
+            (0.123_456_789, 6, resolution::position as fn(f64) -> f64),
+            (-0.123_456_789, 4, resolution::velocity),
+            (0.987_654_321, 3, resolution::acceleration),
+        ] {
+            assert_eq!(fixed(x, d).parse::<f64>().unwrap(), f(x), "{x}");
+            assert_eq!(f(f(x)), f(x), "rounding twice changes nothing");
+        }
+        assert_eq!(
+            shortest(resolution::duration_us(133.726_999_999_999_98)),
+            "133.7"
+        );
+        assert_eq!(shortest(resolution::time_s(30.010_000_000_001_89)), "30.01");
+    }
+
+    #[test]
+    fn written_messages_read_back_as_their_serde_form_says() {
+        let xs = [0.123_456_789, -3.6e-7, f64::NAN, 2.5, -0.0, 1e-3];
+        let messages = [
+            Message::Aircraft(AircraftMsg {
+                t: 1.25,
+                k: Some(125),
+                specific_force: [xs[0], xs[1], xs[2]],
+                angular_velocity: [xs[3], xs[4], xs[5]],
+                attitude: [xs[5], xs[0], xs[1]],
+            }),
+            Message::Perceived(PerceivedMsg {
+                t: 1.25,
+                specific_force: [xs[0], xs[1], xs[2]],
+                angular_velocity: [xs[3], xs[4], xs[5]],
+            }),
+            Message::Platform(PlatformMsg {
+                t: 1.25,
+                pose: xs,
+                velocity: xs,
+                acceleration: xs,
+            }),
+            Message::Actuators(ActuatorsMsg {
+                t: 1.25,
+                length: xs,
+                velocity: xs,
+                margin: xs,
+            }),
+        ];
+        for message in &messages {
+            let mut written = Vec::new();
+            message.write_json(&mut written).unwrap();
+            let serde = serde_json::to_vec(message).unwrap();
+            let keys = |bytes: &[u8]| {
+                let text = String::from_utf8(bytes.to_vec()).unwrap();
+                text.split('"')
+                    .skip(1)
+                    .step_by(2)
+                    .map(String::from)
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(
+                keys(&written),
+                keys(&serde),
+                "same fields in the same order"
+            );
+            let a: serde_json::Value = serde_json::from_slice(&written).unwrap();
+            let b: serde_json::Value = serde_json::from_slice(&serde).unwrap();
+            assert_eq!(a, b, "{}", String::from_utf8_lossy(&written));
+        }
+    }
 }

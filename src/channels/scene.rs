@@ -117,6 +117,23 @@ fn point(v: &Vector3<f64>) -> Point3 {
     }
 }
 
+/// What moves in the 3D topics (the platform's transform, the legs' upper ends) is drawn at
+/// 2^-20 m (about 1 µm, the recorded pose's resolution) and its rotation at 2^-24 per
+/// quaternion component: invisible in a drawing, and the doubles' low bytes become zeros
+/// that zstd removes; full doubles were most of these topics' bytes (docs/recordings.md,
+/// "Size per minute").
+fn drawn(x: f64, bits: i32) -> f64 {
+    let scale = 2f64.powi(bits);
+    (x * scale).round() / scale
+}
+
+fn drawn_point(v: &Vector3<f64>) -> Vector3<f64> {
+    v.map(|x| drawn(x, POSITION_BITS))
+}
+
+const POSITION_BITS: i32 = 20;
+const ROTATION_BITS: i32 = 24;
+
 fn rgba(r: f64, g: f64, b: f64, a: f64) -> Color {
     Color { r, g, b, a }
 }
@@ -345,8 +362,17 @@ impl SceneBuilder {
                 t_ns,
                 &base,
                 &platform,
-                vector(&pose.fixed_rows::<3>(0).into_owned()),
-                pose_rotation(pose),
+                vector(&drawn_point(&pose.fixed_rows::<3>(0).into_owned())),
+                {
+                    let q = pose_rotation(pose);
+                    let d = |x| drawn(x, ROTATION_BITS);
+                    Quaternion {
+                        x: d(q.x),
+                        y: d(q.y),
+                        z: d(q.z),
+                        w: d(q.w),
+                    }
+                },
             ));
         }
         transforms.push(transform(
@@ -430,7 +456,10 @@ impl SceneBuilder {
                     pose: pose_at(Vector3::zeros()),
                     thickness: LEG_THICKNESS_M,
                     scale_invariant: false,
-                    points: vec![point(&self.stewart.base_joints_m[i]), point(&top)],
+                    points: vec![
+                        point(&self.stewart.base_joints_m[i]),
+                        point(&drawn_point(&top)),
+                    ],
                     color: Some(self.legs.colour(lane.legs.margin_m[i])),
                     colors: Vec::new(),
                     indices: Vec::new(),
@@ -588,7 +617,8 @@ mod tests {
         for (i, line) in legs.lines.iter().enumerate() {
             let [p, q] = [&line.points[0], &line.points[1]];
             let length = Vector3::new(q.x - p.x, q.y - p.y, q.z - p.z).norm();
-            assert!((length - lane.legs.length_m[i]).abs() < 1e-12, "leg {i}");
+            // The upper end is drawn at 2^-20 m per coordinate.
+            assert!((length - lane.legs.length_m[i]).abs() < 2e-6, "leg {i}");
         }
         let red = legs.lines[2].color.as_ref().unwrap();
         let amber = legs.lines[4].color.as_ref().unwrap();

@@ -176,8 +176,9 @@ impl FoxgloveServer {
             };
             // Only a serialisation error (none for these messages) would skip a message.
             if raw.has_sinks() {
-                if let Ok(data) = serde_json::to_vec(&message) {
-                    raw.log_with_meta(&data, meta());
+                self.buf.clear();
+                if message.write_json(&mut self.buf).is_ok() {
+                    raw.log_with_meta(&self.buf, meta());
                 }
             }
         }

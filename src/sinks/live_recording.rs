@@ -1,7 +1,7 @@
 //! A live session recorded like a playback: the MCAP recorder as a frame sink, with the
 //! session's input written as it comes (hexcue's CSV, at the step rate: the held sample each
-//! step used) to a file beside the recording, attached as `trace.csv` at the end and then
-//! removed. `review` opens the result as it opens a playback's. A sink among the others
+//! step used) to a file beside the recording, attached compressed (`trace.csv.zst`) at the
+//! end and then removed. `review` opens the result as it opens a playback's. A sink among the others
 //! (the playback's [`super::recorder::McapSink`], Foxglove), fed by the live clock loop.
 
 use std::fs::File;

@@ -34,8 +34,12 @@ pub use writer::Recorder;
 pub const METADATA_NAME: &str = "hexcue";
 /// Attachment holding the profile's TOML as it was used.
 pub const PROFILE_ATTACHMENT: &str = "profile.toml";
-/// Attachment holding the trace's text as it was read.
+/// Attachment holding the trace's text as it was read, in recordings written before the
+/// trace was compressed; they still read.
 pub const TRACE_ATTACHMENT: &str = "trace.csv";
+/// Attachment holding the trace's text as it was read, compressed (one zstd frame): MCAP
+/// leaves attachments uncompressed, and the CSV was 0.5–0.7 MB of a minute's recording.
+pub const TRACE_ZSTD_ATTACHMENT: &str = "trace.csv.zst";
 /// Attachment holding the trace's JSON sidecar, when it had one.
 pub const SIDECAR_ATTACHMENT: &str = "trace.json";
 /// Version of the topic layout below; bumped when a field changes meaning.
@@ -171,7 +175,11 @@ pub fn json_schemas() -> Vec<(&'static str, Vec<u8>)> {
 /// bytes: (topic, schema name, JSON).
 pub fn json_messages(frame: &Frame) -> serde_json::Result<Vec<(String, &'static str, Vec<u8>)>> {
     json::messages(frame)
-        .map(|(ch, m)| Ok((ch.topic(), ch.kind.schema_name(), serde_json::to_vec(&m)?)))
+        .map(|(ch, m)| {
+            let mut data = Vec::new();
+            m.write_json(&mut data)?;
+            Ok((ch.topic(), ch.kind.schema_name(), data))
+        })
         .collect()
 }
 
@@ -194,7 +202,7 @@ mod tests {
 
     use super::source::check_attachment_body;
     use super::writer::SCENE_EVERY_STEPS;
-    use crate::channels::json::micro;
+    use crate::channels::json::resolution;
     use crate::mca::{AlgorithmState, Mode, SolverReport};
     use crate::model::vestibular::Perceived;
     use mcap::records::MessageHeader;
@@ -281,40 +289,40 @@ mod tests {
         }
     }
 
-    /// The frames as a recording keeps them: the aircraft and perceived arrays in single
-    /// precision, the platform's and the legs' rounded to 6 decimals.
+    /// The frames as a recording keeps them: each quantity at its resolution
+    /// (`channels::json::resolution`).
     fn engine_frames() -> (Trace, Vec<Frame>) {
         let trace = manoeuvre();
         let mut engine =
             Engine::new(&full_flight(), Arc::new(trace.clone()), &[AlgorithmId::Cwf]).unwrap();
         let frames = std::iter::from_fn(|| engine.step())
             .map(|mut f| {
-                // Single precision written as its shortest decimal, read back as an f64.
-                let single = |x: f64| {
-                    serde_json::to_string(&(x as f32))
-                        .ok()
-                        .and_then(|t| t.parse::<f64>().ok())
-                        .unwrap_or(x)
-                };
+                let signal = resolution::signal;
                 let a = &mut f.aircraft;
-                a.specific_force_mps2 = a.specific_force_mps2.map(single);
-                a.angular_velocity_radps = a.angular_velocity_radps.map(single);
-                a.attitude_rad = a.attitude_rad.map(single);
+                a.specific_force_mps2 = a.specific_force_mps2.map(signal);
+                a.angular_velocity_radps = a.angular_velocity_radps.map(signal);
+                a.attitude_rad = a.attitude_rad.map(signal);
                 let p = |p: &mut Perceived| {
-                    p.specific_force_mps2 = p.specific_force_mps2.map(single);
-                    p.angular_velocity_radps = p.angular_velocity_radps.map(single);
+                    p.specific_force_mps2 = p.specific_force_mps2.map(signal);
+                    p.angular_velocity_radps = p.angular_velocity_radps.map(signal);
                 };
                 p(&mut f.reference);
                 for lane in &mut f.lanes {
                     p(&mut lane.perceived);
                     let c = &mut lane.command;
-                    c.pose = c.pose.map(micro);
-                    c.velocity = c.velocity.map(micro);
-                    c.acceleration = c.acceleration.map(micro);
+                    c.pose = c.pose.map(resolution::position);
+                    c.velocity = c.velocity.map(resolution::velocity);
+                    c.acceleration = c.acceleration.map(resolution::acceleration);
                     let l = &mut lane.legs;
-                    l.length_m = l.length_m.map(micro);
-                    l.velocity_mps = l.velocity_mps.map(micro);
-                    l.margin_m = l.margin_m.map(micro);
+                    l.length_m = l.length_m.map(resolution::position);
+                    l.velocity_mps = l.velocity_mps.map(resolution::velocity);
+                    l.margin_m = l.margin_m.map(resolution::position);
+                    lane.step_time_us = resolution::duration_us(lane.step_time_us);
+                    let s = &mut lane.state;
+                    s.time_in_mode_s = resolution::time_s(s.time_in_mode_s);
+                    for r in &mut s.solvers {
+                        r.solve_time_us = resolution::duration_us(r.solve_time_us);
+                    }
                 }
                 f
             })
@@ -674,7 +682,7 @@ mod tests {
                     name: "free".into(),
                     status: "solved".into(),
                     iterations: 9,
-                    solve_time_us: 800.25,
+                    solve_time_us: 800.2,
                 },
             ],
         };

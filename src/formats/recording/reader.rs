@@ -11,7 +11,7 @@ use serde::Deserialize;
 use super::source::{RecordSource, SourceError};
 use super::{
     sha256_hex, shown, RecordingError, RecordingMeta, METADATA_NAME, PROFILE_ATTACHMENT,
-    SIDECAR_ATTACHMENT, TRACE_ATTACHMENT,
+    SIDECAR_ATTACHMENT, TRACE_ATTACHMENT, TRACE_ZSTD_ATTACHMENT,
 };
 use crate::channels::json::{ActuatorsMsg, AircraftMsg, ControllerMsg, PerceivedMsg, PlatformMsg};
 use crate::channels::{Channel, Kind, AIRCRAFT_TOPIC, REFERENCE_TOPIC};
@@ -46,6 +46,22 @@ fn role_of(topic: &str, algorithms: &[AlgorithmId]) -> Option<Role> {
             _ => None,
         },
     }
+}
+
+/// Largest trace a compressed attachment may expand to: about 15 hours of live input at
+/// 100 Hz. A damaged or hostile file must not make the reader allocate without bound.
+const TRACE_LIMIT: u64 = 1 << 30;
+
+fn unzstd(data: &[u8]) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let mut out = Vec::new();
+    zstd::stream::read::Decoder::new(data)?
+        .take(TRACE_LIMIT + 1)
+        .read_to_end(&mut out)?;
+    if out.len() as u64 > TRACE_LIMIT {
+        return Err(std::io::Error::other("larger than 1 GiB"));
+    }
+    Ok(out)
 }
 
 /// A recording opened for review: what it says about itself and where its frames are.
@@ -119,6 +135,14 @@ impl Recording {
                 Some(Ok(record)) => match record {
                     Record::Metadata(m) if m.name == METADATA_NAME => metadata = Some(m.metadata),
                     Record::Attachment { header, data, .. } => {
+                        // The last trace wins under either name (a live session attaches a
+                        // header-only one first); files before the compressed one have
+                        // `trace.csv`.
+                        if header.name == TRACE_ATTACHMENT {
+                            attachments.remove(TRACE_ZSTD_ATTACHMENT);
+                        } else if header.name == TRACE_ZSTD_ATTACHMENT {
+                            attachments.remove(TRACE_ATTACHMENT);
+                        }
                         attachments.insert(header.name, data.into_owned());
                     }
                     Record::Channel(c) => {
@@ -189,6 +213,14 @@ impl Recording {
             what: what.to_string(),
         };
         let metadata = metadata.ok_or_else(|| missing("the `hexcue` metadata record"))?;
+        if let Some(zst) = attachments.remove(TRACE_ZSTD_ATTACHMENT) {
+            let csv = unzstd(&zst).map_err(|e| RecordingError::Invalid {
+                path: p.clone(),
+                what: format!("attachment `{TRACE_ZSTD_ATTACHMENT}` does not decompress ({e})"),
+                expected: "a zstd frame of at most 1 GiB".into(),
+            })?;
+            attachments.insert(TRACE_ATTACHMENT.to_string(), csv);
+        }
         let text = |name: &str| -> Result<Option<String>, RecordingError> {
             attachments
                 .get(name)
@@ -203,8 +235,8 @@ impl Recording {
         };
         let profile_toml =
             text(PROFILE_ATTACHMENT)?.ok_or_else(|| missing("the `profile.toml` attachment"))?;
-        let trace_csv =
-            text(TRACE_ATTACHMENT)?.ok_or_else(|| missing("the `trace.csv` attachment"))?;
+        let trace_csv = text(TRACE_ATTACHMENT)?
+            .ok_or_else(|| missing("the `trace.csv.zst` (or `trace.csv`) attachment"))?;
         let trace_sidecar = text(SIDECAR_ATTACHMENT)?;
         let field = |key: &str| metadata.get(key).cloned().unwrap_or_default();
         let number = |key: &str| -> Result<Option<f64>, RecordingError> {

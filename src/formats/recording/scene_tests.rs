@@ -108,10 +108,11 @@ fn the_platform_transform_follows_the_recorded_pose() {
             let p = &tf.transforms[1];
             let stamp = p.timestamp.unwrap();
             assert_eq!(stamp.total_nanos(), *t_tf);
-            // The recorded pose keeps 6 decimals; the transform is drawn from the full one.
+            // The recorded pose keeps 6 decimals; the transform is drawn from the full one
+            // at 2^-20 m.
             let at = p.translation.as_ref().unwrap();
             for (a, b) in [at.x, at.y, at.z].iter().zip(&pose[..3]) {
-                assert!((a - b).abs() <= 5e-7 + 1e-12, "{a} vs {b}");
+                assert!((a - b).abs() <= 5e-7 + 2f64.powi(-21) + 1e-12, "{a} vs {b}");
             }
             let r = rotation(pose[3], pose[4], pose[5]);
             let q = p.rotation.as_ref().unwrap();
@@ -209,7 +210,8 @@ fn the_scene_draws_plates_and_six_legs_for_each_algorithm() {
     for (i, line) in legs.lines.iter().enumerate() {
         let [a, b] = [&line.points[0], &line.points[1]];
         let length = Vector3::new(b.x - a.x, b.y - a.y, b.z - a.z).norm();
-        assert!((length - lane.legs.length_m[i]).abs() < 1e-9, "leg {i}");
+        // The upper end is drawn at 2^-20 m per coordinate.
+        assert!((length - lane.legs.length_m[i]).abs() < 2e-6, "leg {i}");
     }
     assert_eq!(last.entities[1].frame_id, "mpc/platform");
     assert!(last.entities[1].frame_locked);

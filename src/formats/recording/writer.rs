@@ -14,7 +14,7 @@ use sha2::{Digest, Sha256};
 use super::source::READ_SIZE;
 use super::{
     sha256_hex, shown, RecordingError, RecordingMeta, RecordingStats, FORMAT_VERSION,
-    METADATA_NAME, PROFILE_ATTACHMENT, SIDECAR_ATTACHMENT, TRACE_ATTACHMENT,
+    METADATA_NAME, PROFILE_ATTACHMENT, SIDECAR_ATTACHMENT, TRACE_ZSTD_ATTACHMENT,
 };
 use crate::channels::json::{self, Message};
 use crate::channels::scene::{self, SceneBuilder};
@@ -33,6 +33,13 @@ const FLUSH_INTERVAL_S: f64 = 1.0;
 /// at 100 Hz): they draw `/ALG/platform`, which keeps every step, and at every step they were
 /// a third of the file (docs/recordings.md, "Size").
 pub(super) const SCENE_EVERY_STEPS: u64 = 10;
+/// zstd level of the chunks and of the trace attachment (docs/recordings.md, "Size per
+/// minute"): 20 % smaller than level 1 for 0.2 s more of a 60 s flight's writing; levels
+/// 10–15 are no smaller, 16 and above (btopt) 17 % smaller again but 7× slower, which would
+/// take a headless run under 25× real time. Level 19 on the trace alone cost 0.15 s a run
+/// (a CWF-only run takes 0.1 s) for 12 KB on the landing.
+const ZSTD_LEVEL: u32 = 9;
+const ZSTD_MEDIA_TYPE: &str = "application/zstd";
 fn encode_error(path: &Path, e: EncodeError) -> RecordingError {
     RecordingError::Io {
         path: shown(path),
@@ -127,9 +134,12 @@ impl Recorder {
             .chunk_size(Some(CHUNK_SIZE))
             // Worker threads would compete with the solvers for the two cores.
             .compression_threads(0)
-            // Measured on the synthetic manoeuvre: level 1 is both faster than the default
-            // (3) and, on these full-precision floats, 6 % smaller.
-            .compression_level(1)
+            .compression_level(
+                std::env::var("HEXCUE_ZSTD_LEVEL")
+                    .ok()
+                    .and_then(|v| v.parse().ok())
+                    .unwrap_or(ZSTD_LEVEL),
+            )
             // Chunks are assembled in memory and written whole, so the file never holds a
             // half-written chunk for a reader to stumble on.
             .disable_seeking(true)
@@ -152,21 +162,33 @@ impl Recorder {
                 metadata,
             })
             .map_err(wr)?;
+        let trace = zstd::bulk::compress(meta.trace_csv.as_bytes(), ZSTD_LEVEL as i32).map_err(
+            |error| RecordingError::Io {
+                path: shown(path),
+                action: "compress the trace attachment",
+                error,
+            },
+        )?;
+        // The profile and the sidecar stay text: a few KB, readable with any MCAP tool.
         let mut attachments = vec![
-            (PROFILE_ATTACHMENT, "application/toml", &meta.profile_toml),
-            (TRACE_ATTACHMENT, "text/csv", &meta.trace_csv),
+            (
+                PROFILE_ATTACHMENT,
+                "application/toml",
+                meta.profile_toml.as_bytes(),
+            ),
+            (TRACE_ZSTD_ATTACHMENT, ZSTD_MEDIA_TYPE, &trace[..]),
         ];
         if let Some(sidecar) = &meta.trace_sidecar {
-            attachments.push((SIDECAR_ATTACHMENT, "application/json", sidecar));
+            attachments.push((SIDECAR_ATTACHMENT, "application/json", sidecar.as_bytes()));
         }
-        for (name, media_type, text) in attachments {
+        for (name, media_type, data) in attachments {
             writer
                 .attach(&Attachment {
                     log_time: start_ns,
                     create_time: start_ns,
                     name: name.to_string(),
                     media_type: media_type.to_string(),
-                    data: text.as_bytes().into(),
+                    data: data.into(),
                 })
                 .map_err(wr)?;
         }
@@ -271,11 +293,13 @@ impl Recorder {
     ) -> Result<(), RecordingError> {
         let channel_id = self.channel_id(channel)?;
         self.buf.clear();
-        serde_json::to_writer(&mut self.buf, message).map_err(|e| RecordingError::Io {
-            path: shown(&self.path),
-            action: "encode a message",
-            error: e.into(),
-        })?;
+        message
+            .write_json(&mut self.buf)
+            .map_err(|e| RecordingError::Io {
+                path: shown(&self.path),
+                action: "encode a message",
+                error: e.into(),
+            })?;
         self.write_buf(channel_id, log_time)
     }
 
@@ -389,10 +413,10 @@ impl Recorder {
     }
 
     /// Finishes a recording whose trace was only known at its end (a live session, whose
-    /// input is its trace): attaches `trace_csv` (a file, streamed, not read into memory) and
-    /// writes the metadata again with its SHA-256 and `extra` keys. Readers take the last
-    /// metadata record and attachment of a name, so the file reads like a playback's; a file
-    /// cut short keeps the header-only trace it started with.
+    /// input is its trace): attaches `trace_csv` (a file, compressed and streamed, not read
+    /// into memory) and writes the metadata again with its SHA-256 and `extra` keys. Readers
+    /// take the last metadata record and trace attachment, so the file reads like a
+    /// playback's; a file cut short keeps the header-only trace it started with.
     pub fn finish_with_trace(
         mut self,
         trace_csv: &Path,
@@ -403,24 +427,56 @@ impl Recorder {
             action,
             error,
         };
-        let mut hasher = Sha256::new();
-        let mut file = File::open(trace_csv).map_err(|e| failed("open the input log", e))?;
-        let len = io::copy(&mut file, &mut hasher).map_err(|e| failed("read the input log", e))?;
-        let sha: String = hasher
-            .finalize()
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect();
-        file.seek(SeekFrom::Start(0))
-            .map_err(|e| failed("read the input log", e))?;
+        // Compressed to a file beside the log first, in one pass that also hashes it: the
+        // attachment's length comes before its bytes, and an hour's log need not fit in memory.
+        let mut zst_name = trace_csv.as_os_str().to_owned();
+        zst_name.push(".zst");
+        let zst_path = PathBuf::from(zst_name);
+        let sha = compress_and_hash(trace_csv, &zst_path)
+            .map_err(|e| failed("compress the input log", e));
+        let attached = sha.and_then(|sha| {
+            let attached = self.attach_file(&zst_path);
+            attached.map(|()| sha)
+        });
+        // The compressed copy is a scratch file whatever happened.
+        let _ = std::fs::remove_file(&zst_path);
+        let sha = attached?;
+        let mut metadata = self.metadata.clone();
+        metadata.insert("trace_sha256".into(), sha);
+        for (k, v) in extra {
+            metadata.insert(k.to_string(), v.clone());
+        }
+        let path = shown(&self.path);
+        self.writer()
+            .write_metadata(&Metadata {
+                name: METADATA_NAME.to_string(),
+                metadata,
+            })
+            .map_err(|error| RecordingError::Write { path, error })?;
+        self.finish()
+    }
+
+    /// Attaches the compressed trace at `zst_path`, streamed from the file.
+    fn attach_file(&mut self, zst_path: &Path) -> Result<(), RecordingError> {
+        let failed = |action, error| RecordingError::Io {
+            path: zst_path.display().to_string(),
+            action,
+            error,
+        };
+        let mut file =
+            File::open(zst_path).map_err(|e| failed("open the compressed input log", e))?;
+        let len = file
+            .metadata()
+            .map_err(|e| failed("read the compressed input log", e))?
+            .len();
         let ns = self
             .start_ns
             .saturating_add((self.last_t.max(0.0) * 1e9) as u64);
         let header = mcap::records::AttachmentHeader {
             log_time: ns,
             create_time: ns,
-            name: TRACE_ATTACHMENT.to_string(),
-            media_type: "text/csv".to_string(),
+            name: TRACE_ZSTD_ATTACHMENT.to_string(),
+            media_type: ZSTD_MEDIA_TYPE.to_string(),
         };
         let path = shown(&self.path);
         let wr = |error| RecordingError::Write {
@@ -428,32 +484,18 @@ impl Recorder {
             error,
         };
         let mut chunk = vec![0u8; READ_SIZE];
-        {
-            let writer = self.writer();
-            writer.start_attachment(len, header).map_err(wr)?;
-            loop {
-                let n = file
-                    .read(&mut chunk)
-                    .map_err(|e| failed("read the input log", e))?;
-                if n == 0 {
-                    break;
-                }
-                writer.put_attachment_bytes(&chunk[..n]).map_err(wr)?;
+        let writer = self.writer();
+        writer.start_attachment(len, header).map_err(wr)?;
+        loop {
+            let n = file
+                .read(&mut chunk)
+                .map_err(|e| failed("read the compressed input log", e))?;
+            if n == 0 {
+                break;
             }
-            writer.finish_attachment().map_err(wr)?;
+            writer.put_attachment_bytes(&chunk[..n]).map_err(wr)?;
         }
-        let mut metadata = self.metadata.clone();
-        metadata.insert("trace_sha256".into(), sha);
-        for (k, v) in extra {
-            metadata.insert(k.to_string(), v.clone());
-        }
-        self.writer()
-            .write_metadata(&Metadata {
-                name: METADATA_NAME.to_string(),
-                metadata,
-            })
-            .map_err(wr)?;
-        self.finish()
+        writer.finish_attachment().map_err(wr)
     }
 
     /// Writes the summary section and closes the file.
@@ -490,6 +532,40 @@ impl Recorder {
             wall_s: self.created.elapsed().as_secs_f64(),
         })
     }
+}
+
+/// Compresses the text at `from` into `to` (one zstd frame) and returns its SHA-256.
+fn compress_and_hash(from: &Path, to: &Path) -> io::Result<String> {
+    struct Tee<W> {
+        hasher: Sha256,
+        out: W,
+    }
+    impl<W: Write> Write for Tee<W> {
+        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+            let n = self.out.write(buf)?;
+            self.hasher.update(&buf[..n]);
+            Ok(n)
+        }
+        fn flush(&mut self) -> io::Result<()> {
+            self.out.flush()
+        }
+    }
+    let out = BufWriter::new(File::create(to)?);
+    let mut tee = Tee {
+        hasher: Sha256::new(),
+        out: zstd::stream::Encoder::new(out, ZSTD_LEVEL as i32)?,
+    };
+    io::copy(&mut File::open(from)?, &mut tee)?;
+    let Tee { hasher, out } = tee;
+    out.finish()?
+        .into_inner()
+        .map_err(|e| e.into_error())?
+        .sync_all()?;
+    Ok(hasher
+        .finalize()
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect())
 }
 
 fn session_metadata(meta: &RecordingMeta, start_ns: u64) -> BTreeMap<String, String> {
