@@ -265,6 +265,11 @@ pub struct TuneArgs {
     /// Seed of the search: the same seed, traces and base give the same result.
     #[arg(long, value_name = "S", default_value_t = 1)]
     pub seed: u64,
+    /// The search's first step, as a share of each key's range (0 < STEP ≤ 0.5): wide to
+    /// explore a poor base, narrow to refine a good one. Default: 0.2 for cwf, 0.05 for mpc
+    /// and smpc (docs/tuning.md).
+    #[arg(long, value_name = "STEP")]
+    pub step: Option<f64>,
     /// Where to write the tuned profile (refused if it exists, unless --force).
     #[arg(long, value_name = "TUNED.toml")]
     pub out: PathBuf,

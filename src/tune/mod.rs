@@ -40,8 +40,6 @@ pub const LIMITER_TOLERANCE: f64 = 0.001;
 const INFEASIBLE_PENALTY: f64 = 100.0;
 /// The score of a candidate the profile loader refuses.
 const INVALID_SCORE: f64 = 1e6;
-/// Step size of the search, in coordinates where each key's bounds span 0 to 1.
-const INITIAL_STEP: f64 = 0.2;
 
 /// How one candidate did on one trace.
 #[derive(Clone, Debug, PartialEq)]
@@ -288,6 +286,7 @@ pub fn tune(
     evaluator: &Evaluator,
     validation: Option<&Evaluator>,
     budget: usize,
+    step: f64,
     seed: u64,
     progress: &dyn Progress,
 ) -> Result<TuneResult> {
@@ -314,10 +313,10 @@ pub fn tune(
         None => None,
     };
     let mut validated: Vec<Validated> = Vec::new();
-    let bounds = limiter_bounds(&base);
+    let bounds = &limiter_bounds(&base);
     let tally = Mutex::new(Tally {
         evaluations: 1,
-        best: base.feasible_within(&bounds).then(|| base.clone()),
+        best: base.feasible_within(bounds).then(|| base.clone()),
     });
     progress.scored(1, tally.lock().expect("not poisoned").best_score());
 
@@ -331,19 +330,19 @@ pub fn tune(
         .map(|(k, v)| k.encode(*v).clamp(0.0, 1.0))
         .collect();
     let objective = |z: &cmaes::DVector<f64>| -> f64 {
-        let (score, candidate) = evaluate(evaluator, &bounds, z.as_slice());
+        let (score, candidate) = evaluate(evaluator, bounds, z.as_slice());
         // Refused by the loader, or stopped: not counted (the generation is not used when
         // stopped).
         if let Some(c) = candidate {
             let mut tally = tally.lock().expect("not poisoned");
-            tally.record(c, &bounds);
+            tally.record(c, bounds);
             progress.scored(tally.evaluations, tally.best_score());
         }
         score
     };
     let mut interrupted = evaluator.stop.load(Ordering::Relaxed);
     if budget > lambda && !interrupted {
-        let mut cmaes = cmaes::CMAESOptions::new(mean, INITIAL_STEP)
+        let mut cmaes = cmaes::CMAESOptions::new(mean, step)
             .population_size(lambda)
             .seed(seed)
             .build(objective)
@@ -377,8 +376,9 @@ pub fn tune(
                     }),
                 };
                 if let Some(e) = entry {
-                    let accepted = validate::rejection(base_v, &e.validation).is_none();
-                    record.validation = Some((e.mean(), accepted));
+                    let names: Vec<String> = v.traces.iter().map(|t| t.name.clone()).collect();
+                    let why = validate::rejection(base_v, &e.validation, &names);
+                    record.validation = Some((e.mean(), why));
                     if known.is_none() {
                         validated.push(e);
                     }
@@ -398,7 +398,7 @@ pub fn tune(
         let chosen = validate::choose(&base_v, &validated).cloned();
         best = match &chosen {
             Some(c) => Some(c.candidate.clone()),
-            None => base.feasible_within(&bounds).then(|| base.clone()),
+            None => base.feasible_within(bounds).then(|| base.clone()),
         };
         ValidationOutcome {
             base: base_v,
@@ -478,7 +478,7 @@ mod tests {
     #[test]
     fn the_base_scores_as_its_summary_and_the_search_never_worsens_it() {
         let ev = evaluator(vec![short_manoeuvre()]);
-        let r = tune(&ev, None, 20, 3, &Quiet).unwrap();
+        let r = tune(&ev, None, 20, 0.2, 3, &Quiet).unwrap();
         let p = full_flight();
         let mut engine = Engine::new(&p, short_manoeuvre(), &[AlgorithmId::Cwf]).unwrap();
         let mut s = SummaryBuilder::new(&p, "m");
@@ -537,7 +537,7 @@ mod tests {
         let mut t = crate::engine::tests::manoeuvre();
         t.samples.truncate(1200);
         let ev = evaluator(vec![Arc::new(t)]);
-        let r = tune(&ev, None, 20, 1, &Quiet).unwrap();
+        let r = tune(&ev, None, 20, 0.2, 1, &Quiet).unwrap();
         assert!(!r.base.feasible(), "{:?}", r.base.outcomes);
         let bounds = limiter_bounds(&r.base);
         let best = r.best.unwrap();
@@ -549,6 +549,6 @@ mod tests {
     fn a_stop_before_the_start_scores_nothing() {
         let ev = evaluator(vec![short_manoeuvre()]);
         ev.stop.store(true, Ordering::Relaxed);
-        assert!(tune(&ev, None, 20, 1, &Quiet).is_err());
+        assert!(tune(&ev, None, 20, 0.2, 1, &Quiet).is_err());
     }
 }

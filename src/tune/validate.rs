@@ -21,12 +21,23 @@ pub struct GenerationRecord {
     pub evaluations: usize,
     /// Mean training score of the best feasible training candidate so far.
     pub training: Option<f64>,
-    /// Mean validation score of that candidate, with whether it is accepted.
-    pub validation: Option<(f64, bool)>,
+    /// Mean validation score of that candidate, with why it is not accepted (`None`: it is).
+    pub validation: Option<(f64, Option<String>)>,
 }
 
-/// Why a validated candidate is not accepted, or `None` when it is.
-pub fn rejection(base: &[TraceOutcome], candidate: &[TraceOutcome]) -> Option<String> {
+/// Why a validated candidate is not accepted, or `None` when it is. `names` names the flights
+/// in the reason (their index where it is shorter).
+pub fn rejection(
+    base: &[TraceOutcome],
+    candidate: &[TraceOutcome],
+    names: &[String],
+) -> Option<String> {
+    let flight = |i: usize| {
+        names
+            .get(i)
+            .cloned()
+            .unwrap_or_else(|| format!("validation flight {i}"))
+    };
     if base.len() != candidate.len() {
         return Some(format!(
             "{} validation outcomes against the base's {}",
@@ -36,19 +47,22 @@ pub fn rejection(base: &[TraceOutcome], candidate: &[TraceOutcome]) -> Option<St
     }
     for (i, (b, c)) in base.iter().zip(candidate).enumerate() {
         if c.leg_violations > 0 {
-            return Some(format!("validation flight {i}: a leg out of its stroke"));
+            return Some(format!("{}: a leg out of its stroke", flight(i)));
         }
         // The limiter may act as often as under the base when the base already leans on it.
         if c.limiter_fraction > LIMITER_TOLERANCE.max(b.limiter_fraction) {
             return Some(format!(
-                "validation flight {i}: the limiter acts on {:.2} % of the steps",
+                "{}: the limiter acts on {:.2} % of the steps",
+                flight(i),
                 100.0 * c.limiter_fraction
             ));
         }
         if c.score > b.score * (1.0 + PER_FLIGHT_TOLERANCE) + 1e-12 {
             return Some(format!(
-                "validation flight {i}: score {:.4} against the base's {:.4}",
-                c.score, b.score
+                "{}: score {:.4} against the base's {:.4}",
+                flight(i),
+                c.score,
+                b.score
             ));
         }
     }
@@ -81,7 +95,7 @@ impl Validated {
 pub fn choose<'a>(base: &[TraceOutcome], validated: &'a [Validated]) -> Option<&'a Validated> {
     validated
         .iter()
-        .filter(|v| rejection(base, &v.validation).is_none())
+        .filter(|v| rejection(base, &v.validation, &[]).is_none())
         .fold(None, |best: Option<&Validated>, v| match best {
             Some(b) if b.mean() <= v.mean() => Some(b),
             _ => Some(v),
@@ -113,22 +127,22 @@ mod tests {
     #[test]
     fn a_candidate_worse_on_one_flight_is_rejected_even_with_a_better_mean() {
         let base = [o(1.0, 0.0), o(1.0, 0.0)];
-        assert!(rejection(&base, &[o(0.5, 0.0), o(1.03, 0.0)]).is_some());
-        assert!(rejection(&base, &[o(0.5, 0.0), o(1.019, 0.0)]).is_none());
+        assert!(rejection(&base, &[o(0.5, 0.0), o(1.03, 0.0)], &[]).is_some());
+        assert!(rejection(&base, &[o(0.5, 0.0), o(1.019, 0.0)], &[]).is_none());
     }
 
     #[test]
     fn equal_means_leg_violations_and_the_limiter_are_rejected() {
         let base = [o(1.0, 0.0)];
-        assert!(rejection(&base, &[o(1.0, 0.0)]).is_some());
+        assert!(rejection(&base, &[o(1.0, 0.0)], &[]).is_some());
         let legs = TraceOutcome {
             leg_violations: 1,
             ..o(0.5, 0.0)
         };
-        assert!(rejection(&base, &[legs]).is_some());
-        assert!(rejection(&base, &[o(0.5, 2.0 * LIMITER_TOLERANCE)]).is_some());
+        assert!(rejection(&base, &[legs], &[]).is_some());
+        assert!(rejection(&base, &[o(0.5, 2.0 * LIMITER_TOLERANCE)], &[]).is_some());
         // A base that already leans on the limiter bounds it instead of the tolerance.
-        assert!(rejection(&[o(1.0, 0.01)], &[o(0.5, 0.01)]).is_none());
+        assert!(rejection(&[o(1.0, 0.01)], &[o(0.5, 0.01)], &[]).is_none());
     }
 
     #[test]
