@@ -206,7 +206,12 @@ impl Mpc {
         for i in 0..n {
             let w = self.stage_weight(i);
             for a in 0..3 {
-                qy[a] = p.specific_force_weight[a] * self.y_ref[i][a];
+                let y = if a == 2 {
+                    self.y_heave.get(i).copied().unwrap_or(0.0)
+                } else {
+                    self.y_ref[i][a]
+                };
+                qy[a] = p.specific_force_weight[a] * y;
                 qy[3 + a] = p.angular_velocity_weight[a] * self.y_ref[i][3 + a];
             }
             let lin = self.cache.perceived_c.tr_mul(&qy) * (-2.0 * w);

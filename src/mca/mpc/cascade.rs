@@ -68,6 +68,7 @@ impl Mpc {
 
     pub(super) fn build_solver(&mut self) -> Result<(), MpcError> {
         let (x0, u0, y_ref) = self.neutral_step_data();
+        self.y_heave = vec![0.0; y_ref.len()];
         self.y_ref = y_ref;
         let data = self.step_data(&x0, &u0, [0.0; 2]);
         self.assemble_a(&data);

@@ -138,6 +138,10 @@ pub struct Mpc {
     nz: Vec<f64>,
     n_eq: usize,
     y_ref: Vec<DVector<f64>>,
+    /// Per interval, the perceived heave the cost tracks: with `heave_cue_s` the perception of
+    /// the high-passed Δf_z alone, else `y_ref`'s heave. The false-cue and tilt guards keep
+    /// `y_ref`, the aircraft's whole perceived heave.
+    y_heave: Vec<f64>,
     /// The same QP condensed to the inputs for the active-set solver; Clarabel above is the
     /// fallback. `None` if the QP could not be condensed (then Clarabel alone).
     condensed: Option<CondensedQp>,
@@ -224,6 +228,8 @@ impl Mpc {
                 u_last: DVector::zeros(NU),
                 u_before: DVector::zeros(NU),
                 ref_x: DVector::zeros(15),
+                heave_ref_x: DVector::zeros(15),
+                heave_low_mps2: [0.0; 2],
                 started: false,
                 sustained_df_mps2: Vector3::zeros(),
                 terminal_tilt_rad: [0.0; 2],
@@ -248,6 +254,7 @@ impl Mpc {
             nz: Vec::new(),
             n_eq: 0,
             y_ref: Vec::new(),
+            y_heave: Vec::new(),
             condensed: None,
             grid,
         };
@@ -387,9 +394,12 @@ impl Mpc {
     fn predict_reference(&mut self, sample: &CueSample, preview: &[CueSample], dt_s: f64) {
         let n = self.n_intervals();
         let mut xr = self.run.ref_x.clone();
+        let mut xh = self.run.heave_ref_x.clone();
+        let heave_now = self.heave_cue_input(sample);
         let mut u = DVector::zeros(6);
         let mut t_start = 0.0;
         self.y_ref.resize(n, DVector::zeros(6));
+        self.y_heave.resize(n, 0.0);
         for i in 0..n {
             let h = self.grid[i];
             u.fill(0.0);
@@ -399,9 +409,14 @@ impl Mpc {
                     u[3 + k] += w * finite_or_zero(s.angular_velocity_radps[k]);
                 }
             };
+            // The heave cue's input over the interval: it fades to nothing, since the cue is
+            // what the stroke can give and then take back.
+            let mut u_heave = heave_now;
             match self.params.reference {
                 ReferenceMode::Hold => avg(&mut u, sample, 1.0),
                 ReferenceMode::Decay => {
+                    let tau = self.params.reference_decay_s[2];
+                    u_heave = reference::decaying_mean(heave_now, 0.0, tau, t_start, t_start + h);
                     avg(&mut u, sample, 1.0);
                     for (k, v) in u.iter_mut().enumerate() {
                         let tau = self.params.reference_decay_s[k];
@@ -434,12 +449,22 @@ impl Mpc {
                         };
                         avg(&mut u, s, 1.0 / count);
                     }
+                    // The future's high-pass, approximated with the present low-passes.
+                    u_heave = u[2] - self.run.heave_low_mps2[0] - self.run.heave_low_mps2[1];
                 }
             }
             self.ref_rate_radps[i] = [u[3], u[4]];
             let d = &self.cache.ref_discrete[self.interval_model[i]];
             xr = &d.a * &xr + &d.b * &u;
             self.y_ref[i] = &d.c * &xr;
+            self.y_heave[i] = if self.params.heave_cue_s > 0.0 {
+                // The perception model is decoupled per axis: heave's own states, driven by
+                // the high-passed Δf_z alone.
+                xh = &d.a * &xh + d.b.column(2) * u_heave;
+                (d.c.row(2) * &xh)[0]
+            } else {
+                self.y_ref[i][2]
+            };
             t_start += h;
         }
     }
@@ -457,6 +482,22 @@ impl Mpc {
             finite_or_zero(sample.angular_velocity_radps.z),
         ]);
         self.run.ref_x = &self.ref_trace.a * &self.run.ref_x + &self.ref_trace.b * &u;
+        if self.params.heave_cue_s > 0.0 {
+            let hp = self.heave_cue_input(sample);
+            self.run.heave_ref_x =
+                &self.ref_trace.a * &self.run.heave_ref_x + self.ref_trace.b.column(2) * hp;
+        }
+    }
+
+    /// The aircraft's Δf_z through two first-order high-passes (`heave_cue_s` each): the part
+    /// of the heave that the stroke can cue and take back. One stage passes a ramp's slope
+    /// times τ for as long as the ramp lasts (a spiral dive's growing load factor), which was
+    /// chased to the end of the stroke; two pass nothing of it (docs/mpc.md, "Heave: what the
+    /// stroke allows"). The sustained rest (a turn's or a pull-up's load factor) is left out
+    /// of the tracking, but it is still the direction the false-cue guard protects.
+    fn heave_cue_input(&self, sample: &CueSample) -> f64 {
+        let first = finite_or_zero(sample.delta_f_mps2.z) - self.run.heave_low_mps2[0];
+        first - self.run.heave_low_mps2[1]
     }
 
     /// One MPC step: the QP solved from the applied state, or the fallback.
@@ -480,6 +521,13 @@ impl Mpc {
         let alpha = 1.0 - (-dt_s / self.params.cotc_sustained_s).exp();
         let df = input.sample.delta_f_mps2.map(finite_or_zero);
         self.run.sustained_df_mps2 += (df - self.run.sustained_df_mps2) * alpha;
+        if self.params.heave_cue_s > 0.0 {
+            let alpha = 1.0 - (-dt_s / self.params.heave_cue_s).exp();
+            let low = &mut self.run.heave_low_mps2;
+            low[0] += (df.z - low[0]) * alpha;
+            let first = df.z - low[0];
+            low[1] += (first - low[1]) * alpha;
+        }
         self.predict_reference(&input.sample, input.preview, dt_s);
         self.update_tilt_bounds();
         let last_bound = self.tilt_bound_rad[self.grid.len() - 1];
@@ -542,6 +590,8 @@ impl Mpc {
         self.run.u_last.copy_from(&leader.run.u_last);
         self.run.u_before.copy_from(&leader.run.u_before);
         self.run.ref_x.copy_from(&leader.run.ref_x);
+        self.run.heave_ref_x.copy_from(&leader.run.heave_ref_x);
+        self.run.heave_low_mps2 = leader.run.heave_low_mps2;
         self.run.started = leader.run.started;
         self.run.sustained_df_mps2 = leader.run.sustained_df_mps2;
         self.run.terminal_tilt_rad = leader.run.terminal_tilt_rad;
@@ -562,6 +612,8 @@ impl Mpc {
         self.run.u_last.fill(0.0);
         self.run.u_before.fill(0.0);
         self.run.ref_x.fill(0.0);
+        self.run.heave_ref_x.fill(0.0);
+        self.run.heave_low_mps2 = [0.0; 2];
         self.run.started = false;
         self.run.last_command = PlatformCommand::default();
         self.run.plan = Plan::default();
@@ -603,6 +655,11 @@ struct Running {
     /// The input of the trace step before `u_last`'s, for the lever-arm jump between them.
     u_before: DVector<f64>,
     ref_x: DVector<f64>,
+    /// The aircraft's perception (15 states, only heave's move) of its high-passed Δf_z
+    /// (`heave_cue_input`).
+    heave_ref_x: DVector<f64>,
+    /// The low-passes of the two high-pass stages of Δf_z (`heave_cue_input`, m/s²).
+    heave_low_mps2: [f64; 2],
     started: bool,
     /// Low-passed aircraft Δf whose tilt is COTC's terminal condition (m/s²).
     sustained_df_mps2: Vector3<f64>,

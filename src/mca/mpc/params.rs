@@ -125,6 +125,14 @@ pub struct MpcParams {
     /// (docs/mpc.md, "How much tilt").
     #[serde(default = "default_tilt_share")]
     pub tilt_share: f64,
+    /// The heave cue channel: the cost tracks the perception of Δf_z through two first-order
+    /// high-passes with this time constant (s), predicted fading to nothing, instead of the
+    /// whole perceived heave; the false-cue guard still protects the whole. A sustained load factor
+    /// (a turn, a pull-up, the stall) is then not chased until the stroke runs out, and the
+    /// platform's return after a cue is priced as the rebound it is felt as. 0 tracks the
+    /// whole perceived heave (docs/mpc.md, "Heave: what the stroke allows").
+    #[serde(default)]
+    pub heave_cue_s: f64,
     /// Solver time limit per step (ms); beyond it the step is a `max_time` failure.
     pub time_limit_ms: f64,
     /// Solver iteration limit.
@@ -253,6 +261,15 @@ impl MpcParams {
                 format!(
                     "expected a share of the sustained specific force in (0, 1], got {}",
                     self.tilt_share
+                ),
+            );
+        }
+        if !(self.heave_cue_s.is_finite() && self.heave_cue_s >= 0.0) {
+            return err(
+                "heave_cue_s",
+                format!(
+                    "expected a time constant in s, 0 for none, got {}",
+                    self.heave_cue_s
                 ),
             );
         }
@@ -435,6 +452,24 @@ mod tests {
         own.smpc.cotc.tilt_share = Some(1.0);
         assert_eq!(own.cotc_params().tilt_share, 1.0);
         assert_eq!(own.mpc.tilt_share, p.mpc.tilt_share);
+        // The heave cue's time constant: 0 (none) or a positive time, named when wrong.
+        for v in [-0.5, f64::NAN, f64::INFINITY] {
+            let mut bad = p.clone();
+            bad.mpc.heave_cue_s = v;
+            assert_eq!(bad.validate().unwrap_err().key, "mpc.heave_cue_s", "{v}");
+        }
+    }
+
+    #[test]
+    fn a_profile_without_the_heave_cue_key_loads_and_tracks_the_whole_heave() {
+        let toml = crate::formats::profile::DEFAULT_PROFILE_TOML;
+        let line = toml
+            .lines()
+            .find(|l| l.starts_with("heave_cue_s"))
+            .expect("the default profile sets heave_cue_s");
+        let without = toml.replace(line, "");
+        let p = crate::formats::profile::parse_profile(&without, "t").unwrap();
+        assert_eq!(p.mpc.heave_cue_s, 0.0);
     }
 
     #[test]

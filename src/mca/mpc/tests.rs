@@ -774,3 +774,94 @@ fn an_unlimited_time_budget_is_no_limit_not_a_panic() {
         .iter()
         .all(|o| o.feasible && o.report.status == "solved"));
 }
+
+/// The shipped profile with the heave cue channel on, at the weight that meets the OMCT's
+/// heave bar (docs/mpc.md, "Heave: what the stroke allows").
+fn with_heave_cue(heave_cue_s: f64) -> Profile {
+    let mut p = full_flight();
+    p.mpc.heave_cue_s = heave_cue_s;
+    p.mpc.specific_force_weight[2] = 2.0;
+    p.mpc.reference_decay_s[2] = 0.1;
+    p
+}
+
+/// A load factor held for 12 s from t = 0.5 s (−4 m/s²: felt heavier): perceived heave of the
+/// reference and the platform, and the platform's heave position and velocity, per step.
+fn held_load_factor(p: &Profile) -> Vec<(f64, f64, f64, f64)> {
+    let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
+    let outs = run(&mut mpc, 1250, |t| {
+        sample([0.0, 0.0, if t >= 0.5 { -4.0 } else { 0.0 }], [0.0; 3])
+    });
+    assert!(outs.iter().all(|o| o.feasible));
+    outs.iter()
+        .map(|o| {
+            (
+                o.reference_f_mps2.z,
+                o.perceived_f_mps2.z,
+                o.command.pose[2],
+                o.command.velocity[2],
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn a_held_load_factor_is_cued_then_not_chased() {
+    let p = with_heave_cue(0.5);
+    let th = p.vestibular.otolith_threshold_mps2[2];
+    let z_max = p.setting().platform.limits.excursion[2];
+    let run = held_load_factor(&p);
+    // The onset is cued, the right way, within the first half second.
+    let onset = run[50..100].iter().map(|r| r.1).fold(0.0, f64::min);
+    let reference = run[50..100].iter().map(|r| r.0).fold(0.0, f64::min);
+    eprintln!("onset {onset:.3} of {reference:.3}");
+    assert!(onset < -th, "onset {onset} of {reference}, threshold {th}");
+    // The return is priced as the rebound it is felt as: never beyond the threshold the
+    // other way while the aircraft is felt heavier.
+    let rebound = run[50..].iter().map(|r| r.1).fold(0.0, f64::max);
+    eprintln!("rebound {rebound:.3}, threshold {th}");
+    assert!(
+        rebound < th,
+        "rebound {rebound} m/s² against a threshold of {th}"
+    );
+    // The held part is not chased: the platform stays well inside its heave stroke, and is
+    // back near neutral and at rest long before the load factor ends.
+    let peak = run.iter().map(|r| r.2.abs()).fold(0.0, f64::max);
+    let (_, _, z_end, v_end) = run[run.len() - 1];
+    eprintln!("peak {peak:.3} m of {z_max}, end {z_end:.4} m, {v_end:.4} m/s");
+    assert!(peak < 0.5 * z_max, "peak heave {peak} m");
+    assert!(
+        z_end.abs() < 0.05 * z_max && v_end.abs() < 0.01,
+        "{z_end} m, {v_end} m/s"
+    );
+    // The same weight on the whole perceived heave chases the load factor further.
+    let whole = held_load_factor(&with_heave_cue(0.0));
+    let whole_peak = whole.iter().map(|r| r.2.abs()).fold(0.0, f64::max);
+    let (_, _, whole_end, _) = whole[whole.len() - 1];
+    eprintln!("whole heave tracked: peak {whole_peak:.3} m, end {whole_end:.4} m");
+    assert!(
+        whole_end.abs() > 5.0 * z_end.abs().max(0.01),
+        "{whole_end} m"
+    );
+}
+
+#[test]
+fn active_set_and_clarabel_agree_with_the_heave_cue() {
+    let mut p = with_heave_cue(0.5);
+    p.mpc.tolerance = 1e-11;
+    p.mpc.max_iterations = 200;
+    // A load factor's onset with heave turbulence on it, and a little surge.
+    let samples: Vec<CueSample> = (0..400)
+        .map(|k| {
+            let t = k as f64 * 0.01;
+            let held = if t >= 0.5 { -3.0 } else { 0.0 };
+            sample(
+                [0.5 * (1.3 * t).sin(), 0.0, held + 1.5 * (7.0 * t).sin()],
+                [0.0; 3],
+            )
+        })
+        .collect();
+    for terminal in [Terminal::Free, Terminal::Cotc] {
+        eprintln!("{}", agree_on_trace(&p, "heave", &samples, terminal));
+    }
+}
