@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The fair comparison (docs/tuning.md, docs/results.md "Tuned comparison") on the flight
+# The fair comparison (docs/tuning.md, docs/results-tuned.md) on the flight
 # library (recordings/traces/library, issue #23): the CWF, the MPC and the S-MPC, each tuned
 # with the same seed on the same training flights (the budgets below) and validated on the same
 # validation flights (the search never fits on them; a candidate worse than the base by more
@@ -74,7 +74,7 @@ echo "machine: load $(cut -d' ' -f1-3 /proc/loadavg) at the end" >> "$work/times
 {
     echo "# Made by \`bash scripts/tune-comparison.sh $budget $seed\`: the three passes below (budget $cwf_budget for the"
     echo "# CWF, $budget for the MPCs, seed $seed), fitted on ${#training[@]} library flights and validated on ${#validation[@]} others."
-    echo "# Before a pilot flies it, read how it did on flights it never saw: docs/results.md, \"Tuned comparison\"."
+    echo "# Before a pilot flies it, read how it did on flights it never saw: docs/results-tuned.md."
     sed 's/^name = "full-flight"$/name = "full-flight-tuned"/' "$work/tuned-all.toml"
 } > profiles/full-flight-tuned.toml
 $hexcue play --headless --algorithms cwf --profile profiles/full-flight-tuned.toml \
