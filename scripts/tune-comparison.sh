@@ -99,7 +99,7 @@ done
     echo "flights and on the five shipped traces (recordings/traces), which no step of the tune saw."
     echo
     for a in cwf mpc smpc; do
-        echo "- $a: training $(grep -m1 '^mean' "$work/$a.txt" | awk '{print "mean score " $2 " -> " $3}'), validation $(grep -m1 '^validation mean' "$work/$a.txt" | awk '{print "mean score " $3 " -> " $4}'), $(grep "^$a:" "$work/times.txt" | cut -d: -f2 | cut -d' ' -f2-3) wall"
+        echo "- $a: training $(grep -m1 '^mean' "$work/$a.txt" | awk '{print "mean score " $2 " -> " $3}'), validation $(grep -m1 '^validation mean' "$work/$a.txt" | awk '{print "mean score " $3 " -> " $4}'), $(grep "^$a:" "$work/times.txt" | cut -d: -f2 | cut -d' ' -f2-3) wall$(grep -q '^(base kept' "$work/$a.txt" && echo '; base kept: no validated candidate passed the gate')"
     done
     echo
     echo "## The acceptance check (issue #23)"
