@@ -172,20 +172,7 @@ pub fn resample_uniform(
         while j + 2 < samples.len() && samples[j + 1].t_s <= t {
             j += 1;
         }
-        let (a, b) = (&samples[j], &samples[j + 1]);
-        // Clamped because the last grid point may lie a rounding error past the last sample.
-        let w = ((t - a.t_s) / (b.t_s - a.t_s)).clamp(0.0, 1.0);
-        out.push(AircraftSample {
-            t_s: t,
-            specific_force_mps2: lerp3(&a.specific_force_mps2, &b.specific_force_mps2, w, false),
-            angular_velocity_radps: lerp3(
-                &a.angular_velocity_radps,
-                &b.angular_velocity_radps,
-                w,
-                false,
-            ),
-            attitude_rad: lerp3(&a.attitude_rad, &b.attitude_rad, w, true),
-        });
+        out.push(lerp_sample(&samples[j], &samples[j + 1], t));
     }
     Ok(Resampled {
         samples: out,
@@ -195,6 +182,24 @@ pub fn resample_uniform(
 
 /// Linear interpolation that returns an end point exactly (even −0.0) at w = 0 or 1. Angles
 /// go the short way round, so a heading wrapping from 359° to 1° passes through 0°, not 180°.
+/// The sample at time `t` between `a` and `b`, linear in each quantity (angles the short way
+/// round).
+pub(crate) fn lerp_sample(a: &AircraftSample, b: &AircraftSample, t: f64) -> AircraftSample {
+    // Clamped because the last grid point may lie a rounding error past the last sample.
+    let w = ((t - a.t_s) / (b.t_s - a.t_s)).clamp(0.0, 1.0);
+    AircraftSample {
+        t_s: t,
+        specific_force_mps2: lerp3(&a.specific_force_mps2, &b.specific_force_mps2, w, false),
+        angular_velocity_radps: lerp3(
+            &a.angular_velocity_radps,
+            &b.angular_velocity_radps,
+            w,
+            false,
+        ),
+        attitude_rad: lerp3(&a.attitude_rad, &b.attitude_rad, w, true),
+    }
+}
+
 pub(crate) fn lerp3(a: &Vector3<f64>, b: &Vector3<f64>, w: f64, angles: bool) -> Vector3<f64> {
     Vector3::from_fn(|i, _| {
         let mut d = b[i] - a[i];

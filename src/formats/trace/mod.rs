@@ -12,7 +12,9 @@ use std::path::Path;
 use nalgebra::Vector3;
 
 use crate::trace::MAX_TRACE_SAMPLES;
-use crate::trace::{lerp3, AircraftSample, ResampleError, Trace, TraceInfo, GRID_TOLERANCE_STEPS};
+use crate::trace::{
+    lerp_sample, AircraftSample, ResampleError, Trace, TraceInfo, GRID_TOLERANCE_STEPS,
+};
 use crate::G_MPS2;
 
 pub use super::units::{UnitJudgement, UnitNames, UnitStats};

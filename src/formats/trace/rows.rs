@@ -457,19 +457,7 @@ impl<R: BufRead> GridSamples<R> {
         let (Some(a), Some(b)) = (self.a, self.b) else {
             return Ok(None);
         };
-        // Clamped because the last grid point may lie a rounding error past the last sample.
-        let w = ((t - a.t_s) / (b.t_s - a.t_s)).clamp(0.0, 1.0);
-        Ok(Some(AircraftSample {
-            t_s: t,
-            specific_force_mps2: lerp3(&a.specific_force_mps2, &b.specific_force_mps2, w, false),
-            angular_velocity_radps: lerp3(
-                &a.angular_velocity_radps,
-                &b.angular_velocity_radps,
-                w,
-                false,
-            ),
-            attitude_rad: lerp3(&a.attitude_rad, &b.attitude_rad, w, true),
-        }))
+        Ok(Some(lerp_sample(&a, &b, t)))
     }
 }
 
