@@ -12,25 +12,17 @@ on surge and sway RAE; the limiter below 1 % of the steps; on a trace whose name
 """
 import argparse
 import concurrent.futures
-import json
 import os
-import re
-import subprocess
-import sys
 import tempfile
+
+from hexcue_play import play_summary, unlimited_profile
 
 CH = ["fx", "fy", "fz", "wx", "wy", "wz"]
 
 
 def run(hexcue, profile, trace, outdir):
     name = os.path.splitext(os.path.basename(trace))[0]
-    out = os.path.join(outdir, name + ".json")
-    subprocess.run(
-        [hexcue, "play", "--headless", "--trace", trace, "--profile", profile,
-         "--summary", out, "--force"],
-        check=True, stdout=subprocess.DEVNULL)
-    with open(out) as f:
-        return name, json.load(f)
+    return name, play_summary(hexcue, profile, trace, os.path.join(outdir, name + ".json"))
 
 
 def bars(name, d):
@@ -76,14 +68,7 @@ def main():
     args = p.parse_args()
     outdir = args.keep or tempfile.mkdtemp(prefix="cueing-bars-")
     os.makedirs(outdir, exist_ok=True)
-    with open(args.profile) as f:
-        text = f.read()
-    text, n = re.subn(r"(?m)^time_limit_ms\s*=.*$", "time_limit_ms = 1e9", text)
-    if n != 1:
-        sys.exit(f"{args.profile}: expected one time_limit_ms line, found {n}")
-    profile = os.path.join(outdir, "profile.toml")
-    with open(profile, "w") as f:
-        f.write(text)
+    profile = unlimited_profile(args.profile, outdir, "profile")
     with concurrent.futures.ThreadPoolExecutor(args.jobs) as ex:
         results = list(ex.map(lambda t: run(args.hexcue, profile, t, outdir), args.traces))
     total = 0

@@ -16,36 +16,16 @@ fails, so that `scripts/tune-comparison.sh` can say so.
 """
 import argparse
 import concurrent.futures
-import json
 import os
-import re
-import subprocess
 import sys
 import tempfile
+
+from hexcue_play import play_summary, unlimited_profile
 
 ALGORITHMS = ("cwf", "mpc", "smpc")
 SCORE_TOLERANCE = 0.02
 LIMITER_TOLERANCE = 0.01
 CWF_MEAN_GAIN = 0.05
-
-
-def unlimited(profile, folder, label):
-    with open(profile) as f:
-        text = f.read()
-    text, n = re.subn(r"(?m)^time_limit_ms\s*=.*$", "time_limit_ms = 1e9", text)
-    if n != 1:
-        sys.exit(f"{profile}: expected one time_limit_ms line, found {n}")
-    path = os.path.join(folder, label + ".toml")
-    with open(path, "w") as f:
-        f.write(text)
-    return path
-
-
-def run(hexcue, profile, trace, out):
-    subprocess.run([hexcue, "play", "--headless", "--trace", trace, "--profile", profile,
-                    "--summary", out, "--force"], check=True, stdout=subprocess.DEVNULL)
-    with open(out) as f:
-        return json.load(f)["algorithms"]
 
 
 def main():
@@ -57,11 +37,13 @@ def main():
     p.add_argument("--jobs", type=int, default=2)
     a = p.parse_args()
     folder = tempfile.mkdtemp(prefix="tune-acceptance-")
-    profiles = {k: unlimited(v, folder, k) for k, v in (("base", a.base), ("tuned", a.tuned))}
+    profiles = {k: unlimited_profile(v, folder, k)
+                for k, v in (("base", a.base), ("tuned", a.tuned))}
     jobs = [(k, t) for t in a.traces for k in profiles]
     with concurrent.futures.ThreadPoolExecutor(a.jobs) as ex:
-        done = ex.map(lambda j: run(a.hexcue, profiles[j[0]], j[1], os.path.join(
-            folder, f"{j[0]}-{os.path.splitext(os.path.basename(j[1]))[0]}.json")), jobs)
+        done = ex.map(lambda j: play_summary(a.hexcue, profiles[j[0]], j[1], os.path.join(
+            folder, f"{j[0]}-{os.path.splitext(os.path.basename(j[1]))[0]}.json"))["algorithms"],
+            jobs)
         results = {(k, t): r for (k, t), r in zip(jobs, done)}
 
     failed = False
