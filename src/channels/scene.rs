@@ -533,6 +533,13 @@ mod tests {
     use crate::model::stewart::rotation;
     use crate::profile::tests::full_flight;
 
+    /// The first frame of the CWF alone on the engine's test manoeuvre.
+    fn first_cwf_frame(profile: &crate::profile::Profile) -> crate::engine::Frame {
+        let trace = std::sync::Arc::new(crate::engine::tests::manoeuvre());
+        let mut engine = crate::engine::Engine::new(profile, trace, &[AlgorithmId::Cwf]).unwrap();
+        engine.step().unwrap()
+    }
+
     fn rotate(q: &Quaternion, v: &Vector3<f64>) -> Vector3<f64> {
         let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q.w, q.x, q.y, q.z));
         q * v
@@ -559,13 +566,7 @@ mod tests {
         let profile = full_flight();
         let algorithms = [AlgorithmId::Smpc, AlgorithmId::Mpc, AlgorithmId::Cwf];
         let mut b = SceneBuilder::new(&profile, &algorithms);
-        let mut engine = crate::engine::Engine::new(
-            &profile,
-            std::sync::Arc::new(crate::engine::tests::manoeuvre()),
-            &[AlgorithmId::Cwf],
-        )
-        .unwrap();
-        let frame = engine.step().unwrap();
+        let frame = first_cwf_frame(&profile);
         let tf = b.transforms(&frame.lanes[0], 7);
         let w = &tf.transforms[0];
         assert_eq!(
@@ -596,13 +597,7 @@ mod tests {
     fn legs_join_the_joints_and_take_the_margin_colour() {
         let profile = full_flight();
         let b = SceneBuilder::new(&profile, &[AlgorithmId::Cwf]);
-        let mut engine = crate::engine::Engine::new(
-            &profile,
-            std::sync::Arc::new(crate::engine::tests::manoeuvre()),
-            &[AlgorithmId::Cwf],
-        )
-        .unwrap();
-        let mut frame = engine.step().unwrap();
+        let mut frame = first_cwf_frame(&profile);
         let lane = &mut frame.lanes[0];
         lane.command.pose = Vector6::new(0.2, -0.1, -0.3, 0.05, 0.08, -0.1);
         let stewart = profile.stewart();
@@ -632,13 +627,7 @@ mod tests {
     fn mode_changes_and_the_limiter_become_events() {
         let profile = full_flight();
         let mut b = SceneBuilder::new(&profile, &[AlgorithmId::Smpc]);
-        let mut engine = crate::engine::Engine::new(
-            &profile,
-            std::sync::Arc::new(crate::engine::tests::manoeuvre()),
-            &[AlgorithmId::Cwf],
-        )
-        .unwrap();
-        let mut frame = engine.step().unwrap();
+        let mut frame = first_cwf_frame(&profile);
         frame.lanes[0].id = AlgorithmId::Smpc;
         frame.lanes[0].state.mode = Mode::Cotc;
         assert!(
