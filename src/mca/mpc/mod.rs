@@ -427,7 +427,7 @@ impl Mpc {
                         // the canals wash a sustained rate out themselves.
                         let sustained = match k {
                             0 | 1 => reference::sustainable_df_mps2(
-                                self.params.tilt_share * self.run.sustained_df_mps2[k],
+                                self.tilt_df_mps2()[k],
                                 self.limits.excursion[4 - k],
                             ),
                             2 => self.run.sustained_df_mps2[2],
@@ -489,6 +489,12 @@ impl Mpc {
         }
     }
 
+    /// The sustained specific force the plan carries by tilt: `tilt_share` of the low-passed
+    /// Δf (surge and sway; the decay reference and COTC's terminal tilt both use it).
+    fn tilt_df_mps2(&self) -> Vector3<f64> {
+        self.run.sustained_df_mps2 * self.params.tilt_share
+    }
+
     /// The aircraft's Δf_z through two first-order high-passes (`heave_cue_s` each): the part
     /// of the heave that the stroke can cue and take back. One stage passes a ramp's slope
     /// times τ for as long as the ramp lasts (a spiral dive's growing load factor), which was
@@ -531,7 +537,7 @@ impl Mpc {
         self.predict_reference(&input.sample, input.preview, dt_s);
         self.update_tilt_bounds();
         let last_bound = self.tilt_bound_rad[self.grid.len() - 1];
-        let tilt = terminal_tilt(&(self.run.sustained_df_mps2 * self.params.tilt_share));
+        let tilt = terminal_tilt(&self.tilt_df_mps2());
         // Only the heave guard's tighter bound moves COTC's terminal tilt: a sustained cue
         // beyond the workspace must still make COTC infeasible, which is what hands the
         // S-MPC to the free MPC.
