@@ -104,32 +104,58 @@ impl WashoutParams {
         }
     }
 
-    /// Tilt-coordination low-pass ω²/(s² + 2ζω s + ω²) on the scaled Δf, with its output's
-    /// first and second derivatives as outputs too, so that the tilt's rate and acceleration
-    /// are exact rather than differenced.
+    /// Tilt-coordination low-pass on the scaled Δf ([`tilt_lowpass`]).
     pub fn tilt_lowpass(&self) -> StateSpace {
-        let (w, z) = (self.tilt_lp_wn_radps, self.tilt_lp_zeta);
-        let w2 = w * w;
-        StateSpace {
-            a: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -w2, -2.0 * z * w]),
-            b: DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
-            c: DMatrix::from_row_slice(3, 2, &[w2, 0.0, 0.0, w2, -w2 * w2, -2.0 * z * w * w2]),
-            d: DMatrix::from_row_slice(3, 1, &[0.0, 0.0, w2]),
-        }
+        tilt_lowpass(self.tilt_lp_wn_radps, self.tilt_lp_zeta)
     }
 
-    /// Platform angle per unit of scaled body rate: s / (s² + 2ζω s + ω²), the 2nd-order
-    /// high-pass followed by an integration. Outputs: angle and rate.
+    /// Platform angle per unit of scaled body rate ([`rotational_channel`]).
     pub fn rotational_channel(&self) -> StateSpace {
-        let (w, z) = (self.rotational_hp_wn_radps, self.rotational_hp_zeta);
-        let (d1, d0) = (2.0 * z * w, w * w);
-        StateSpace {
-            a: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -d0, -d1]),
-            b: DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
-            c: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -d0, -d1]),
-            d: DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
+        rotational_channel(self.rotational_hp_wn_radps, self.rotational_hp_zeta)
+    }
+
+    /// The tilt coordination's limits, in radians.
+    pub fn tilt_limits(&self) -> TiltLimits {
+        TiltLimits {
+            angle_rad: self.tilt_limit_deg.to_radians(),
+            rate_radps: self.tilt_rate_limit_dps.to_radians(),
+            acceleration_radps2: self.tilt_acceleration_limit_dps2.to_radians(),
         }
     }
+}
+
+/// Tilt-coordination low-pass ω²/(s² + 2ζω s + ω²), with its output's first and second
+/// derivatives as outputs too, so that the tilt's rate and acceleration are exact rather than
+/// differenced.
+pub fn tilt_lowpass(wn_radps: f64, zeta: f64) -> StateSpace {
+    let (w, z) = (wn_radps, zeta);
+    let w2 = w * w;
+    StateSpace {
+        a: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -w2, -2.0 * z * w]),
+        b: DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
+        c: DMatrix::from_row_slice(3, 2, &[w2, 0.0, 0.0, w2, -w2 * w2, -2.0 * z * w * w2]),
+        d: DMatrix::from_row_slice(3, 1, &[0.0, 0.0, w2]),
+    }
+}
+
+/// Platform angle per unit of scaled body rate: s / (s² + 2ζω s + ω²), the 2nd-order
+/// high-pass followed by an integration. Outputs: angle and rate.
+pub fn rotational_channel(wn_radps: f64, zeta: f64) -> StateSpace {
+    let (d1, d0) = (2.0 * zeta * wn_radps, wn_radps * wn_radps);
+    StateSpace {
+        a: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -d0, -d1]),
+        b: DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
+        c: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -d0, -d1]),
+        d: DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
+    }
+}
+
+/// How far and how fast tilt coordination may tilt.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TiltLimits {
+    pub angle_rad: f64,
+    pub rate_radps: f64,
+    pub acceleration_radps2: f64,
 }
 
 /// Second-order rate limiter for tilt coordination. While the target moves within the rate
@@ -199,13 +225,78 @@ impl TiltTracker {
     }
 }
 
-#[derive(Clone)]
+/// Tilt coordination: the scaled surge and sway specific force through the 2nd-order
+/// low-pass, turned into the roll and pitch whose gravity gives it, and followed within the
+/// tilt rate and acceleration limits. The CWF's sustained channel; the MPCs follow one of
+/// their own (`[mpc] tilt_follow_weight`), so that they tilt no further and no faster than it.
+#[derive(Clone, Debug)]
+pub struct TiltCoordination {
+    /// Low-passes of Δf_x (pitch) and Δf_y (roll).
+    lowpass: [LtiFilter; 2],
+    /// Roll and pitch trackers.
+    tracker: [TiltTracker; 2],
+    /// Roll and pitch the low-passed force asks for now (rad).
+    target_rad: [f64; 2],
+    limits: TiltLimits,
+}
+
+impl TiltCoordination {
+    pub fn new(lowpass: &StateSpace, limits: TiltLimits, dt_s: f64) -> Self {
+        let discrete = lowpass.discretise_zoh(dt_s);
+        TiltCoordination {
+            lowpass: std::array::from_fn(|_| LtiFilter::new(discrete.clone())),
+            tracker: Default::default(),
+            target_rad: [0.0; 2],
+            limits,
+        }
+    }
+
+    /// One step on the (already scaled) surge and sway specific force (m/s²): roll and pitch,
+    /// each as (angle, rate, acceleration) (rad, rad/s, rad/s²).
+    pub fn step(&mut self, f_x_mps2: f64, f_y_mps2: f64, dt_s: f64) -> [(f64, f64, f64); 2] {
+        // Sustained f_x is cued by pitch θ = asin(f_x/g), sustained f_y by roll φ = −asin(f_y/g).
+        let TiltLimits {
+            angle_rad,
+            rate_radps: r,
+            acceleration_radps2: a,
+        } = self.limits;
+        let pitch = Target::from_lowpass(self.lowpass[0].step(&[f_x_mps2]), 1.0, angle_rad);
+        let roll = Target::from_lowpass(self.lowpass[1].step(&[f_y_mps2]), -1.0, angle_rad);
+        self.target_rad = [roll.angle, pitch.angle];
+        [
+            self.tracker[0].step(roll, r, a, dt_s),
+            self.tracker[1].step(pitch, r, a, dt_s),
+        ]
+    }
+
+    /// Roll and pitch (rad) `t_s` ahead if the low-passed force stays where it is now: the
+    /// tracker moves toward its target at the rate limit and stops there.
+    pub fn predict_rad(&self, t_s: f64) -> [f64; 2] {
+        std::array::from_fn(|k| {
+            let (angle, target) = (self.tracker[k].angle_rad, self.target_rad[k]);
+            let step = (self.limits.rate_radps * t_s).min((target - angle).abs());
+            angle + step * (target - angle).signum()
+        })
+    }
+
+    /// Roll and pitch now (rad) and their rates (rad/s).
+    pub fn now(&self) -> [(f64, f64); 2] {
+        std::array::from_fn(|k| (self.tracker[k].angle_rad, self.tracker[k].rate_radps))
+    }
+
+    pub fn reset(&mut self) {
+        self.lowpass.iter_mut().for_each(LtiFilter::reset);
+        self.tracker = Default::default();
+        self.target_rad = [0.0; 2];
+    }
+}
+
+#[derive(Clone, Debug)]
 pub struct Washout {
     params: WashoutParams,
     translational: [LtiFilter; 3],
-    tilt_lp: [LtiFilter; 2],
     rotational: [LtiFilter; 3],
-    tilt: [TiltTracker; 2],
+    tilt: TiltCoordination,
     last_rot_rate: Vector3<f64>,
     /// Time since the start: the washout has one mode, in which it has been all along.
     running_s: f64,
@@ -219,13 +310,10 @@ impl Washout {
             translational: std::array::from_fn(|i| {
                 LtiFilter::new(params.translational_channel(i).discretise_zoh(dt))
             }),
-            tilt_lp: std::array::from_fn(|_| {
-                LtiFilter::new(params.tilt_lowpass().discretise_zoh(dt))
-            }),
             rotational: std::array::from_fn(|_| {
                 LtiFilter::new(params.rotational_channel().discretise_zoh(dt))
             }),
-            tilt: Default::default(),
+            tilt: TiltCoordination::new(&params.tilt_lowpass(), params.tilt_limits(), dt),
             last_rot_rate: Vector3::zeros(),
             running_s: 0.0,
         }
@@ -260,18 +348,8 @@ impl MotionCueing for Washout {
             cmd.velocity[axis] = y[1];
             cmd.acceleration[axis] = y[2];
         }
-        // Sustained f_x is cued by pitch θ = asin(f_x/g), sustained f_y by roll φ = −asin(f_y/g).
-        let limit = p.tilt_limit_deg.to_radians();
-        let (rate_max, acc_max) = (
-            p.tilt_rate_limit_dps.to_radians(),
-            p.tilt_acceleration_limit_dps2.to_radians(),
-        );
-        let pitch_target = Target::from_lowpass(self.tilt_lp[0].step(&[f.x]), 1.0, limit);
-        let roll_target = Target::from_lowpass(self.tilt_lp[1].step(&[f.y]), -1.0, limit);
-        let (roll_tc, roll_rate_tc, roll_acc_tc) =
-            self.tilt[0].step(roll_target, rate_max, acc_max, dt);
-        let (pitch_tc, pitch_rate_tc, pitch_acc_tc) =
-            self.tilt[1].step(pitch_target, rate_max, acc_max, dt);
+        let [(roll_tc, roll_rate_tc, roll_acc_tc), (pitch_tc, pitch_rate_tc, pitch_acc_tc)] =
+            self.tilt.step(f.x, f.y, dt);
         let mut rot_rate = Vector3::zeros();
         for axis in 0..3 {
             let y = self.rotational[axis].step(&[w[axis]]);
@@ -318,9 +396,8 @@ impl MotionCueing for Washout {
 
     fn reset(&mut self) {
         self.translational.iter_mut().for_each(LtiFilter::reset);
-        self.tilt_lp.iter_mut().for_each(LtiFilter::reset);
         self.rotational.iter_mut().for_each(LtiFilter::reset);
-        self.tilt = Default::default();
+        self.tilt.reset();
         self.last_rot_rate = Vector3::zeros();
         self.running_s = 0.0;
     }

@@ -109,7 +109,7 @@ impl Mpc {
 
     pub(super) fn stage_hessian(&self, gain: f64) -> DMatrix<f64> {
         let p = &self.params;
-        self.stage_hessian_with(
+        let mut h = self.stage_hessian_with(
             p.specific_force_weight,
             p.angular_velocity_weight,
             [
@@ -119,7 +119,11 @@ impl Mpc {
                 p.washout_rotation_weight,
             ],
             gain,
-        )
+        );
+        // Following is not washout: the regulator's gain leaves it as it is.
+        h[(state::ROLL, state::ROLL)] += p.tilt_follow_weight[0];
+        h[(state::PITCH, state::PITCH)] += p.tilt_follow_weight[1];
+        h
     }
 
     pub(super) fn n_intervals(&self) -> usize {
@@ -218,6 +222,13 @@ impl Mpc {
             let xc = Self::x_col(i);
             for (k, v) in lin.iter().enumerate() {
                 self.q[xc + k] = *v;
+            }
+            // COTC's last interval carries the terminal weight instead of the stage's.
+            if i + 1 < n || self.terminal_weight.is_none() {
+                let follow = self.follow_rad.get(i).copied().unwrap_or([0.0; 2]);
+                for (k, s) in [state::ROLL, state::PITCH].into_iter().enumerate() {
+                    self.q[xc + s] -= 2.0 * w * p.tilt_follow_weight[k] * follow[k];
+                }
             }
         }
     }

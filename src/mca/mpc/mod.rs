@@ -12,6 +12,7 @@
 //! its step.
 
 mod assembly;
+mod follow;
 pub mod cache;
 mod cascade;
 pub mod condensed;
@@ -29,6 +30,7 @@ use nalgebra::{DMatrix, DVector, Vector3, Vector6};
 
 use self::cache::PredictionCache;
 use self::condensed::CondensedQp;
+use self::follow::Follow;
 use self::model::{input, pose_of, state, NU, NX};
 use self::params::ReferenceMode;
 pub use self::params::{CotcOverrides, MpcParams};
@@ -142,6 +144,8 @@ pub struct Mpc {
     /// the high-passed Δf_z alone, else `y_ref`'s heave. The false-cue and tilt guards keep
     /// `y_ref`, the aircraft's whole perceived heave.
     y_heave: Vec<f64>,
+    /// Per interval, the followed roll and pitch at its end (rad).
+    follow_rad: Vec<[f64; 2]>,
     /// The same QP condensed to the inputs for the active-set solver; Clarabel above is the
     /// fallback. `None` if the QP could not be condensed (then Clarabel alone).
     condensed: Option<CondensedQp>,
@@ -230,6 +234,7 @@ impl Mpc {
                 ref_x: DVector::zeros(15),
                 heave_ref_x: DVector::zeros(15),
                 heave_low_mps2: [0.0; 2],
+                follow: Follow::new(params, [limits.excursion[3], limits.excursion[4]], dt_s),
                 started: false,
                 sustained_df_mps2: Vector3::zeros(),
                 terminal_tilt_rad: [0.0; 2],
@@ -255,6 +260,7 @@ impl Mpc {
             n_eq: 0,
             y_ref: Vec::new(),
             y_heave: Vec::new(),
+            follow_rad: Vec::new(),
             condensed: None,
             grid,
         };
@@ -534,6 +540,17 @@ impl Mpc {
             let first = df.z - low[0];
             low[1] += (first - low[1]) * alpha;
         }
+        let rates = input.sample.angular_velocity_radps.map(finite_or_zero);
+        self.run.follow.step(&df, &rates, dt_s);
+        let decay_s = match self.params.reference {
+            ReferenceMode::Decay => [
+                self.params.reference_decay_s[3],
+                self.params.reference_decay_s[4],
+            ],
+            // Held or previewed, the rate goes on over the horizon.
+            _ => [f64::INFINITY; 2],
+        };
+        self.run.follow.predict(&self.grid, decay_s, &mut self.follow_rad);
         self.predict_reference(&input.sample, input.preview, dt_s);
         self.update_tilt_bounds();
         let last_bound = self.tilt_bound_rad[self.grid.len() - 1];
@@ -620,6 +637,7 @@ impl Mpc {
         self.run.ref_x.fill(0.0);
         self.run.heave_ref_x.fill(0.0);
         self.run.heave_low_mps2 = [0.0; 2];
+        self.run.follow.reset();
         self.run.started = false;
         self.run.last_command = PlatformCommand::default();
         self.run.plan = Plan::default();
@@ -666,6 +684,8 @@ struct Running {
     heave_ref_x: DVector<f64>,
     /// The low-passes of the two high-pass stages of Δf_z (`heave_cue_input`, m/s²).
     heave_low_mps2: [f64; 2],
+    /// The roll and pitch the plan follows with `tilt_follow_weight`.
+    follow: Follow,
     started: bool,
     /// Low-passed aircraft Δf whose tilt is COTC's terminal condition (m/s²).
     sustained_df_mps2: Vector3<f64>,

@@ -31,6 +31,27 @@ fn default_tilt_share() -> f64 {
     1.0
 }
 
+// The followed rotation's defaults are the washout filter's shipped tuning (`[cwf]`).
+fn default_follow_tilt_lp_wn_radps() -> f64 {
+    1.25
+}
+
+fn default_follow_tilt_rate_limit_dps() -> f64 {
+    3.0
+}
+
+fn default_follow_tilt_acceleration_limit_dps2() -> f64 {
+    10.0
+}
+
+fn default_follow_rotation_scale() -> f64 {
+    0.6
+}
+
+fn default_follow_rotation_hp_wn_radps() -> f64 {
+    1.0
+}
+
 fn default_reference_decay_s() -> [f64; 6] {
     [0.3; 6]
 }
@@ -133,6 +154,26 @@ pub struct MpcParams {
     /// whole perceived heave (docs/mpc.md, "Heave: what the stroke allows").
     #[serde(default)]
     pub heave_cue_s: f64,
+    /// Weight on the platform's roll and pitch away from the followed rotation (`follow.rs`:
+    /// a washout filter's tilt coordination on `tilt_share` of the force plus its rotational
+    /// channel), per rad². 0 (the default) leaves the plan to rotate as it likes.
+    #[serde(default)]
+    pub tilt_follow_weight: [f64; 2],
+    /// The followed tilt coordination's 2nd-order low-pass (rad/s).
+    #[serde(default = "default_follow_tilt_lp_wn_radps")]
+    pub follow_tilt_lp_wn_radps: f64,
+    /// The followed tilt's rate limit (°/s).
+    #[serde(default = "default_follow_tilt_rate_limit_dps")]
+    pub follow_tilt_rate_limit_dps: f64,
+    /// The followed tilt's acceleration limit (°/s²).
+    #[serde(default = "default_follow_tilt_acceleration_limit_dps2")]
+    pub follow_tilt_acceleration_limit_dps2: f64,
+    /// Gain on the aircraft's roll and pitch rates in the followed rotational channel.
+    #[serde(default = "default_follow_rotation_scale")]
+    pub follow_rotation_scale: f64,
+    /// The followed rotational channel's 2nd-order high-pass (rad/s).
+    #[serde(default = "default_follow_rotation_hp_wn_radps")]
+    pub follow_rotation_hp_wn_radps: f64,
     /// Solver time limit per step (ms); beyond it the step is a `max_time` failure.
     pub time_limit_ms: f64,
     /// Solver iteration limit.
@@ -262,6 +303,25 @@ impl MpcParams {
                     "expected a share of the sustained specific force in (0, 1], got {}",
                     self.tilt_share
                 ),
+            );
+        }
+        non_negative("tilt_follow_weight", &self.tilt_follow_weight)?;
+        positive("mpc.follow_tilt_lp_wn_radps", self.follow_tilt_lp_wn_radps)?;
+        positive("mpc.follow_tilt_rate_limit_dps", self.follow_tilt_rate_limit_dps)?;
+        positive(
+            "mpc.follow_tilt_acceleration_limit_dps2",
+            self.follow_tilt_acceleration_limit_dps2,
+        )?;
+        positive(
+            "mpc.follow_rotation_hp_wn_radps",
+            self.follow_rotation_hp_wn_radps,
+        )?;
+        if !(self.follow_rotation_scale.is_finite()
+            && (0.0..=2.0).contains(&self.follow_rotation_scale))
+        {
+            return err(
+                "follow_rotation_scale",
+                format!("expected a gain from 0 to 2, got {}", self.follow_rotation_scale),
             );
         }
         if !(self.heave_cue_s.is_finite() && self.heave_cue_s >= 0.0) {
@@ -458,6 +518,20 @@ mod tests {
             bad.mpc.heave_cue_s = v;
             assert_eq!(bad.validate().unwrap_err().key, "mpc.heave_cue_s", "{v}");
         }
+        // Following the washout's rotation: weights of 0 or more, a positive filter and
+        // limits, a gain from 0 to 2; each named when wrong.
+        let mut bad = p.clone();
+        bad.mpc.tilt_follow_weight = [10.0, -1.0];
+        assert_eq!(bad.validate().unwrap_err().key, "mpc.tilt_follow_weight[1]");
+        let mut bad = p.clone();
+        bad.mpc.follow_tilt_rate_limit_dps = 0.0;
+        assert_eq!(
+            bad.validate().unwrap_err().key,
+            "mpc.follow_tilt_rate_limit_dps"
+        );
+        let mut bad = p.clone();
+        bad.mpc.follow_rotation_scale = f64::NAN;
+        assert_eq!(bad.validate().unwrap_err().key, "mpc.follow_rotation_scale");
     }
 
     #[test]
@@ -470,6 +544,29 @@ mod tests {
         let without = toml.replace(line, "");
         let p = crate::formats::profile::parse_profile(&without, "t").unwrap();
         assert_eq!(p.mpc.heave_cue_s, 0.0);
+    }
+
+    #[test]
+    fn a_profile_without_the_follow_keys_loads_and_rotates_freely() {
+        let toml = crate::formats::profile::DEFAULT_PROFILE_TOML;
+        let without: String = toml
+            .lines()
+            .filter(|l| !(l.starts_with("tilt_follow_weight") || l.starts_with("follow_")))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let p = crate::formats::profile::parse_profile(&without, "t").unwrap();
+        assert_eq!(p.mpc.tilt_follow_weight, [0.0; 2]);
+        // The rest default to the washout filter's shipped tuning.
+        let shipped = crate::formats::profile::parse_profile(toml, "t").unwrap();
+        assert_eq!(p.mpc.follow_tilt_lp_wn_radps, shipped.cwf.tilt_lp_wn_radps);
+        assert_eq!(
+            p.mpc.follow_tilt_rate_limit_dps,
+            shipped.cwf.tilt_rate_limit_dps
+        );
+        assert_eq!(
+            p.mpc.follow_rotation_scale,
+            shipped.cwf.angular_velocity_scale[1]
+        );
     }
 
     #[test]
