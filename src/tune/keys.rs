@@ -110,6 +110,11 @@ pub const MPC_KEYS: &[TunableKey] = &[
     // How much of the sustained surge and sway the tilt carries: from all of it down to half
     // the shipped 0.6 (below, the surge cue of a take-off is mostly gone).
     key("mpc.tilt_share", &[], 0.3, 1.0, LIN),
+    // How closely roll and pitch follow the washout's rotation: a decade either side of the
+    // shipped 30 and 100 per rad² (docs/mpc.md, "Following the washout's rotation"). Log
+    // scale cannot reach 0 (free rotation): switching it off is a design choice.
+    key("mpc.tilt_follow_weight", X, 3.0, 300.0, LOG),
+    key("mpc.tilt_follow_weight", Y, 10.0, 1000.0, LOG),
 ];
 
 /// The S-MPC's own keys: supervisor, mixer, weight regulator and COTC's heave washout. Its
@@ -339,7 +344,9 @@ mod tests {
         assert!(
             absent
                 .iter()
-                .all(|p| p.starts_with("mpc.false_cue") || *p == "mpc.reference_decay_s"),
+                .all(|p| p.starts_with("mpc.false_cue")
+                    || *p == "mpc.reference_decay_s"
+                    || *p == "mpc.tilt_follow_weight"),
             "{absent:?}"
         );
         check_table(&stated, &compact).unwrap();
