@@ -342,11 +342,9 @@ mod tests {
         let absent: Vec<&str> = absent.iter().map(|k| k.path).collect();
         assert!(absent.contains(&"mpc.false_cue_weight"), "{absent:?}");
         assert!(
-            absent
-                .iter()
-                .all(|p| p.starts_with("mpc.false_cue")
-                    || *p == "mpc.reference_decay_s"
-                    || *p == "mpc.tilt_follow_weight"),
+            absent.iter().all(|p| p.starts_with("mpc.false_cue")
+                || *p == "mpc.reference_decay_s"
+                || *p == "mpc.tilt_follow_weight"),
             "{absent:?}"
         );
         check_table(&stated, &compact).unwrap();

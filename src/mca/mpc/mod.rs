@@ -12,10 +12,10 @@
 //! its step.
 
 mod assembly;
-mod follow;
 pub mod cache;
 mod cascade;
 pub mod condensed;
+mod follow;
 pub mod model;
 pub mod params;
 mod plan;
@@ -550,7 +550,9 @@ impl Mpc {
             // Held or previewed, the rate goes on over the horizon.
             _ => [f64::INFINITY; 2],
         };
-        self.run.follow.predict(&self.grid, decay_s, &mut self.follow_rad);
+        self.run
+            .follow
+            .predict(&self.grid, decay_s, &mut self.follow_rad);
         self.predict_reference(&input.sample, input.preview, dt_s);
         self.update_tilt_bounds();
         let last_bound = self.tilt_bound_rad[self.grid.len() - 1];

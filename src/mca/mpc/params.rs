@@ -307,7 +307,10 @@ impl MpcParams {
         }
         non_negative("tilt_follow_weight", &self.tilt_follow_weight)?;
         positive("mpc.follow_tilt_lp_wn_radps", self.follow_tilt_lp_wn_radps)?;
-        positive("mpc.follow_tilt_rate_limit_dps", self.follow_tilt_rate_limit_dps)?;
+        positive(
+            "mpc.follow_tilt_rate_limit_dps",
+            self.follow_tilt_rate_limit_dps,
+        )?;
         positive(
             "mpc.follow_tilt_acceleration_limit_dps2",
             self.follow_tilt_acceleration_limit_dps2,
@@ -321,7 +324,10 @@ impl MpcParams {
         {
             return err(
                 "follow_rotation_scale",
-                format!("expected a gain from 0 to 2, got {}", self.follow_rotation_scale),
+                format!(
+                    "expected a gain from 0 to 2, got {}",
+                    self.follow_rotation_scale
+                ),
             );
         }
         if !(self.heave_cue_s.is_finite() && self.heave_cue_s >= 0.0) {
