@@ -279,11 +279,6 @@ impl TiltCoordination {
         })
     }
 
-    /// Roll and pitch now (rad) and their rates (rad/s).
-    pub fn now(&self) -> [(f64, f64); 2] {
-        std::array::from_fn(|k| (self.tracker[k].angle_rad, self.tracker[k].rate_radps))
-    }
-
     pub fn reset(&mut self) {
         self.lowpass.iter_mut().for_each(LtiFilter::reset);
         self.tracker = Default::default();

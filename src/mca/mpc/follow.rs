@@ -7,7 +7,7 @@
 //! far the cabin travels (the score's soft dead zone is linear there), and it takes
 //! g·(1 − cos θ) from the vertical force, which the model cannot see. The plan tilted
 //! earlier, further and back and forth more than the washout filter does, and was felt
-//! worse in pitch on most flights (docs/mpc.md, "Following the washout's tilt"). Following
+//! worse in pitch on most flights (docs/mpc.md, "Following the washout's rotation"). Following
 //! this reference keeps the cabin's rotation near what a washout filter with the same tilt
 //! budget would do, and leaves the MPC its translation and its freedom where the gain is
 //! worth the weight.
@@ -15,6 +15,7 @@
 use nalgebra::Vector3;
 
 use super::params::MpcParams;
+use super::reference::decaying_mean;
 use crate::mca::washout::{rotational_channel, tilt_lowpass, TiltCoordination, TiltLimits};
 use crate::model::lti::LtiFilter;
 
@@ -68,9 +69,9 @@ impl Follow {
 
     /// Roll and pitch (rad) to follow at the end of each interval of `grid` (s): the tilt
     /// moving toward its present target at its rate limit, the rotational channel going on
-    /// at its present rate, fading with the roll and pitch `decay_s` as the `decay` reference
-    /// predicts the aircraft's rates (infinite: held).
-    pub(super) fn predict(&self, grid: &[f64], decay_s: [f64; 2], out: &mut Vec<[f64; 2]>) {
+    /// at its present rate, fading with the roll and pitch time constants `decay_s` as the
+    /// `decay` reference predicts the aircraft's rates (`None`: held).
+    pub(super) fn predict(&self, grid: &[f64], decay_s: Option<[f64; 2]>, out: &mut Vec<[f64; 2]>) {
         out.clear();
         let mut t_s = 0.0;
         for &h in grid {
@@ -78,15 +79,9 @@ impl Follow {
             let tilt = self.tilt.predict_rad(t_s);
             out.push(std::array::from_fn(|k| {
                 let (angle, rate) = self.rotation_now[k];
-                let tau = decay_s[k];
-                let travelled_s = if !tau.is_finite() {
-                    t_s
-                } else if tau > 0.0 {
-                    tau * (1.0 - (-t_s / tau).exp())
-                } else {
-                    0.0
-                };
-                tilt[k] + angle + rate * travelled_s
+                // The distance a unit rate covers by t_s: t_s times its mean over [0, t_s].
+                let fade = decay_s.map_or(1.0, |tau| decaying_mean(1.0, 0.0, tau[k], 0.0, t_s));
+                tilt[k] + angle + rate * t_s * fade
             }));
         }
     }
@@ -115,7 +110,7 @@ mod tests {
         let rate_max = p.follow_tilt_rate_limit_dps.to_radians();
         for _ in 0..2000 {
             f.step(&df, &Vector3::zeros(), dt);
-            f.predict(&[0.1, 0.4], [0.3; 2], &mut out);
+            f.predict(&[0.1, 0.4], Some([0.3; 2]), &mut out);
             let pitch = out[0][1];
             assert!(out[0][0].abs() < 1e-12, "no roll for a surge");
             // The prediction never runs faster than the limit nor past the target.
@@ -136,7 +131,7 @@ mod tests {
         for k in 0..3000 {
             let q = if k < 100 { 0.1 } else { 0.0 };
             f.step(&Vector3::zeros(), &Vector3::new(0.0, q, 0.0), dt);
-            f.predict(&[0.1], [0.3; 2], &mut out);
+            f.predict(&[0.1], Some([0.3; 2]), &mut out);
             peak = peak.max(out[0][1]);
         }
         // One second at 0.1 rad/s, scaled, rises toward the scaled angle and returns.

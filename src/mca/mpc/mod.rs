@@ -543,12 +543,12 @@ impl Mpc {
         let rates = input.sample.angular_velocity_radps.map(finite_or_zero);
         self.run.follow.step(&df, &rates, dt_s);
         let decay_s = match self.params.reference {
-            ReferenceMode::Decay => [
+            ReferenceMode::Decay => Some([
                 self.params.reference_decay_s[3],
                 self.params.reference_decay_s[4],
-            ],
+            ]),
             // Held or previewed, the rate goes on over the horizon.
-            _ => [f64::INFINITY; 2],
+            _ => None,
         };
         self.run
             .follow
