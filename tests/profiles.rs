@@ -74,6 +74,54 @@ fn every_shipped_profile_works_for_every_algorithm_on_every_shipped_trace() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// DESIGN §9 on the whole flight library, not only the shipped five: the MPCs keep the limiter
+/// under 1 % of the steps and no algorithm's leg leaves its stroke. The rough taxi's turn put
+/// the free MPC's plan on the leg bound the limiter keeps; the linearised legs then put each
+/// command a few nanometres past it and the platform stayed at the corner for the rest of the
+/// flight, the limiter acting on 52 % of the steps (docs/mpc.md). The CWF is not held to the
+/// limiter share here: beyond its envelope (the F-16, the rejected take-off) its own filters
+/// ask for more than the workspace and the limiter is what keeps it safe.
+#[test]
+fn the_mpcs_keep_the_limiter_under_one_percent_on_every_library_flight() {
+    let dir = tempfile::tempdir().unwrap();
+    // The solvers' wall-clock limit lifted, as `compare` does: a debug build on a loaded
+    // machine would otherwise fall back on steps a real-time build solves.
+    let text = std::fs::read_to_string(repo().join("profiles/full-flight.toml")).unwrap();
+    assert!(text.contains("time_limit_ms = 20.0"));
+    let profile = dir.path().join("full-flight-untimed.toml");
+    std::fs::write(
+        &profile,
+        text.replacen("time_limit_ms = 20.0", "time_limit_ms = 1e9", 1),
+    )
+    .unwrap();
+    let mut traces: Vec<_> = std::fs::read_dir(repo().join("recordings/traces/library"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "csv"))
+        .collect();
+    traces.sort();
+    assert!(traces.len() >= 20, "{traces:?}");
+    let mut failures = Vec::new();
+    for trace in &traces {
+        let name = trace.file_stem().unwrap().to_string_lossy().into_owned();
+        let summary = dir.path().join(format!("{name}.json"));
+        play_summary(&profile, trace, "smpc,mpc,cwf", &summary);
+        let json = read_json(&summary);
+        for alg in ["smpc", "mpc", "cwf"] {
+            let a = &json["algorithms"][alg];
+            let limiter = a["limiter_fraction"].as_f64().unwrap();
+            let violations = a["leg_violations"].as_u64().unwrap();
+            if (alg != "cwf" && limiter >= LIMITER_MAX) || violations > 0 {
+                failures.push(format!(
+                    "{name} {alg}: limiter {:.2} % of steps, {violations} leg violations",
+                    100.0 * limiter
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 fn corpus_profile(name: &str) -> std::path::PathBuf {
     repo().join("tests/corpus/profiles").join(name)
 }

@@ -44,6 +44,15 @@ use crate::model::lti::DiscreteStateSpace;
 use crate::model::platform::DofLimits;
 use crate::model::stewart::Stewart;
 
+/// How far inside the limiter's leg margin the plan keeps its legs (m). The QP bounds the
+/// legs linearised around the present pose; a plan that rests on the bound the limiter
+/// shares is then over it by the linearisation's error (nanometres in the first interval)
+/// as often as not. The limiter rejects such a command and holds the platform, the next
+/// plan starts from the same state and asks the same again, and the MPC stays locked at the
+/// workspace's corner (docs/mpc.md, "The lock at the workspace's corner"). A millimetre
+/// covers that error at every speed the platform can reach in one step.
+const LEG_PLAN_ALLOWANCE_M: f64 = 1e-3;
+
 /// Terminal conditions of the MPC.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Terminal {
@@ -223,8 +232,8 @@ impl Mpc {
                 .collect(),
             false_cue_ahead: Vec::new(),
             ref_rate_radps: vec![[0.0; 2]; grid.len()],
-            leg_lo_m: setting.platform.stewart.leg_min_m + margin,
-            leg_hi_m: setting.platform.stewart.leg_max_m - margin,
+            leg_lo_m: setting.platform.stewart.leg_min_m + margin + LEG_PLAN_ALLOWANCE_M,
+            leg_hi_m: setting.platform.stewart.leg_max_m - margin - LEG_PLAN_ALLOWANCE_M,
             terminal_weight: None,
             washout_gain: 1.0,
             run: Running {
