@@ -180,8 +180,6 @@ pub fn resample_uniform(
     })
 }
 
-/// Linear interpolation that returns an end point exactly (even −0.0) at w = 0 or 1. Angles
-/// go the short way round, so a heading wrapping from 359° to 1° passes through 0°, not 180°.
 /// The sample at time `t` between `a` and `b`, linear in each quantity (angles the short way
 /// round).
 pub(crate) fn lerp_sample(a: &AircraftSample, b: &AircraftSample, t: f64) -> AircraftSample {
@@ -200,6 +198,8 @@ pub(crate) fn lerp_sample(a: &AircraftSample, b: &AircraftSample, t: f64) -> Air
     }
 }
 
+/// Linear interpolation that returns an end point exactly (even −0.0) at w = 0 or 1. Angles
+/// go the short way round, so a heading wrapping from 359° to 1° passes through 0°, not 180°.
 pub(crate) fn lerp3(a: &Vector3<f64>, b: &Vector3<f64>, w: f64, angles: bool) -> Vector3<f64> {
     Vector3::from_fn(|i, _| {
         let mut d = b[i] - a[i];
