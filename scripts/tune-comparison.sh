@@ -126,7 +126,7 @@ done
         echo
         echo "| generation | candidates | training best (mean score) | validation of that candidate |"
         echo "|---:|---:|---:|---|"
-        grep '^generation' "$work/$a.err" | sed -E 's/^generation ([0-9]+): ([0-9]+) candidates, training best ([0-9.]+)(, validation (.*))?$/| \1 | \2 | \3 | \5 |/'
+        grep '^generation' "$work/$a.err" | sed -E 's/^generation ([0-9]+): ([0-9]+) candidates, training best ([0-9.]+)( \([^)]*\))?(, validation (.*))?$/| \1 | \2 | \3\4 | \6 |/'
     done
     for set in validation shipped; do
         for p in tuned base; do

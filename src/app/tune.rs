@@ -71,11 +71,17 @@ impl Progress for Bar {
         // A line per generation says how far the search is and whether what it fits holds on
         // the flights it does not see: above the bar on a terminal, on stderr elsewhere.
         let line = format!(
-            "generation {}: {} candidates, training best {}{}",
+            "generation {}: {} candidates, training best {}{}{}",
             r.generation,
             r.evaluations,
             r.training
                 .map_or("none yet".to_string(), |b| format!("{b:.4}")),
+            match (r.training, r.training_ranked) {
+                (Some(m), Some(p)) if p > m + 5e-5 => {
+                    format!(" ({p:.4} with the flights beyond the base + 2 % priced)")
+                }
+                _ => String::new(),
+            },
             match &r.validation {
                 Some((v, None)) => format!(", validation {v:.4} (accepted)"),
                 Some((v, Some(why))) => format!(", validation {v:.4} (not accepted: {why})"),
@@ -266,8 +272,8 @@ pub fn run(args: &TuneArgs) -> Result<()> {
 
     let Some(best) = &result.best else {
         bail!(
-            "no candidate kept every leg in its stroke and the limiter within {} % of the \
-             steps (or the base's share) on every trace; nothing written",
+            "no candidate kept every leg in its stroke and the limiter within the base's share \
+             of the steps + {} % on every trace; nothing written",
             100.0 * LIMITER_TOLERANCE
         );
     };
