@@ -390,6 +390,10 @@ pub fn tune(
         }
         score
     };
+    let names =
+        |e: &Evaluator| -> Vec<String> { e.traces.iter().map(|t| t.name.clone()).collect() };
+    let training_names = names(evaluator);
+    let validation_names = validation.map(names).unwrap_or_default();
     let mut interrupted = evaluator.stop.load(Ordering::Relaxed);
     if budget > lambda && !interrupted {
         let mut cmaes = cmaes::CMAESOptions::new(mean, step)
@@ -427,11 +431,7 @@ pub fn tune(
                     }),
                 };
                 if let Some(e) = entry {
-                    let names: Vec<String> = v.traces.iter().map(|t| t.name.clone()).collect();
-                    let training_names: Vec<String> =
-                        evaluator.traces.iter().map(|t| t.name.clone()).collect();
-                    let why = validate::training_rejection(&e.candidate, ceilings, &training_names)
-                        .or_else(|| validate::rejection(base_v, &e.validation, &names));
+                    let why = e.rejection(base_v, ceilings, &training_names, &validation_names);
                     record.validation = Some((e.mean(), why));
                     if known.is_none() {
                         validated.push(e);

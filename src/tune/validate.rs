@@ -34,19 +34,14 @@ pub struct GenerationRecord {
     pub validation: Option<(f64, Option<String>)>,
 }
 
-/// Why a validated candidate is not accepted, or `None` when it is. `names` names the flights
-/// in the reason (their index where it is shorter).
+/// Why a validated candidate is not accepted for what it did on the validation flights, or
+/// `None`. `names` names the flights in the reason (their index where it is shorter).
 pub fn rejection(
     base: &[TraceOutcome],
     candidate: &[TraceOutcome],
     names: &[String],
 ) -> Option<String> {
-    let flight = |i: usize| {
-        names
-            .get(i)
-            .cloned()
-            .unwrap_or_else(|| format!("validation flight {i}"))
-    };
+    let flight = |i: usize| flight_name(names, i, "validation flight");
     if base.len() != candidate.len() {
         return Some(format!(
             "{} validation outcomes against the base's {}",
@@ -99,6 +94,28 @@ impl Validated {
     pub fn mean(&self) -> f64 {
         self.validation.iter().map(|o| o.score).sum::<f64>() / self.validation.len().max(1) as f64
     }
+
+    /// Why this candidate is not accepted as the result ([`training_rejection`], then
+    /// [`rejection`]), or `None` when it is: the one rule behind both the generation's line and
+    /// [`choose`].
+    pub fn rejection(
+        &self,
+        base: &[TraceOutcome],
+        ceilings: &[f64],
+        training_names: &[String],
+        validation_names: &[String],
+    ) -> Option<String> {
+        training_rejection(&self.candidate, ceilings, training_names)
+            .or_else(|| rejection(base, &self.validation, validation_names))
+    }
+}
+
+/// The flight's name for a reason, or `fallback` and its index where `names` is shorter.
+fn flight_name(names: &[String], i: usize, fallback: &str) -> String {
+    names
+        .get(i)
+        .cloned()
+        .unwrap_or_else(|| format!("{fallback} {i}"))
 }
 
 /// Why a candidate is not accepted for what it did on the training flights: a flight scored
@@ -119,12 +136,9 @@ pub fn training_rejection(
         .enumerate()
         .find(|(_, (o, c))| o.score > **c + 1e-12)
         .map(|(i, (o, c))| {
-            let name = names
-                .get(i)
-                .cloned()
-                .unwrap_or_else(|| format!("training flight {i}"));
             format!(
-                "training {name}: score {:.4} against the base's {:.4}",
+                "training {}: score {:.4} against the base's {:.4}",
+                flight_name(names, i, "flight"),
                 o.score,
                 c / (1.0 + PER_FLIGHT_TOLERANCE)
             )
@@ -142,10 +156,7 @@ pub fn choose<'a>(
 ) -> Option<&'a Validated> {
     validated
         .iter()
-        .filter(|v| {
-            training_rejection(&v.candidate, ceilings, &[]).is_none()
-                && rejection(base, &v.validation, &[]).is_none()
-        })
+        .filter(|v| v.rejection(base, ceilings, &[], &[]).is_none())
         .fold(None, |best: Option<&Validated>, v| match best {
             Some(b) if b.mean() <= v.mean() => Some(b),
             _ => Some(v),
