@@ -9,8 +9,9 @@
 #   bash scripts/tune-comparison.sh [BUDGET] [SEED]      (defaults: 200 and 1)
 #
 # BUDGET is the MPCs' candidates: at 100 (7 generations of CMA-ES in 22 dimensions) the MPC's
-# result held on every validation flight but, for one of the seeds measured, not on every flight no step
-# saw; at 200 it did for both seeds measured (docs/tuning.md, "The MPC's budget"). The CWF
+# result held on every validation flight but, for one of the seeds measured, not on every
+# flight no step saw; at 200 it did for both seeds measured (docs/tuning.md, "The MPC's
+# budget"). The CWF
 # gets CWF_BUDGET (default twice BUDGET): one CWF candidate costs about a twentieth of an
 # MPC's, and at 100 its search had not left its second generation's best (docs/tuning.md,
 # "The fair comparison").

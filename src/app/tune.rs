@@ -17,7 +17,8 @@ use crate::formats::trace::load_trace;
 use crate::mca::AlgorithmId;
 use crate::trace::Trace;
 use crate::tune::{
-    keys, tunable_keys, tune, Evaluator, GenerationRecord, Progress, Validated, LIMITER_TOLERANCE,
+    keys, tunable_keys, tune, validate::PER_FLIGHT_TOLERANCE, Evaluator, GenerationRecord,
+    Progress, Validated, LIMITER_TOLERANCE,
 };
 
 /// Traces from folders (their *.csv, sorted) and files, checked before any work.
@@ -78,7 +79,10 @@ impl Progress for Bar {
                 .map_or("none yet".to_string(), |b| format!("{b:.4}")),
             match (r.training, r.training_ranked) {
                 (Some(m), Some(p)) if p > m + 5e-5 => {
-                    format!(" ({p:.4} with the flights beyond the base + 2 % priced)")
+                    format!(
+                        " ({p:.4} with the flights beyond the base + {} % priced)",
+                        100.0 * PER_FLIGHT_TOLERANCE
+                    )
                 }
                 _ => String::new(),
             },
