@@ -651,6 +651,14 @@ mod tests {
         assert!(plan.bounds.acceleration <= l.limits.acceleration[1] * (1.0 + 1e-12));
         check(&plan.path, from, &plan.bounds, l.limits.excursion[1]);
         assert!(plan.path.duration_s() <= l.return_time_s);
+        eprintln!(
+            "hard brake from sway 1.5 m at +1 m/s: A {:.2} m/s², J {:.1} m/s³, peak {:.3} m, \
+             at rest on neutral in {:.2} s",
+            plan.bounds.acceleration,
+            plan.bounds.jerk,
+            plan.path.peak_position(),
+            plan.path.duration_s()
+        );
         // The rung just below the one taken would have left the excursion: it is the
         // gentlest that stays inside (checked by dense sampling, not the analytic peak).
         let k = (1..=HARD_RUNGS)
@@ -699,6 +707,47 @@ mod tests {
         );
         if far.bounds.acceleration == l.gentle_acceleration[0] {
             assert!(softer.duration_s() > l.return_time_s);
+        }
+    }
+
+    /// The figures the shipped profiles' comments and docs/live.md quote: the time from rest
+    /// at the end of the travel to rest on neutral at the gentle limits, and the rung a way
+    /// back from there takes.
+    #[test]
+    fn the_shipped_profiles_full_returns() {
+        let compact = crate::formats::profile::parse_profile(
+            include_str!("../../profiles/compact.toml"),
+            "compact.toml",
+        )
+        .unwrap();
+        for (profile, want_s, want_rung) in [
+            (
+                full_flight(),
+                [4.22, 4.22, 3.08, 3.70, 3.70, 4.00],
+                [1.0, 1.0, 0.5, 1.0, 1.0, 1.0],
+            ),
+            (
+                compact,
+                [1.47, 1.47, 1.37, 3.00, 3.00, 3.37],
+                [0.125, 0.125, 0.125, 0.5, 0.5, 1.0],
+            ),
+        ] {
+            let l = profile.safety.transition_limits(&profile.limits.si(), DT);
+            for i in 0..6 {
+                let t = l.gentle_full_return_s(i);
+                assert!((t - want_s[i]).abs() < 0.005, "{} {i}: {t}", profile.name);
+                let from = DofState {
+                    p: l.limits.excursion[i],
+                    ..Default::default()
+                };
+                let plan = l.plan_dof(i, from);
+                assert_eq!(
+                    plan.bounds.acceleration,
+                    l.gentle_acceleration[i] * want_rung[i],
+                    "{} {i}",
+                    profile.name
+                );
+            }
         }
     }
 
