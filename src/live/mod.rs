@@ -1068,6 +1068,55 @@ mod tests {
         }
     }
 
+    /// A stop while sway moves outward fast near the end of its travel: the way back brakes
+    /// harder than the gentle limits, and says so in an event and the summary.
+    #[test]
+    fn a_hard_brake_is_told_in_an_event_and_the_summary() {
+        let (mut s, _) = session();
+        // The last three poses sent: sway at 1.48, 1.49, 1.50 m, moving out at 1 m/s.
+        for y in [1.48, 1.49, 1.5] {
+            s.safety.sent(&crate::mca::PlatformCommand {
+                pose: nalgebra::Vector6::new(0.0, y, 0.0, 0.0, 0.0, 0.0),
+                ..Default::default()
+            });
+        }
+        // Running, as far as the state machine knows: the stop starts a way back.
+        s.safety.begin_step(true);
+        let r = s.step(Instant::now(), Control::Stop).unwrap();
+        assert_eq!(r.output.state, SafetyState::Estop);
+        let texts: Vec<&str> = r.events.iter().map(|e| e.text.as_str()).collect();
+        let stopping = texts.iter().find(|t| t.starts_with("stopping:")).unwrap();
+        assert!(stopping.contains("at rest on neutral in"), "{texts:?}");
+        let brakes: Vec<&Event> = r
+            .events
+            .iter()
+            .filter(|e| e.text.starts_with("hard brake on"))
+            .collect();
+        assert_eq!(brakes.len(), 1, "{texts:?}");
+        assert_eq!(brakes[0].level, EventLevel::Warning);
+        assert!(
+            brakes[0].text.starts_with("hard brake on sway: peak ")
+                && brakes[0].text.contains("beyond the gentle 0.50 m/s²")
+                && brakes[0].text.contains("inside its excursion"),
+            "{}",
+            brakes[0].text
+        );
+        let t = s.summary().live.unwrap().transitions;
+        assert_eq!(t.count, 1);
+        assert_eq!(t.hard_brakes.len(), 1);
+        let h = &t.hard_brakes[0];
+        assert_eq!(
+            (h.dof.as_str(), h.why.as_str(), h.unit.as_str()),
+            ("sway", "excursion", "m/s²")
+        );
+        assert!(
+            h.peak_acceleration > 0.5 && h.peak_acceleration <= 10.0,
+            "{h:?}"
+        );
+        assert_eq!(h.gentle_acceleration, 0.5);
+        assert!(t.longest_s > 0.0 && t.longest_s <= 4.5, "{t:?}");
+    }
+
     #[test]
     fn a_stop_parks_and_every_step_sends_a_command() {
         let (mut s, _) = session();
