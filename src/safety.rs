@@ -210,9 +210,9 @@ impl SafetyState {
 /// (a cubic smoothstep's second derivative steps by ±6/T² there, a jerk the algorithms pass
 /// on).
 pub fn fade_in_gain(x: f64) -> f64 {
-    let x = x.clamp(0.0, 1.0);
-    // Rounding near x = 1 would put it a few ulp above 1.
-    (x * x * x * (10.0 + x * (-15.0 + 6.0 * x))).min(1.0)
+    // The S-MPC's mixer blends with the same curve. Rounding near x = 1 would put it a few
+    // ulp above 1.
+    crate::mca::switching::smoothstep(x).0.min(1.0)
 }
 
 /// The way back to neutral being followed: one jerk-limited path per DoF ([`path`]),
