@@ -13,6 +13,7 @@ use crate::mca::{AlgorithmId, BuildError, MotionCueing, Setting};
 use crate::model::platform::Platform;
 use crate::model::stewart::{Geometry, Stewart, SYMMETRIC_KEYS};
 use crate::model::vestibular::VestibularParams;
+pub use crate::safety::SafetySettings;
 
 // Each section's type lives with what it tunes; these names stay for the code that reached
 // them here before they moved.
@@ -54,6 +55,10 @@ pub struct Profile {
     /// the defaults of [`MoogParams`]).
     #[serde(default)]
     pub moog: MoogParams,
+    /// The live session's fade-in, input timeout and transitions to neutral (absent: the
+    /// defaults of [`SafetySettings`]).
+    #[serde(default)]
+    pub safety: SafetySettings,
 }
 
 /// How a live session drives a Moog 6DOF2000E (docs/live.md, *Moog*).
@@ -288,6 +293,7 @@ impl Profile {
         positive("moog.reply_timeout_s", m.reply_timeout_s)?;
         positive("moog.engage_timeout_s", m.engage_timeout_s)?;
         positive("moog.park_timeout_s", m.park_timeout_s)?;
+        self.safety.validate(&self.limits.si(), self.dt_s())?;
         if self.mpc.fine_step_s < self.dt_s() - 1e-12 {
             return err(
                 "mpc.fine_step_s",

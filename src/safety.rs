@@ -8,28 +8,158 @@
 //! a platform fault → fault from any state: the pose is held, latched. The workspace
 //! limiter still follows every command it produces.
 
-use nalgebra::Vector6;
-use serde::Serialize;
+pub mod path;
+
+use nalgebra::{Vector3, Vector6};
+use serde::{Deserialize, Serialize};
 
 use crate::mca::PlatformCommand;
 use crate::model::platform::DofLimits;
+use crate::vocab::{positive, ProfileError};
+use path::{DofPlan, DofState, TransitionLimits};
 
-/// Tuning of the safety states.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// The profile's `[safety]`, in the units of its key names: the fade-in, the input timeout,
+/// and the limits of every transition to neutral (docs/live.md, *Transitions*). Absent: the
+/// defaults below, which are the shipped profiles'.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SafetySettings {
+    /// How long the cue takes to fade in on engage (s).
+    pub fade_in_s: f64,
+    /// Input older than this counts as lost (s).
+    pub input_timeout_s: f64,
+    /// Every transition is at rest on neutral within this of its start (s).
+    pub return_time_s: f64,
+    /// Gentle acceleration of a transition, surge / sway / heave (m/s²).
+    pub acceleration_mps2: [f64; 3],
+    /// Gentle jerk of a transition, surge / sway / heave (m/s³).
+    pub jerk_mps3: [f64; 3],
+    /// Gentle angular acceleration of a transition, roll / pitch / yaw (deg/s²).
+    pub angular_acceleration_dps2: [f64; 3],
+    /// Gentle angular jerk of a transition, roll / pitch / yaw (deg/s³).
+    pub angular_jerk_dps3: [f64; 3],
+}
+
+impl Default for SafetySettings {
+    fn default() -> Self {
+        SafetySettings {
+            fade_in_s: 3.0,
+            input_timeout_s: 0.2,
+            return_time_s: 4.5,
+            acceleration_mps2: [0.5; 3],
+            jerk_mps3: [1.0; 3],
+            angular_acceleration_dps2: [10.0; 3],
+            angular_jerk_dps3: [20.0; 3],
+        }
+    }
+}
+
+/// The DoFs' names, as in the profile's `[limits.*]`.
+pub const DOF_NAMES: [&str; 6] = ["surge", "sway", "heave", "roll", "pitch", "yaw"];
+
+impl SafetySettings {
+    /// The transitions' limits in SI for a platform of `limits` stepped every `dt_s`.
+    pub fn transition_limits(&self, limits: &DofLimits, dt_s: f64) -> TransitionLimits {
+        let join = |t: [f64; 3], r: [f64; 3]| {
+            let r = Vector3::from(r).map(f64::to_radians);
+            Vector6::new(t[0], t[1], t[2], r[0], r[1], r[2])
+        };
+        TransitionLimits {
+            gentle_acceleration: join(self.acceleration_mps2, self.angular_acceleration_dps2),
+            gentle_jerk: join(self.jerk_mps3, self.angular_jerk_dps3),
+            return_time_s: self.return_time_s,
+            limits: *limits,
+            dt_s,
+        }
+    }
+
+    /// What the safety stage runs on.
+    pub fn params(&self, limits: &DofLimits, dt_s: f64) -> SafetyParams {
+        SafetyParams {
+            fade_in_s: self.fade_in_s,
+            input_timeout_s: self.input_timeout_s,
+            transitions: self.transition_limits(limits, dt_s),
+        }
+    }
+
+    /// Every value possible, the gentle limits within the DoFs' own, and the return time
+    /// long enough for the gentle limits to bring every DoF back from the end of its travel.
+    pub fn validate(&self, limits: &DofLimits, dt_s: f64) -> Result<(), ProfileError> {
+        positive("safety.fade_in_s", self.fade_in_s)?;
+        positive("safety.input_timeout_s", self.input_timeout_s)?;
+        positive("safety.return_time_s", self.return_time_s)?;
+        let keys = [
+            (
+                "acceleration_mps2",
+                "jerk_mps3",
+                "acceleration_mps2",
+                "m/s²",
+            ),
+            (
+                "angular_acceleration_dps2",
+                "angular_jerk_dps3",
+                "acceleration_dps2",
+                "deg/s²",
+            ),
+        ];
+        let values = [
+            (self.acceleration_mps2, self.jerk_mps3),
+            (self.angular_acceleration_dps2, self.angular_jerk_dps3),
+        ];
+        for (g, ((acc_key, jerk_key, limit_key, unit), (acc, jerk))) in
+            keys.iter().zip(values).enumerate()
+        {
+            for k in 0..3 {
+                let i = 3 * g + k;
+                positive(&format!("safety.{acc_key}[{k}]"), acc[k])?;
+                positive(&format!("safety.{jerk_key}[{k}]"), jerk[k])?;
+                let limit = limits.acceleration[i];
+                let limit = if g == 1 { limit.to_degrees() } else { limit };
+                if acc[k] > limit * (1.0 + 1e-12) {
+                    return Err(ProfileError {
+                        key: format!("safety.{acc_key}[{k}]"),
+                        reason: format!(
+                            "{} {unit} is above limits.{}.{limit_key} ({limit:.6} {unit}): \
+                             the gentle limit must be within the platform's own",
+                            acc[k], DOF_NAMES[i]
+                        ),
+                    });
+                }
+            }
+        }
+        let t = self.transition_limits(limits, dt_s);
+        for (i, name) in DOF_NAMES.iter().enumerate() {
+            let need_s = t.gentle_full_return_s(i);
+            if need_s > self.return_time_s {
+                let (acc_key, k) = if i < 3 {
+                    ("acceleration_mps2", i)
+                } else {
+                    ("angular_acceleration_dps2", i - 3)
+                };
+                return Err(ProfileError {
+                    key: "safety.return_time_s".into(),
+                    reason: format!(
+                        "{} s is shorter than the {need_s:.2} s the gentle limits take to bring \
+                         {name} back from the end of its travel at rest; raise it, or \
+                         safety.{acc_key}[{k}] and its jerk",
+                        self.return_time_s
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Tuning of the safety states, in SI.
+#[derive(Clone, Debug, PartialEq)]
 pub struct SafetyParams {
     /// How long the cue takes to fade in from the aircraft at rest to the aircraft as flown (s).
     pub fade_in_s: f64,
     /// Input older than this counts as lost (s).
     pub input_timeout_s: f64,
-}
-
-impl Default for SafetyParams {
-    fn default() -> Self {
-        SafetyParams {
-            fade_in_s: 3.0,
-            input_timeout_s: 0.2,
-        }
-    }
+    /// What every transition to neutral may use.
+    pub transitions: TransitionLimits,
 }
 
 /// The state of a live session, as sent with every command.
@@ -74,82 +204,91 @@ impl SafetyState {
     }
 }
 
-/// A path from any pose and rate to rest at neutral, every DoF on its own: brake at the
-/// acceleration limit while moving away from neutral, then cruise back at a speed that covers
-/// the whole excursion in 2.5 s with gentle 0.5 s ramps, and settle exactly on neutral. From
-/// the far end of every DoF moving outward at its velocity limit, it is at rest at neutral
-/// within about 3.5 s, inside the velocity and acceleration limits (tested below).
-#[derive(Clone, Debug)]
-pub struct NeutralReturn {
-    limits: DofLimits,
-    dt_s: f64,
-    pose: Vector6<f64>,
-    rate: Vector6<f64>,
+/// The cue gain during the fade-in, `x` the share of the fade-in gone: the quintic
+/// smootherstep 6x⁵ − 15x⁴ + 10x³, whose first and second derivatives are zero at both ends,
+/// so that the gain's rate and its change are continuous where the fade-in begins and ends
+/// (a cubic smoothstep's second derivative steps by ±6/T² there, a jerk the algorithms pass
+/// on).
+pub fn fade_in_gain(x: f64) -> f64 {
+    // The S-MPC's mixer blends with the same curve. Rounding near x = 1 would put it a few
+    // ulp above 1.
+    crate::mca::switching::smoothstep(x).0.min(1.0)
 }
 
-/// Time to cross the whole excursion at the cruise speed (s).
-const CRUISE_S: f64 = 2.5;
-/// Time to reach the cruise speed, or stop from it (s).
-const RAMP_S: f64 = 0.5;
+/// The way back to neutral being followed: one jerk-limited path per DoF ([`path`]),
+/// planned once from the platform's pose, velocity and acceleration when the transition
+/// starts, and sampled every step.
+#[derive(Clone, Debug)]
+pub struct NeutralReturn {
+    limits: TransitionLimits,
+    plans: [DofPlan; 6],
+    /// Steps taken since the start.
+    k: u64,
+}
 
 impl NeutralReturn {
-    pub fn new(limits: DofLimits, dt_s: f64) -> Self {
+    pub fn new(limits: TransitionLimits) -> Self {
+        let plans = limits.plan(&[DofState::default(); 6]);
         NeutralReturn {
             limits,
-            dt_s,
-            pose: Vector6::zeros(),
-            rate: Vector6::zeros(),
+            plans,
+            k: 0,
         }
     }
 
-    /// Starts from what was last sent: its pose and its rate.
-    pub fn start(&mut self, from: &PlatformCommand) {
-        self.pose = from.pose;
-        self.rate = from.velocity;
+    /// Starts from the platform's state, each DoF's [`DofState`].
+    pub fn start(&mut self, from: &[DofState; 6]) {
+        self.plans = self.limits.plan(from);
+        self.k = 0;
     }
 
+    /// What was planned at the start, per DoF.
+    pub fn plans(&self) -> &[DofPlan; 6] {
+        &self.plans
+    }
+
+    /// When the last DoF is at rest on neutral, from the start (s).
+    pub fn duration_s(&self) -> f64 {
+        self.plans
+            .iter()
+            .map(|p| p.path.duration_s())
+            .fold(0.0, f64::max)
+    }
+
+    /// The last command sent was at rest on neutral.
     pub fn at_neutral(&self) -> bool {
-        self.pose.iter().chain(self.rate.iter()).all(|v| *v == 0.0)
+        self.k as f64 * self.limits.dt_s >= self.duration_s()
     }
 
     /// The next command on the way to neutral.
     pub fn step(&mut self) -> PlatformCommand {
-        let dt = self.dt_s;
-        let mut acceleration = Vector6::zeros();
-        for i in 0..6 {
-            let (p, v) = (self.pose[i], self.rate[i]);
-            let a_max = self.limits.acceleration[i];
-            let v_cruise = self.limits.velocity[i].min(self.limits.excursion[i] / CRUISE_S);
-            let a_ramp = a_max.min(v_cruise / RAMP_S);
-            // Braking away from neutral is what the limiter plans for (its stopping distance
-            // at the acceleration limit), so it is the only phase at full acceleration.
-            let a_lim = if p * v > 0.0 { a_max } else { a_ramp };
-            // The speed from which a_ramp stops exactly at neutral, and no faster than
-            // reaching it in one step.
-            let v_want = -p.signum()
-                * v_cruise
-                    .min((2.0 * a_ramp * p.abs()).sqrt())
-                    .min(p.abs() / dt);
-            let a = ((v_want - v) / dt).clamp(-a_lim, a_lim);
-            let v_next = v + a * dt;
-            let mut p_next = p + v_next * dt;
-            let mut v_next = v_next;
-            // Within a rounding error of rest: exactly at rest, a change far below the limits.
-            let tiny_p = 0.25 * a_ramp * dt * dt;
-            if p_next.abs() <= tiny_p.max(1e-12) && v_next.abs() <= 0.25 * a_ramp * dt {
-                p_next = 0.0;
-                v_next = 0.0;
-            }
-            acceleration[i] = (v_next - v) / dt;
-            self.pose[i] = p_next;
-            self.rate[i] = v_next;
+        self.k += 1;
+        let t_s = self.k as f64 * self.limits.dt_s;
+        let mut c = PlatformCommand::default();
+        for (i, plan) in self.plans.iter().enumerate() {
+            let s = plan.path.at(t_s);
+            c.pose[i] = s.p;
+            c.velocity[i] = s.v;
+            c.acceleration[i] = s.a;
         }
-        PlatformCommand {
-            pose: self.pose,
-            velocity: self.rate,
-            acceleration,
-        }
+        c
     }
+}
+
+/// The platform's state from the last three poses sent (oldest first), one step apart:
+/// the acceleration their second difference, the velocity the first difference plus half a
+/// step of that acceleration, so that a path starting from it continues the poses' own
+/// second differences without a step (a path continuing at constant acceleration a gives
+/// p₁ − 2p₀ + p₋₁ = a·dt² exactly).
+pub fn state_from_poses(poses: &[Vector6<f64>; 3], dt_s: f64) -> [DofState; 6] {
+    std::array::from_fn(|i| {
+        let a = (poses[2][i] - 2.0 * poses[1][i] + poses[0][i]) / (dt_s * dt_s);
+        DofState {
+            p: poses[2][i],
+            v: (poses[2][i] - poses[1][i]) / dt_s + a * dt_s / 2.0,
+            a,
+        }
+    })
 }
 
 /// What the live loop does at one step.
@@ -172,20 +311,28 @@ pub struct Safety {
     time_in_state_s: f64,
     estop: bool,
     neutral: NeutralReturn,
+    /// A way back to neutral was planned at this step and not yet taken by
+    /// [`Safety::new_transition`].
+    new_transition: bool,
     last_sent: PlatformCommand,
+    /// The last three poses sent, oldest first: the platform's velocity and acceleration.
+    sent_poses: [Vector6<f64>; 3],
     platform: PlatformReadiness,
 }
 
 impl Safety {
-    pub fn new(params: SafetyParams, limits: DofLimits, dt_s: f64) -> Self {
+    pub fn new(params: SafetyParams) -> Self {
+        let dt_s = params.transitions.dt_s;
         Safety {
+            neutral: NeutralReturn::new(params.transitions.clone()),
             params,
             dt_s,
             state: SafetyState::Parked,
             time_in_state_s: 0.0,
             estop: false,
-            neutral: NeutralReturn::new(limits, dt_s),
+            new_transition: false,
             last_sent: PlatformCommand::default(),
+            sent_poses: [Vector6::zeros(); 3],
             platform: PlatformReadiness::Ready,
         }
     }
@@ -227,7 +374,9 @@ impl Safety {
         if matches!(state, SafetyState::Washout | SafetyState::Estop)
             && !matches!(self.state, SafetyState::Washout | SafetyState::Estop)
         {
-            self.neutral.start(&self.last_sent);
+            self.neutral
+                .start(&state_from_poses(&self.sent_poses, self.dt_s));
+            self.new_transition = true;
         }
         self.state = state;
         self.time_in_state_s = 0.0;
@@ -255,10 +404,7 @@ impl Safety {
         }
         let cue_gain = match self.state {
             Running => 1.0,
-            Engaging => {
-                let x = (self.time_in_state_s / self.params.fade_in_s).clamp(0.0, 1.0);
-                x * x * (3.0 - 2.0 * x)
-            }
+            Engaging => fade_in_gain(self.time_in_state_s / self.params.fade_in_s),
             _ => 0.0,
         };
         StepPlan {
@@ -285,6 +431,18 @@ impl Safety {
     /// What was actually sent (after the limiter): a washout starts from there.
     pub fn sent(&mut self, command: &PlatformCommand) {
         self.last_sent = *command;
+        self.sent_poses = [self.sent_poses[1], self.sent_poses[2], command.pose];
+    }
+
+    /// The way back to neutral planned at this step, once: the live loop reports it (and
+    /// any DoF that needed more than the gentle limits).
+    pub fn new_transition(&mut self) -> Option<&NeutralReturn> {
+        std::mem::take(&mut self.new_transition).then_some(&self.neutral)
+    }
+
+    /// The way back to neutral being followed (or last followed).
+    pub fn neutral_return(&self) -> &NeutralReturn {
+        &self.neutral
     }
 }
 
@@ -300,37 +458,54 @@ mod tests {
         full_flight().limits.si()
     }
 
-    /// Runs a neutral return from `from` and checks every step against the limits; returns
-    /// the time it took to be at rest at neutral.
-    fn return_time(from: &PlatformCommand) -> f64 {
-        let l = limits();
-        let mut n = NeutralReturn::new(l, DT);
+    fn params() -> SafetyParams {
+        full_flight().safety.params(&limits(), DT)
+    }
+
+    /// Runs a neutral return from `from` and checks every step: inside the limits, the
+    /// acceleration (second difference of the poses) within the gentle bound or the start's
+    /// own, the jerk (third difference) within the gentle jerk, unless a DoF's plan says it
+    /// needed more. Returns the time it took to be at rest at neutral.
+    fn return_time(from: &[DofState; 6]) -> f64 {
+        let p = params();
+        let (l, t) = (&p.transitions.limits, &p.transitions);
+        let mut n = NeutralReturn::new(p.transitions.clone());
         n.start(from);
-        let (mut prev_p, mut prev_rate) = (from.pose, from.velocity);
+        let back = |k: f64| {
+            Vector6::from_fn(|i, _| {
+                from[i].p + from[i].v * k * DT + from[i].a * (k * DT).powi(2) / 2.0
+            })
+        };
+        let mut poses = vec![back(-2.0), back(-1.0), back(0.0)];
         for k in 1..=1000 {
             let c = n.step();
-            let rate = (c.pose - prev_p) / DT;
-            let change = (rate - prev_rate) / DT;
+            poses.push(c.pose);
+            let w = &poses[poses.len() - 4..];
             for i in 0..6 {
-                let slack = 1.0 + 1e-9;
+                let acc = (w[3][i] - 2.0 * w[2][i] + w[1][i]) / (DT * DT);
+                let prev = (w[2][i] - 2.0 * w[1][i] + w[0][i]) / (DT * DT);
+                let rate = (w[3][i] - w[2][i]) / DT;
+                let plan = &n.plans()[i];
+                let (a_bound, j_bound) = if plan.escalation.is_some() {
+                    (plan.bounds.acceleration, plan.bounds.jerk)
+                } else {
+                    (t.gentle_acceleration[i], t.gentle_jerk[i])
+                };
+                let a_bound = a_bound.max(from[i].a.abs());
+                assert!(rate.abs() <= l.velocity[i] * (1.0 + 1e-6), "k {k} dof {i}");
                 assert!(
-                    c.velocity[i].abs() <= l.velocity[i] * slack,
-                    "k {k} dof {i} {c:?}"
+                    acc.abs() <= a_bound * (1.0 + 1e-6) + 1e-9,
+                    "k {k} dof {i}: {acc}"
                 );
                 assert!(
-                    rate[i].abs() <= l.velocity[i] * slack + 1e-9,
-                    "k {k} dof {i}"
-                );
-                assert!(
-                    change[i].abs() <= l.acceleration[i] * slack + 1e-6,
-                    "k {k} dof {i}: {} > {}",
-                    change[i],
-                    l.acceleration[i]
+                    ((acc - prev) / DT).abs() <= j_bound * (1.0 + 1e-6) + 1e-6,
+                    "k {k} dof {i}: jerk {}",
+                    (acc - prev) / DT
                 );
                 assert!(c.pose[i].abs() <= l.excursion[i] + 1e-9, "k {k} dof {i}");
             }
-            (prev_p, prev_rate) = (c.pose, rate);
             if n.at_neutral() {
+                assert_eq!(c, PlatformCommand::default());
                 return k as f64 * DT;
             }
         }
@@ -338,38 +513,119 @@ mod tests {
     }
 
     #[test]
-    fn the_return_to_neutral_takes_under_five_seconds_inside_the_limits() {
-        let l = limits();
-        // Every DoF at the end of its travel, still moving at the most it could while able
-        // to brake before the end stop (what the limiter allows), then outward at rest, and
-        // half-way moving inward at full speed.
-        let brake_v = Vector6::from_fn(|i, _| {
-            (2.0 * l.acceleration[i] * 0.05 * l.excursion[i])
-                .sqrt()
-                .min(l.velocity[i])
-        });
+    fn the_return_to_neutral_is_in_time_inside_the_limits_and_gentle() {
+        let p = params();
+        let l = &p.transitions.limits;
+        let state = |f: &dyn Fn(usize) -> DofState| -> [DofState; 6] { std::array::from_fn(f) };
+        // At the end of the travel at rest; half-way moving inward at full speed; at 95 %
+        // moving outward at what still stops inside at the gentle limits; accelerating
+        // outward from rest at a quarter of the DoF's limit.
+        let gentle_v = |i: usize| {
+            let (a, j) = (
+                p.transitions.gentle_acceleration[i],
+                p.transitions.gentle_jerk[i],
+            );
+            // Stop distance v²/(2A) + v·A/(2J) within 4 % of the excursion.
+            let d = 0.04 * l.excursion[i];
+            let c = a / (2.0 * j);
+            (-c + (c * c + 2.0 * d / a).sqrt()) * a
+        };
+        // (start, whether every DoF keeps to the gentle limits).
         let cases = [
-            PlatformCommand {
-                pose: l.excursion * 0.95,
-                velocity: brake_v,
-                acceleration: Vector6::zeros(),
-            },
-            PlatformCommand {
-                pose: -l.excursion,
-                velocity: Vector6::zeros(),
-                acceleration: Vector6::zeros(),
-            },
-            PlatformCommand {
-                pose: l.excursion * 0.5,
-                velocity: -l.velocity,
-                acceleration: Vector6::zeros(),
-            },
+            // At the end of the travel at rest.
+            (
+                state(&|i| DofState {
+                    p: -l.excursion[i],
+                    ..Default::default()
+                }),
+                true,
+            ),
+            // Half-way, inward at half the velocity limit; outward at what stops within 4 %
+            // of the excursion at the gentle limits; accelerating outward at the gentle
+            // limit from rest.
+            (
+                state(&|i| DofState {
+                    p: 0.5 * l.excursion[i],
+                    v: -0.5 * l.velocity[i],
+                    a: 0.0,
+                }),
+                true,
+            ),
+            (
+                state(&|i| DofState {
+                    p: 0.5 * l.excursion[i],
+                    v: gentle_v(i),
+                    a: 0.0,
+                }),
+                true,
+            ),
+            (
+                state(&|i| DofState {
+                    p: 0.2 * l.excursion[i],
+                    v: 0.0,
+                    a: p.transitions.gentle_acceleration[i],
+                }),
+                true,
+            ),
+            // Half-way inward at the velocity limit: a gentle stop would pass the far end.
+            (
+                state(&|i| DofState {
+                    p: 0.5 * l.excursion[i],
+                    v: -l.velocity[i],
+                    a: 0.0,
+                }),
+                false,
+            ),
+            // Near the end, outward as fast as still stops inside at the DoF's limit.
+            (
+                state(&|i| {
+                    let v = (2.0 * l.acceleration[i] * 0.03 * l.excursion[i]).sqrt();
+                    DofState {
+                        p: 0.95 * l.excursion[i],
+                        v: v.min(l.velocity[i]),
+                        a: 0.0,
+                    }
+                }),
+                false,
+            ),
+            // Accelerating outward at a quarter of the DoF's limit: the gentle jerk would take
+            // too long to take it back.
+            (
+                state(&|i| DofState {
+                    p: 0.2 * l.excursion[i],
+                    v: 0.0,
+                    a: 0.25 * l.acceleration[i],
+                }),
+                false,
+            ),
         ];
-        for c in &cases {
+        let mut n = NeutralReturn::new(p.transitions.clone());
+        for (c, gentle) in &cases {
             let t = return_time(c);
-            assert!(t <= 5.0, "{t} s from {c:?}");
+            assert!(t <= p.transitions.return_time_s + 1e-9, "{t} s from {c:?}");
             assert!(t >= 1.0, "{t} s: too abrupt to be a washout");
+            n.start(c);
+            let all_gentle = n.plans().iter().all(|d| d.escalation.is_none());
+            assert_eq!(all_gentle, *gentle, "{c:?}: {:?}", n.plans());
         }
+    }
+
+    #[test]
+    fn the_fade_in_gain_is_c2_at_both_ends() {
+        // Analytic derivatives of 6x⁵ − 15x⁴ + 10x³: 30x²(x − 1)², 60x(2x − 1)(x − 1).
+        let d1 = |x: f64| 30.0 * x * x * (x - 1.0).powi(2);
+        let d2 = |x: f64| 60.0 * x * (2.0 * x - 1.0) * (x - 1.0);
+        let h = 1e-4;
+        for x in [0.1, 0.3, 0.5, 0.77, 0.9] {
+            let num1 = (fade_in_gain(x + h) - fade_in_gain(x - h)) / (2.0 * h);
+            let num2 =
+                (fade_in_gain(x + h) - 2.0 * fade_in_gain(x) + fade_in_gain(x - h)) / (h * h);
+            assert!((num1 - d1(x)).abs() < 1e-6, "{x}");
+            assert!((num2 - d2(x)).abs() < 1e-4, "{x}");
+        }
+        assert_eq!((fade_in_gain(0.0), fade_in_gain(1.0)), (0.0, 1.0));
+        assert_eq!((d1(0.0), d1(1.0), d2(0.0), d2(1.0)), (0.0, 0.0, 0.0, 0.0));
+        assert_eq!((fade_in_gain(-1.0), fade_in_gain(2.0)), (0.0, 1.0));
     }
 
     fn sent_through_limiter(
@@ -385,7 +641,7 @@ mod tests {
 
     #[test]
     fn the_cue_fades_in_smoothly_from_parked() {
-        let mut s = Safety::new(SafetyParams::default(), limits(), DT);
+        let mut s = Safety::new(params());
         assert_eq!(s.begin_step(false).state, SafetyState::Parked);
         let first = s.begin_step(true);
         assert_eq!(first.state, SafetyState::Engaging);
@@ -406,19 +662,21 @@ mod tests {
         );
         assert!(gains[0] < 1e-3);
         assert_eq!(*gains.last().unwrap(), 1.0);
-        // Monotonic, and no step larger than a smooth 3 s ramp gives.
+        // Monotonic, no step larger than the smootherstep's steepest (15/8 per fade-in
+        // time), and the steps themselves changing smoothly: the first ones tiny.
         for w in gains.windows(2) {
             assert!(
-                w[1] >= w[0] && w[1] - w[0] <= 1.5 * DT / 3.0 + 1e-12,
+                w[1] >= w[0] && w[1] - w[0] <= 1.875 * DT / 3.0 + 1e-12,
                 "{w:?}"
             );
         }
+        assert!(gains[1] - gains[0] < 1e-5, "{gains:?}");
     }
 
     #[test]
     fn input_lost_washes_out_to_neutral_then_fades_in_again() {
         let l = limits();
-        let mut s = Safety::new(SafetyParams::default(), l, DT);
+        let mut s = Safety::new(params());
         let mut limiter = WorkspaceLimiter::new(full_flight().stewart(), l, 0.02, DT);
         // Running with the algorithm holding a pitched, displaced pose.
         let held = PlatformCommand {
@@ -436,13 +694,12 @@ mod tests {
         let mut t = 0.0;
         while s.begin_step(false).state != SafetyState::Parked {
             assert_eq!(s.state(), SafetyState::Washout);
-            let before = limiter.last().pose;
-            out = sent_through_limiter(&mut s, &mut limiter, &held);
+            let cmd = s.command(&held);
+            let limited = limiter.apply(&cmd);
             // The limiter had nothing to correct: the washout is inside the limits itself.
-            assert!(
-                (out.pose - s.neutral.pose).amax() < 1e-12,
-                "{before} → {out:?}"
-            );
+            assert!(!limited.acted, "{cmd:?} → {:?}", limited.command);
+            out = limited.command;
+            s.sent(&out);
             t += DT;
             assert!(t <= 5.0, "not parked after {t} s: {out:?}");
         }
@@ -456,10 +713,77 @@ mod tests {
         assert!(p.reset_algorithms && p.cue_gain < 1e-3);
     }
 
+    /// Running a weave (sway and yaw sinusoids, moving and accelerating), the input is lost
+    /// at each of several phases: the poses sent go on without a step in their second
+    /// difference, the jerk (third difference) within the gentle bound or the weave's own,
+    /// the acceleration within the gentle bound or where the weave left it, and at rest on
+    /// neutral within the return time.
+    #[test]
+    fn input_lost_while_moving_goes_on_without_a_jolt() {
+        let p = params();
+        let t = &p.transitions;
+        let weave = |k: usize| {
+            let w = 2.0 * std::f64::consts::PI * 0.25;
+            let x = (k as f64 * DT * w).sin();
+            PlatformCommand {
+                pose: Vector6::new(0.0, 0.3 * x, 0.0, 0.0, 0.0, 0.1 * x),
+                ..Default::default()
+            }
+        };
+        // The weave's own peaks: acceleration A·w², jerk A·w³.
+        let w = 2.0 * std::f64::consts::PI * 0.25;
+        let weave_a = Vector6::new(0.0, 0.3 * w * w, 0.0, 0.0, 0.0, 0.1 * w * w);
+        let weave_j = weave_a * w;
+        for lost_at in [400, 433, 466, 500, 517] {
+            let mut s = Safety::new(p.clone());
+            let mut poses = Vec::new();
+            let mut k = 0;
+            let mut lost_k = None;
+            loop {
+                let input_ok = k < lost_at;
+                let plan = s.begin_step(input_ok);
+                if plan.state == SafetyState::Parked && k > lost_at {
+                    break;
+                }
+                if plan.state == SafetyState::Washout && lost_k.is_none() {
+                    lost_k = Some(poses.len());
+                }
+                let cmd = s.command(&weave(k));
+                s.sent(&cmd);
+                poses.push(cmd.pose);
+                k += 1;
+                assert!(k < lost_at + 1000, "not parked");
+            }
+            let lost_k = lost_k.unwrap();
+            let took_s = (poses.len() - lost_k) as f64 * DT;
+            assert!(took_s <= t.return_time_s + DT, "{took_s} s");
+            let a_at = |k: usize, i: usize| {
+                (poses[k][i] - 2.0 * poses[k - 1][i] + poses[k - 2][i]) / (DT * DT)
+            };
+            for i in 0..6 {
+                let a_start = a_at(lost_k - 1, i).abs();
+                for k in lost_k..poses.len() {
+                    let (a, prev) = (a_at(k, i), a_at(k - 1, i));
+                    let jerk = (a - prev) / DT;
+                    assert!(
+                        a.abs() <= t.gentle_acceleration[i].max(a_start) * (1.0 + 1e-6) + 1e-9,
+                        "lost at {lost_at}, step {k}, dof {i}: a {a}"
+                    );
+                    assert!(
+                        jerk.abs() <= t.gentle_jerk[i].max(weave_j[i]) * 1.05 + 1e-6,
+                        "lost at {lost_at}, step {k}, dof {i}: jerk {jerk}"
+                    );
+                }
+                assert!(weave_a[i] >= 0.0);
+            }
+            assert_eq!(*poses.last().unwrap(), Vector6::zeros());
+        }
+    }
+
     #[test]
     fn an_estop_washes_out_then_parks_for_good() {
         let l = limits();
-        let mut s = Safety::new(SafetyParams::default(), l, DT);
+        let mut s = Safety::new(params());
         let mut limiter = WorkspaceLimiter::new(full_flight().stewart(), l, 0.02, DT);
         let held = PlatformCommand {
             pose: Vector6::new(-0.4, 0.3, 0.0, -0.1, 0.0, 0.1),
@@ -489,7 +813,7 @@ mod tests {
 
     #[test]
     fn the_fade_in_waits_for_the_platform() {
-        let mut s = Safety::new(SafetyParams::default(), limits(), DT);
+        let mut s = Safety::new(params());
         s.platform(PlatformReadiness::NotReady);
         // Input for 2 s while the base engages: parked at neutral, no fade.
         for _ in 0..200 {
@@ -513,7 +837,7 @@ mod tests {
     #[test]
     fn a_platform_fault_holds_the_pose_for_good() {
         let l = limits();
-        let mut s = Safety::new(SafetyParams::default(), l, DT);
+        let mut s = Safety::new(params());
         let mut limiter = WorkspaceLimiter::new(full_flight().stewart(), l, 0.02, DT);
         let held = PlatformCommand {
             pose: Vector6::new(0.2, 0.0, -0.05, 0.0, 0.05, 0.0),
@@ -537,14 +861,14 @@ mod tests {
         assert_eq!(s.begin_step(true).state, SafetyState::Fault);
         assert!(s.is_stopped());
         // A fault while parked, waiting: also latched.
-        let mut s = Safety::new(SafetyParams::default(), l, DT);
+        let mut s = Safety::new(params());
         s.platform(PlatformReadiness::Fault);
         assert_eq!(s.begin_step(true).state, SafetyState::Fault);
     }
 
     #[test]
     fn an_estop_while_parked_keeps_it_parked() {
-        let mut s = Safety::new(SafetyParams::default(), limits(), DT);
+        let mut s = Safety::new(params());
         s.estop();
         assert_eq!(s.begin_step(true).state, SafetyState::Parked);
         assert!(s.is_stopped());

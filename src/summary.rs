@@ -119,6 +119,37 @@ pub struct LiveSummary {
     /// What the stepping thread was granted (docs/live.md, *Real time*).
     #[serde(default)]
     pub realtime: RealtimeSummary,
+    /// The transitions to neutral (docs/live.md, *Transitions*).
+    #[serde(default)]
+    pub transitions: TransitionSummary,
+}
+
+/// The transitions to neutral of a live session: input lost, simulator paused, stop.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TransitionSummary {
+    /// Transitions to neutral started.
+    pub count: u64,
+    /// The longest of their planned times to rest on neutral (s).
+    pub longest_s: f64,
+    /// Every DoF whose way back needed more than the profile's gentle `[safety]` limits.
+    pub hard_brakes: Vec<HardBrake>,
+}
+
+/// A DoF that braked harder than the gentle limits on its way back to neutral.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HardBrake {
+    /// Session time the transition started (s).
+    pub t_s: f64,
+    /// surge, sway, heave, roll, pitch or yaw.
+    pub dof: String,
+    /// What the gentle path would have broken: `excursion`, `velocity` or `return_time`.
+    pub why: String,
+    /// The path's peak |acceleration| (m/s² or deg/s²).
+    pub peak_acceleration: f64,
+    /// The gentle limit it exceeded (same unit).
+    pub gentle_acceleration: f64,
+    /// `m/s²` or `deg/s²`.
+    pub unit: String,
 }
 
 /// The stepping thread's scheduling: asked for, granted, or refused and why.

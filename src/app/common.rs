@@ -175,8 +175,36 @@ pub fn format_table(s: &Summary) -> String {
             out.push_str(&format!("live: NOT A CLEAN SESSION: {none}\n"));
         }
         out.push_str(&format!("live: {}\n", realtime_line(l)));
+        out.push_str(&format!("live: {}\n", transitions_line(&l.transitions)));
     }
     out
+}
+
+/// The transitions to neutral, and any that braked harder than the gentle limits.
+fn transitions_line(t: &crate::summary::TransitionSummary) -> String {
+    let mut line = format!(
+        "transitions to neutral: {}, the longest {:.2} s; ",
+        t.count, t.longest_s
+    );
+    if t.hard_brakes.is_empty() {
+        line.push_str("all within the gentle [safety] limits");
+    } else {
+        let list: Vec<String> = t
+            .hard_brakes
+            .iter()
+            .map(|h| {
+                format!(
+                    "{} at {:.2} s, peak {:.2} {} ({})",
+                    h.dof, h.t_s, h.peak_acceleration, h.unit, h.why
+                )
+            })
+            .collect();
+        line.push_str(&format!(
+            "HARD BRAKES beyond the gentle limits: {}",
+            list.join("; ")
+        ));
+    }
+    line
 }
 
 /// How the stepping thread ran, and what its sinks missed.

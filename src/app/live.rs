@@ -76,13 +76,7 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
     let drive = AlgorithmId::from_key(&args.drive)
         .with_context(|| format!("--drive {}: expected smpc, mpc or cwf", args.drive))?;
     let input = crate::sources::live::LiveInput::open(&args.input)?;
-    let mut session = LiveSession::new(
-        &profile,
-        &algorithms,
-        drive,
-        input,
-        crate::safety::SafetyParams::default(),
-    )?;
+    let mut session = LiveSession::new(&profile, &algorithms, drive, input)?;
     session.set_realtime((!args.no_realtime).then_some(args.realtime_priority));
     for url in &args.output {
         session.add_output(crate::sinks::open_output(

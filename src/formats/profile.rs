@@ -298,6 +298,76 @@ mod tests {
     }
 
     #[test]
+    fn the_safety_section_is_optional_and_checked() {
+        let shipped = default_profile();
+        assert_eq!(shipped.safety, crate::profile::SafetySettings::default());
+        // Absent: the defaults.
+        let start = DEFAULT_PROFILE_TOML.find("[safety]").unwrap();
+        let end = start + DEFAULT_PROFILE_TOML[start..].find("[score]").unwrap();
+        let without = format!(
+            "{}{}",
+            &DEFAULT_PROFILE_TOML[..start],
+            &DEFAULT_PROFILE_TOML[end..]
+        );
+        assert_eq!(
+            parse_profile(&without, "t.toml").unwrap().safety,
+            shipped.safety
+        );
+        // Each value named when impossible.
+        for (from, to, key) in [
+            ("fade_in_s = 3.0", "fade_in_s = 0.0", "safety.fade_in_s"),
+            (
+                "input_timeout_s = 0.2",
+                "input_timeout_s = -1.0",
+                "safety.input_timeout_s",
+            ),
+            (
+                "jerk_mps3 = [1.0, 1.0, 1.0]",
+                "jerk_mps3 = [1.0, 0.0, 1.0]",
+                "safety.jerk_mps3[1]",
+            ),
+            (
+                "angular_acceleration_dps2 = [10.0, 10.0, 10.0]",
+                "angular_acceleration_dps2 = [10.0, 10.0, 250.0]",
+                "safety.angular_acceleration_dps2[2]",
+            ),
+            // 1.7 m of surge at 0.5 m/s² take 4.22 s.
+            (
+                "return_time_s = 4.5",
+                "return_time_s = 4.0",
+                "safety.return_time_s",
+            ),
+        ] {
+            assert_eq!(invalid_key(&with(from, to)), key, "{to}");
+        }
+        let err = parse_profile(
+            &with("return_time_s = 4.5", "return_time_s = 4.0"),
+            "t.toml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("4.22 s") && err.contains("surge") && err.contains("acceleration_mps2[0]"),
+            "{err}"
+        );
+        let err = parse_profile(
+            &with(
+                "angular_acceleration_dps2 = [10.0, 10.0, 10.0]",
+                "angular_acceleration_dps2 = [10.0, 10.0, 250.0]",
+            ),
+            "t.toml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("limits.yaw.acceleration_dps2"), "{err}");
+        // Unknown keys stay errors, with their name.
+        let err = parse_profile(&with("return_time_s = 4.5", "return_s = 4.5"), "t.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("return_s"), "{err}");
+    }
+
+    #[test]
     fn score_section_refuses_unknown_keys_and_names_bad_weights() {
         let text = with(
             "limiter_weight = 10.0",

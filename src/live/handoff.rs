@@ -131,6 +131,8 @@ mod tests {
                 t_s: frame.t_s,
                 seq: frame.k as u64,
                 pose: Default::default(),
+                velocity: Default::default(),
+                acceleration: Default::default(),
                 legs_m: Default::default(),
                 state: SafetyState::Parked,
                 stopped: false,

@@ -31,12 +31,15 @@ use crate::mca::AlgorithmId;
 use crate::metrics::TimeHistogram;
 use crate::model::stewart::Stewart;
 use crate::profile::Profile;
-use crate::safety::{PlatformReadiness, Safety, SafetyParams, SafetyState};
+use crate::safety::path::Escalation;
+use crate::safety::{PlatformReadiness, Safety, SafetyState, DOF_NAMES};
 use crate::session::FrameSink;
 use crate::sinks::{CommandSink, PlatformOutput, PlatformPhase, PlatformStatus};
 use crate::source::{HeldSample, HeldSampleHandle};
 use crate::sources::live::LiveInput;
-use crate::summary::{LiveSummary, Quantiles, RealtimeSummary, Summary, SummaryBuilder};
+use crate::summary::{
+    HardBrake, LiveSummary, Quantiles, RealtimeSummary, Summary, SummaryBuilder, TransitionSummary,
+};
 use input_watch::{InputCounts, InputWatch};
 
 /// Datagrams read at most per step: ten times what a simulator at 10× the step rate sends.
@@ -126,6 +129,8 @@ pub struct LiveStats {
     /// Reports dropped on the way to the sink thread.
     pub frames_dropped: u64,
     pub realtime: RealtimeSummary,
+    /// The transitions to neutral, and those that braked harder than the gentle limits.
+    pub transitions: TransitionSummary,
 }
 
 impl LiveStats {
@@ -150,6 +155,7 @@ impl LiveStats {
             platform_fault: self.platform_fault.clone(),
             frames_dropped: self.frames_dropped,
             realtime: self.realtime.clone(),
+            transitions: self.transitions.clone(),
         }
     }
 
@@ -215,7 +221,6 @@ impl LiveSession {
         algorithms: &[AlgorithmId],
         drive: AlgorithmId,
         input: LiveInput,
-        safety: SafetyParams,
     ) -> Result<Self> {
         anyhow::ensure!(
             algorithms.contains(&drive),
@@ -230,7 +235,7 @@ impl LiveSession {
         Ok(LiveSession {
             engine,
             held,
-            safety: Safety::new(safety, profile.limits.si(), dt),
+            safety: Safety::new(profile.safety.params(&profile.limits.si(), dt)),
             limiter: WorkspaceLimiter::new(
                 profile.stewart(),
                 profile.limits.si(),
@@ -354,14 +359,21 @@ impl LiveSession {
         }));
         let state_before = self.safety.state();
         let plan = self.safety.begin_step(input_ok);
+        let new_return_s = self.safety.new_transition().map(|r| r.duration_s());
         if plan.state != state_before {
-            let text = self.state_text(plan.state);
+            let mut text = self.state_text(plan.state);
+            if let Some(d) = new_return_s {
+                text.push_str(&format!(", at rest on neutral in {d:.2} s"));
+            }
             let level = match plan.state {
                 SafetyState::Estop | SafetyState::Fault => EventLevel::Error,
                 SafetyState::Washout => EventLevel::Warning,
                 _ => EventLevel::Info,
             };
             self.events.push(Event { t_s, level, text });
+        }
+        if new_return_s.is_some() {
+            self.transition_events(t_s);
         }
         if plan.reset_algorithms {
             self.engine.reset_lanes();
@@ -384,6 +396,8 @@ impl LiveSession {
             t_s: frame.t_s,
             seq: self.seq,
             pose: command.pose,
+            velocity: command.velocity,
+            acceleration: command.acceleration,
             legs_m: self.stewart.leg_lengths(&command.pose),
             state: self.safety.state(),
             stopped: self.safety.is_stopped(),
@@ -457,6 +471,55 @@ impl LiveSession {
         }
         self.platform = first;
         self.safety.platform(readiness);
+    }
+
+    /// Counts the way back to neutral planned at this step, and tells the operator of every
+    /// DoF that needed more than the gentle limits (an event, and the summary's
+    /// `transitions.hard_brakes`).
+    fn transition_events(&mut self, t_s: f64) {
+        let neutral = self.safety.neutral_return();
+        let gentle = &self.safety.params().transitions.gentle_acceleration;
+        let summary = &mut self.stats.transitions;
+        summary.count += 1;
+        summary.longest_s = summary.longest_s.max(neutral.duration_s());
+        for (i, plan) in neutral.plans().iter().enumerate() {
+            let Some(why) = plan.escalation else {
+                continue;
+            };
+            let (scale, unit) = if i < 3 {
+                (1.0, "m/s²")
+            } else {
+                (1f64.to_degrees(), "deg/s²")
+            };
+            let brake = HardBrake {
+                t_s,
+                dof: DOF_NAMES[i].to_string(),
+                why: why.word().to_string(),
+                peak_acceleration: plan.path.peak_acceleration() * scale,
+                gentle_acceleration: gentle[i] * scale,
+                unit: unit.to_string(),
+            };
+            let reason = match why {
+                Escalation::Excursion => {
+                    "moving outward too fast to stop gently inside its excursion"
+                }
+                Escalation::Velocity => {
+                    "accelerating outward too near its velocity limit to stop gently"
+                }
+                Escalation::ReturnTime => {
+                    "too far out and too fast to be back on neutral gently within the return time"
+                }
+            };
+            self.events.push(Event {
+                t_s,
+                level: EventLevel::Warning,
+                text: format!(
+                    "hard brake on {}: peak {:.2} {unit}, beyond the gentle {:.2} {unit}: {reason}",
+                    brake.dof, brake.peak_acceleration, brake.gentle_acceleration
+                ),
+            });
+            summary.hard_brakes.push(brake);
+        }
     }
 
     /// The platform fault that stopped all motion, if there was one.
@@ -744,14 +807,7 @@ mod tests {
         .unwrap();
         let addr = input.local_addr().unwrap();
         let profile = live_profile(&full_flight());
-        let s = LiveSession::new(
-            &profile,
-            &[AlgorithmId::Cwf],
-            AlgorithmId::Cwf,
-            input,
-            SafetyParams::default(),
-        )
-        .unwrap();
+        let s = LiveSession::new(&profile, &[AlgorithmId::Cwf], AlgorithmId::Cwf, input).unwrap();
         (s, addr)
     }
 
@@ -945,6 +1001,120 @@ mod tests {
         let live = summary.live.unwrap();
         assert_eq!(live.frames_dropped, 0);
         assert!(!live.realtime.requested);
+    }
+
+    /// The fade-in on engage: a steady turn's cue (1.5 g, a yaw rate, banked) arrives at once
+    /// from parked, and the cue gain's C² ramp lets it in without a jolt: the commanded
+    /// acceleration (second difference of the poses) within the issue's 2 m/s² and 30 °/s²,
+    /// and the jerk (third difference) growing from nothing, where a linear ramp would have
+    /// stepped it at once to f/T.
+    #[test]
+    fn the_fade_in_lets_a_steady_turn_in_without_a_jolt() {
+        let (mut s, addr) = session();
+        let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let dt = 0.01;
+        // At rest before the first step: the first differences are taken from there.
+        let mut poses = vec![nalgebra::Vector6::zeros(); 3];
+        let mut engaging = Vec::new();
+        for k in 0..400 {
+            let psi = 0.1 * k as f64 * dt;
+            // fx, fy, fz in ft/s² (1.5 g down, a push forward), r 0.1 rad/s, 45° of bank.
+            let line = format!("{},3.0,0,-48.26,0,0,0.1,0.785,0.05,{psi}\n", k as f64 * dt);
+            tx.send_to(line.as_bytes(), addr).unwrap();
+            let r = s.step(Instant::now(), Control::Continue).unwrap();
+            poses.push(r.output.pose);
+            if r.output.state == SafetyState::Engaging {
+                engaging.push(poses.len() - 1);
+            }
+        }
+        assert!(engaging.len() >= 299, "{}", engaging.len());
+        let acc = |k: usize| (poses[k] - 2.0 * poses[k - 1] + poses[k - 2]) / (dt * dt);
+        let (mut worst_a, mut worst_j) = ([0.0f64; 6], [0.0f64; 6]);
+        let mut early_j = [0.0f64; 6];
+        for (n, &k) in engaging.iter().enumerate() {
+            let (a, j) = (acc(k), (acc(k) - acc(k - 1)) / dt);
+            for i in 0..6 {
+                let unit = if i < 3 { 1.0 } else { 1f64.to_degrees() };
+                let bound = if i < 3 { 2.0 } else { 30.0 };
+                assert!(
+                    a[i].abs() * unit <= bound,
+                    "step {n}, DoF {i}: {}",
+                    a[i] * unit
+                );
+                worst_a[i] = worst_a[i].max(a[i].abs() * unit);
+                worst_j[i] = worst_j[i].max(j[i].abs() * unit);
+                if n < 3 {
+                    early_j[i] = early_j[i].max(j[i].abs() * unit);
+                }
+            }
+        }
+        eprintln!(
+            "fade-in: worst |a| {worst_a:.3?} (m/s², °/s²), |jerk| {worst_j:.3?} (m/s³, °/s³), \
+             first 0.03 s {early_j:.4?}"
+        );
+        // The cue did come in (surge, heave and yaw moved), and its jerk grew from nothing:
+        // the smootherstep's second derivative rises from 0, where a cubic smoothstep's
+        // starts at its peak (measured with one: 0.03 s in, yaw's jerk was 51 % of the
+        // fade's worst, against 0.8 % here) and a linear ramp steps the acceleration itself.
+        assert!(
+            worst_a[0] > 0.05 && worst_a[2] > 0.05 && worst_a[5] > 0.5,
+            "{worst_a:?}"
+        );
+        for i in 0..6 {
+            assert!(
+                early_j[i] <= 0.1 * worst_j[i] + 1e-9,
+                "DoF {i}: {early_j:?} {worst_j:?}"
+            );
+        }
+    }
+
+    /// A stop while sway moves outward fast near the end of its travel: the way back brakes
+    /// harder than the gentle limits, and says so in an event and the summary.
+    #[test]
+    fn a_hard_brake_is_told_in_an_event_and_the_summary() {
+        let (mut s, _) = session();
+        // The last three poses sent: sway at 1.48, 1.49, 1.50 m, moving out at 1 m/s.
+        for y in [1.48, 1.49, 1.5] {
+            s.safety.sent(&crate::mca::PlatformCommand {
+                pose: nalgebra::Vector6::new(0.0, y, 0.0, 0.0, 0.0, 0.0),
+                ..Default::default()
+            });
+        }
+        // Running, as far as the state machine knows: the stop starts a way back.
+        s.safety.begin_step(true);
+        let r = s.step(Instant::now(), Control::Stop).unwrap();
+        assert_eq!(r.output.state, SafetyState::Estop);
+        let texts: Vec<&str> = r.events.iter().map(|e| e.text.as_str()).collect();
+        let stopping = texts.iter().find(|t| t.starts_with("stopping:")).unwrap();
+        assert!(stopping.contains("at rest on neutral in"), "{texts:?}");
+        let brakes: Vec<&Event> = r
+            .events
+            .iter()
+            .filter(|e| e.text.starts_with("hard brake on"))
+            .collect();
+        assert_eq!(brakes.len(), 1, "{texts:?}");
+        assert_eq!(brakes[0].level, EventLevel::Warning);
+        assert!(
+            brakes[0].text.starts_with("hard brake on sway: peak ")
+                && brakes[0].text.contains("beyond the gentle 0.50 m/s²")
+                && brakes[0].text.contains("inside its excursion"),
+            "{}",
+            brakes[0].text
+        );
+        let t = s.summary().live.unwrap().transitions;
+        assert_eq!(t.count, 1);
+        assert_eq!(t.hard_brakes.len(), 1);
+        let h = &t.hard_brakes[0];
+        assert_eq!(
+            (h.dof.as_str(), h.why.as_str(), h.unit.as_str()),
+            ("sway", "excursion", "m/s²")
+        );
+        assert!(
+            h.peak_acceleration > 0.5 && h.peak_acceleration <= 10.0,
+            "{h:?}"
+        );
+        assert_eq!(h.gentle_acceleration, 0.5);
+        assert!(t.longest_s > 0.0 && t.longest_s <= 4.5, "{t:?}");
     }
 
     #[test]

@@ -397,8 +397,9 @@ impl SwitchMixer {
     }
 }
 
-/// w(τ), dw/dτ, d²w/dτ² of the quintic smoothstep, τ clamped to [0, 1].
-fn smoothstep(tau: f64) -> (f64, f64, f64) {
+/// w(τ), dw/dτ, d²w/dτ² of the quintic smoothstep, τ clamped to [0, 1]. The live fade-in's
+/// gain too (`safety::fade_in_gain`).
+pub(crate) fn smoothstep(tau: f64) -> (f64, f64, f64) {
     let t = tau.clamp(0.0, 1.0);
     let w = t * t * t * (t * (6.0 * t - 15.0) + 10.0);
     let dw = 30.0 * t * t * (t - 1.0) * (t - 1.0);

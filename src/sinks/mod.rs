@@ -82,6 +82,10 @@ pub struct PlatformOutput {
     pub seq: u64,
     /// x, y, z (m), roll, pitch, yaw (rad) from neutral, simulator inertial frame (DESIGN §1).
     pub pose: Vector6<f64>,
+    /// The command's own rate and acceleration of the pose (m/s, rad/s; m/s², rad/s²): the
+    /// driving algorithm's, or the way back to neutral's.
+    pub velocity: Vector6<f64>,
+    pub acceleration: Vector6<f64>,
     /// Leg lengths 1..6 (m).
     pub legs_m: Vector6<f64>,
     pub state: SafetyState,

@@ -1,6 +1,7 @@
 //! hexcue's own platform command: one JSON object per step in one UDP datagram, e.g.
-//! `{"t":1.23,"seq":123,"pose":[x,y,z,roll,pitch,yaw],"legs":[l1..l6],"state":"running",
-//! "algorithm":"smpc"}` (m and rad, DESIGN §1 frame). Easy to read from any language; the
+//! `{"t":1.23,"seq":123,"pose":[x,y,z,roll,pitch,yaw],"velocity":[..],"acceleration":[..],
+//! "legs":[l1..l6],"state":"running","algorithm":"smpc"}` (m and rad and their rates,
+//! DESIGN §1 frame). Easy to read from any language; the
 //! reference listener is the live test (tests/live.rs).
 
 use std::net::{SocketAddr, UdpSocket};
@@ -14,6 +15,8 @@ struct Message<'a> {
     t: f64,
     seq: u64,
     pose: [f64; 6],
+    velocity: [f64; 6],
+    acceleration: [f64; 6],
     legs: [f64; 6],
     state: &'a str,
     algorithm: &'a str,
@@ -25,6 +28,8 @@ pub fn encode(out: &PlatformOutput) -> Vec<u8> {
         t: out.t_s,
         seq: out.seq,
         pose: out.pose.into(),
+        velocity: out.velocity.into(),
+        acceleration: out.acceleration.into(),
         legs: out.legs_m.into(),
         state: out.state.word(),
         algorithm: out.algorithm.key(),
@@ -75,6 +80,8 @@ mod tests {
             t_s: 1.25,
             seq: 125,
             pose: Vector6::new(0.1, -0.2, 0.03, 0.01, -0.02, 0.5),
+            velocity: Vector6::new(0.5, 0.0, 0.0, 0.0, 0.0, -0.1),
+            acceleration: Vector6::new(0.0, 1.5, 0.0, 0.0, 0.0, 0.0),
             legs_m: Vector6::repeat(3.345),
             state: SafetyState::Washout,
             stopped: false,
@@ -86,6 +93,8 @@ mod tests {
         assert_eq!(v["pose"][1], -0.2);
         assert_eq!(v["pose"].as_array().unwrap().len(), 6);
         assert_eq!(v["legs"][5], 3.345);
+        assert_eq!(v["velocity"][5], -0.1);
+        assert_eq!(v["acceleration"][1], 1.5);
         assert_eq!(v["state"], "washout");
         assert_eq!(v["algorithm"], "smpc");
     }
