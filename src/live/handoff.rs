@@ -135,6 +135,7 @@ mod tests {
                 state: SafetyState::Parked,
                 stopped: false,
                 algorithm: AlgorithmId::Cwf,
+                actuators: None,
             },
             frame,
             input_age_s: None,
