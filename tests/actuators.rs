@@ -446,3 +446,84 @@ fn a_udp_output_with_nothing_listening_is_said_within_2_s_and_so_is_its_recovery
     assert!(stdout.contains(&format!("live: warning: {w}")), "{stdout}");
     drop(listener);
 }
+
+#[test]
+fn an_actuator_stream_needs_the_section_and_a_bad_one_is_refused_by_its_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let live = |output: &str, profile: Option<&Path>| {
+        let mut args: Vec<String> = [
+            "live",
+            "--headless",
+            "--duration",
+            "0.1",
+            "--input",
+            "jsbsim://127.0.0.1:0",
+            "--output",
+            output,
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        if let Some(p) = profile {
+            args.extend(["--profile".to_string(), p.display().to_string()]);
+        }
+        hexcue(&args)
+    };
+    // The default profile has no [actuators]: refused, naming the section, before any port.
+    let out = live("serial:///dev/null?baud=9600", None);
+    let err = stderr(&out);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("no [actuators] section") && err.contains("full-flight"),
+        "{err}"
+    );
+    let out = live("udp://127.0.0.1:9?frame=actuators", None);
+    assert!(
+        stderr(&out).contains("no [actuators] section"),
+        "{}",
+        stderr(&out)
+    );
+    for (url, words) in [
+        ("udp://127.0.0.1:9?frame=pose", "frame=pose"),
+        ("udp://127.0.0.1:9?baud=9600", "unknown option `baud`"),
+        ("serial:///dev/null?baud=fast", "baud=fast"),
+        ("tcp://127.0.0.1:9", "unknown scheme `tcp`"),
+    ] {
+        let out = live(url, None);
+        assert!(!out.status.success(), "{url}");
+        assert!(stderr(&out).contains(words), "{url}: {}", stderr(&out));
+    }
+    // A template written wrong: the file, the key and what was expected.
+    let text = std::fs::read_to_string(repo().join("profiles/hobby-linear.toml")).unwrap();
+    let bad = dir.path().join("bad-template.toml");
+    std::fs::write(&bad, text.replacen("<Axis6a>000000", "<Axis7a>000000", 1)).unwrap();
+    let out = hexcue(&[
+        "play".as_ref(),
+        "--headless".as_ref(),
+        "--algorithms".as_ref(),
+        "cwf".as_ref(),
+        "--profile".as_ref(),
+        bad.as_os_str(),
+    ]);
+    let err = stderr(&out);
+    assert!(!out.status.success());
+    for w in [
+        "bad-template.toml",
+        "actuators.template",
+        "<Axis7a>",
+        "<Axis1a>",
+    ] {
+        assert!(err.contains(w), "no `{w}` in {err}");
+    }
+    // A serial port that is not there: said with its path.
+    let out = live(
+        "serial:///dev/no-such-port?baud=9600",
+        Some(&repo().join("profiles/hobby-linear.toml")),
+    );
+    let err = stderr(&out);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("/dev/no-such-port") && err.contains("cannot open"),
+        "{err}"
+    );
+}
