@@ -401,6 +401,70 @@ mod tests {
         assert!(up.counts[1] > n.counts[1] && up.counts[0] < n.counts[0]);
     }
 
+    /// The numbers the hobby profiles' comments give: each axis alone at its limit, the
+    /// legs' (and the cranks') extremes; and the rotary rig's cranks in pure heave at its
+    /// leg bounds.
+    #[test]
+    fn the_hobby_profiles_comments_hold() {
+        let extremes = |p: &crate::profile::Profile, axes: &[usize]| {
+            let s = p.stewart();
+            let a = p.actuators().unwrap().unwrap();
+            let ex = p.limits.si().excursion;
+            let (mut lo, mut hi, mut crank) = (f64::INFINITY, 0.0f64, 0.0f64);
+            for &axis in axes {
+                for sign in [-1.0, 1.0] {
+                    let mut pose = Vector6::zeros();
+                    pose[axis] = sign * ex[axis];
+                    let legs = s.leg_lengths(&pose);
+                    lo = lo.min(legs.min());
+                    hi = hi.max(legs.max());
+                    let got = a.positions(&s, &pose, &legs);
+                    assert_eq!(got.limited, 0);
+                    if a.is_rotary() {
+                        crank = got.raw.iter().fold(crank, |m, c| m.max(c.abs()));
+                    }
+                }
+            }
+            (lo, hi, crank.to_degrees())
+        };
+        let near = |x: f64, want: f64, tol: f64| assert!((x - want).abs() <= tol, "{x} vs {want}");
+        let linear = shipped("hobby-linear.toml");
+        let (lo, hi, _) = extremes(&linear, &[0, 1, 2, 3, 4, 5]);
+        near(lo, 0.7394, 5e-5);
+        near(hi, 0.9535, 5e-5);
+        let (lo, hi, _) = extremes(&linear, &[2]);
+        near(lo, 0.7797, 5e-4);
+        near(hi, 0.9126, 5e-4);
+        let rotary = shipped("hobby-rotary.toml");
+        let (lo, hi, crank) = extremes(&rotary, &[0, 1, 2, 3, 4, 5]);
+        near(lo, 0.583, 5e-4);
+        near(hi, 0.743, 5e-4);
+        assert!(crank < 32.0 && crank > 31.0, "{crank}");
+        let s = rotary.stewart();
+        let a = rotary.actuators().unwrap().unwrap();
+        let heave_crank = |dz: f64| {
+            let pose = Vector6::new(0.0, 0.0, dz, 0.0, 0.0, 0.0);
+            a.positions(&s, &pose, &s.leg_lengths(&pose)).raw[0].to_degrees()
+        };
+        near(heave_crank(-0.07), 20.5, 0.05);
+        near(heave_crank(0.07), -25.2, 0.05);
+        // The heave that puts the legs at each bound, by bisection.
+        for (leg, dz_want, crank_want) in [(0.82, -0.160, 46.8), (0.57, 0.096, -38.1)] {
+            let (mut up, mut down) = (-0.3, 0.3);
+            for _ in 0..100 {
+                let mid = 0.5 * (up + down);
+                let l = s.leg_lengths(&Vector6::new(0.0, 0.0, mid, 0.0, 0.0, 0.0))[0];
+                if l > leg {
+                    up = mid;
+                } else {
+                    down = mid;
+                }
+            }
+            near(up, dz_want, 5e-4);
+            near(heave_crank(up), crank_want, 0.05);
+        }
+    }
+
     /// Poses drawn across the rotary profile's limits (a fixed sequence): every one whose
     /// virtual legs the limiter would let through (inside the margin) has every crank
     /// within its travel, checked by putting each rod's end back on its joint.
