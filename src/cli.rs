@@ -63,7 +63,8 @@ pub struct LiveArgs {
     #[arg(long, value_name = "URL")]
     pub input: String,
     /// Where every step's command goes, any number of times: udp://HOST:PORT (hexcue's JSON
-    /// datagram) or moog://HOST:PORT (Moog 6DOF2000E DOF mode).
+    /// datagram), moog://HOST:PORT (Moog 6DOF2000E DOF mode), or the profile's [actuators]
+    /// frame: serial://PATH?baud=N (8N1) or udp://HOST:PORT?frame=actuators.
     #[arg(long, value_name = "URL")]
     pub output: Vec<String>,
     /// The algorithm whose command drives the platform.

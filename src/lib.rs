@@ -1,12 +1,13 @@
 //! hexcue: motion cueing for 6-DoF Stewart-platform flight simulators.
 //!
-//! The core (`model`, `mca`, `metrics`, `engine`, `source`, `safety`, `profile`, `trace`,
+//! The core (`model`, `actuators`, `mca`, `metrics`, `engine`, `source`, `safety`, `profile`, `trace`,
 //! `omct`) does no I/O; `formats`, `sources`, `sinks`, `live`, `foxglove`, `plot` and `tui`
 //! adapt it to files, sockets, the terminal and Foxglove. `cli` (the arguments) and `app`
 //! (one file per command) are the binary's edge, private to the crate and reached through
 //! [`run_cli`]; nothing in the library imports them. Frames and units: DESIGN.md §1 and
 //! `docs/design.md`.
 
+pub mod actuators;
 pub(crate) mod app;
 pub mod channels;
 pub(crate) mod cli;

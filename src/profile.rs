@@ -6,6 +6,7 @@
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
+use crate::actuators::{ActuatorParams, Actuators};
 use crate::mca::mpc::{Mpc, MpcParams, Terminal};
 use crate::mca::smpc::Smpc;
 use crate::mca::washout::Washout;
@@ -59,6 +60,10 @@ pub struct Profile {
     /// defaults of [`SafetySettings`]).
     #[serde(default)]
     pub safety: SafetySettings,
+    /// The rig's actuators, for the outputs that take actuator positions (`serial://`,
+    /// `udp://…?frame=actuators`; docs/live.md, *Actuator streams*). Absent: none possible.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub actuators: Option<ActuatorParams>,
 }
 
 /// How a live session drives a Moog 6DOF2000E (docs/live.md, *Moog*).
@@ -157,6 +162,15 @@ impl Profile {
     }
 
     /// COTC's parameters: `[mpc]` with the overrides of `[smpc.cotc]`.
+    /// The `[actuators]` section compiled against this profile's geometry; `None` when the
+    /// profile has none.
+    pub fn actuators(&self) -> Result<Option<Actuators>, ProfileError> {
+        self.actuators
+            .as_ref()
+            .map(|a| Actuators::new(a, &self.stewart()))
+            .transpose()
+    }
+
     pub fn cotc_params(&self) -> MpcParams {
         self.smpc.cotc.apply(&self.mpc)
     }
@@ -294,6 +308,7 @@ impl Profile {
         positive("moog.engage_timeout_s", m.engage_timeout_s)?;
         positive("moog.park_timeout_s", m.park_timeout_s)?;
         self.safety.validate(&self.limits.si(), self.dt_s())?;
+        self.actuators()?;
         if self.mpc.fine_step_s < self.dt_s() - 1e-12 {
             return err(
                 "mpc.fine_step_s",

@@ -122,6 +122,14 @@ pub struct LiveSummary {
     /// The transitions to neutral (docs/live.md, *Transitions*).
     #[serde(default)]
     pub transitions: TransitionSummary,
+    /// Steps at which an actuator could not give the pose (a rotary rig's crank past its
+    /// limits): the nearest position it could was sent.
+    #[serde(default)]
+    pub actuators_limited_steps: u64,
+    /// Outputs whose address had nothing listening (ICMP port unreachable), each time, with
+    /// when it began and ended. A warning, not a fault: the platform may be started later.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub output_warnings: Vec<String>,
 }
 
 /// The transitions to neutral of a live session: input lost, simulator paused, stop.

@@ -63,10 +63,17 @@ fn every_shipped_profile_works_for_every_algorithm_on_every_shipped_trace() {
     let dir = tempfile::tempdir().unwrap();
     // The profiles a user is pointed to, the tuned comparison's output included
     // (scripts/tune-comparison.sh, which never fits on these traces: issue 24, item 14).
-    let profiles: Vec<_> = ["full-flight.toml", "compact.toml", "full-flight-tuned.toml"]
-        .iter()
-        .map(|p| repo().join("profiles").join(p))
-        .collect();
+    // The hobby rigs with their [actuators] (issue 34) too.
+    let profiles: Vec<_> = [
+        "full-flight.toml",
+        "compact.toml",
+        "full-flight-tuned.toml",
+        "hobby-linear.toml",
+        "hobby-rotary.toml",
+    ]
+    .iter()
+    .map(|p| repo().join("profiles").join(p))
+    .collect();
     let traces = shipped_traces();
     assert!(traces.len() >= 5, "{traces:?}");
     let mut failures = Vec::new();

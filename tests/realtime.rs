@@ -212,7 +212,13 @@ fn no_realtime_leaves_every_thread_alone_and_says_nothing() {
     assert!(!view.is_empty());
     assert!(view.iter().all(|t| t.policy == SCHED_OTHER), "{view:?}");
     assert_eq!(locked, 0);
-    assert!(!err.contains("warning"), "{err}");
+    // Nothing about real time; the output's own warning (nothing listens at its port, issue
+    // 34) is not this test's business.
+    assert!(
+        !err.lines()
+            .any(|l| l.contains("warning") && !l.contains("nothing listening")),
+        "{err}"
+    );
     let rt = &read_json(&dir.path().join("live.json"))["live"]["realtime"];
     assert_eq!(rt["requested"], Value::Bool(false), "{rt}");
     assert_eq!(rt["sched_fifo"], Value::Bool(false), "{rt}");

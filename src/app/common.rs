@@ -171,6 +171,15 @@ pub fn format_table(s: &Summary) -> String {
         if let Some(f) = &l.platform_fault {
             out.push_str(&format!("live: error: platform fault: {f}\n"));
         }
+        for w in &l.output_warnings {
+            out.push_str(&format!("live: warning: {w}\n"));
+        }
+        if l.actuators_limited_steps > 0 {
+            out.push_str(&format!(
+                "live: warning: actuators limited on {} steps: poses beyond the cranks' reach\n",
+                l.actuators_limited_steps
+            ));
+        }
         if let Some(none) = s.no_input_line() {
             out.push_str(&format!("live: NOT A CLEAN SESSION: {none}\n"));
         }

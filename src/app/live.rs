@@ -79,11 +79,7 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
     let mut session = LiveSession::new(&profile, &algorithms, drive, input)?;
     session.set_realtime((!args.no_realtime).then_some(args.realtime_priority));
     for url in &args.output {
-        session.add_output(crate::sinks::open_output(
-            url,
-            &profile.moog,
-            session.period(),
-        )?);
+        session.add_output(crate::sinks::open_output(url, &profile, session.period())?);
     }
     if let Some(path) = &args.record {
         session.add_frame_sink(Box::new(LiveRecording::create(

@@ -137,6 +137,7 @@ mod tests {
                 state: SafetyState::Parked,
                 stopped: false,
                 algorithm: AlgorithmId::Cwf,
+                actuators: None,
             },
             frame,
             input_age_s: None,

@@ -102,6 +102,8 @@ pub struct LiveCounters {
     pub step_p99_ms: f64,
     /// The first seconds of input suggest a unit or sign mistake (the summary says which).
     pub unit_warning: bool,
+    /// The outputs (bit i: the i-th `--output`) at whose address nothing listens.
+    pub unreachable_outputs: u32,
 }
 
 /// Counters and histograms of the session, in constant memory.
@@ -131,6 +133,12 @@ pub struct LiveStats {
     pub realtime: RealtimeSummary,
     /// The transitions to neutral, and those that braked harder than the gentle limits.
     pub transitions: TransitionSummary,
+    /// Steps at which an actuator could not give the pose (a crank past its limits): the
+    /// nearest position it can was sent.
+    pub actuators_limited_steps: u64,
+    /// Each time an output's address had nothing listening: the output, from and until
+    /// (session time, s; `None`: to the end).
+    pub unreachable: Vec<(String, f64, Option<f64>)>,
 }
 
 impl LiveStats {
@@ -156,6 +164,21 @@ impl LiveStats {
             frames_dropped: self.frames_dropped,
             realtime: self.realtime.clone(),
             transitions: self.transitions.clone(),
+            actuators_limited_steps: self.actuators_limited_steps,
+            output_warnings: self
+                .unreachable
+                .iter()
+                .map(|(output, from, to)| {
+                    let until = match to {
+                        Some(t) => format!("until t {t:.2} s (listening again)"),
+                        None => "to the end of the session".to_string(),
+                    };
+                    format!(
+                        "{output}: nothing listening (ICMP port unreachable) from t {from:.2} s \
+                         {until}: its commands were lost"
+                    )
+                })
+                .collect(),
         }
     }
 
@@ -169,6 +192,7 @@ impl LiveStats {
             latency_p99_ms: self.latency.quantile(0.99) / 1e3,
             step_p99_ms: self.step.quantile(0.99) / 1e3,
             unit_warning: self.unit_warning.is_some(),
+            unreachable_outputs: 0,
         }
     }
 }
@@ -211,6 +235,13 @@ pub struct LiveSession {
     platform_phases: Vec<Option<PlatformPhase>>,
     /// What the first answering output said at the last step.
     platform: Option<PlatformStatus>,
+    /// The profile's actuators, when it has `[actuators]`: every command carries their
+    /// positions.
+    actuators: Option<crate::actuators::Actuators>,
+    /// Whether an actuator was limited at the last step.
+    actuators_were_limited: bool,
+    /// The outputs (bit i) at whose address nothing listened at the last step.
+    unreachable_outputs: u32,
 }
 
 impl LiveSession {
@@ -232,6 +263,7 @@ impl LiveSession {
         engine.set_parallel(false);
         let dt = profile.dt_s();
         let watch = InputWatch::new(input.url(), &input.source_text());
+        let actuators = profile.actuators().context("the profile's [actuators]")?;
         Ok(LiveSession {
             engine,
             held,
@@ -263,6 +295,9 @@ impl LiveSession {
             events: Vec::new(),
             platform_phases: Vec::new(),
             platform: None,
+            actuators,
+            actuators_were_limited: false,
+            unreachable_outputs: 0,
         })
     }
 
@@ -392,17 +427,26 @@ impl LiveSession {
             .unwrap_or_default();
         let command = self.limiter.apply(&self.safety.command(&wanted)).command;
         self.safety.sent(&command);
+        let legs_m = self.stewart.leg_lengths(&command.pose);
+        let actuators = self
+            .actuators
+            .as_ref()
+            .map(|a| a.positions(&self.stewart, &command.pose, &legs_m));
         let output = PlatformOutput {
             t_s: frame.t_s,
             seq: self.seq,
             pose: command.pose,
             velocity: command.velocity,
             acceleration: command.acceleration,
-            legs_m: self.stewart.leg_lengths(&command.pose),
+            legs_m,
             state: self.safety.state(),
             stopped: self.safety.is_stopped(),
             algorithm: self.drive,
+            actuators,
         };
+        if let Some(p) = &actuators {
+            self.actuator_events(frame.t_s, p);
+        }
         for out in &mut self.outputs {
             out.send(&output)
                 .with_context(|| format!("{}: sending the command", out.describe()))?;
@@ -435,7 +479,10 @@ impl LiveSession {
             input_age_s,
             sim_paused: self.input.paused(),
             time_in_state_s: self.safety.time_in_state_s(),
-            stats: self.stats.counters(),
+            stats: LiveCounters {
+                unreachable_outputs: self.unreachable_outputs,
+                ..self.stats.counters()
+            },
             events: std::mem::take(&mut self.events),
             platform: self.platform.clone(),
         })
@@ -471,6 +518,84 @@ impl LiveSession {
         }
         self.platform = first;
         self.safety.platform(readiness);
+        self.reach_events(t_s);
+    }
+
+    /// An output whose address has nothing listening, and one that listens again: a warning
+    /// and its end, for the operator (the platform may be started later, so not a fault).
+    fn reach_events(&mut self, t_s: f64) {
+        for (i, out) in self.outputs.iter().enumerate() {
+            let bit = 1u32 << i.min(31);
+            let now = out.unreachable();
+            let was = self.unreachable_outputs & bit != 0;
+            if now == was {
+                continue;
+            }
+            self.unreachable_outputs ^= bit;
+            let output = out.describe();
+            let (level, text) = if now {
+                self.stats.unreachable.push((output.clone(), t_s, None));
+                (
+                    EventLevel::Warning,
+                    format!(
+                        "{output}: nothing listening there (ICMP port unreachable): its \
+                         commands are lost until something listens"
+                    ),
+                )
+            } else {
+                let since = self
+                    .stats
+                    .unreachable
+                    .iter_mut()
+                    .rev()
+                    .find(|(o, _, to)| *o == output && to.is_none());
+                let after = since.map_or(0.0, |span| {
+                    span.2 = Some(t_s);
+                    t_s - span.1
+                });
+                (
+                    EventLevel::Info,
+                    format!(
+                        "{output}: listening again (no port unreachable for {} s) after \
+                         {after:.2} s",
+                        crate::sinks::reach::QUIET_S
+                    ),
+                )
+            };
+            self.events.push(Event { t_s, level, text });
+        }
+    }
+
+    /// A pose the actuators cannot give (cranks past their limits): counted every step, told
+    /// when it starts and when it ends.
+    fn actuator_events(&mut self, t_s: f64, p: &crate::actuators::ActuatorPositions) {
+        let limited = p.limited != 0;
+        if limited {
+            self.stats.actuators_limited_steps += 1;
+        }
+        if limited == std::mem::replace(&mut self.actuators_were_limited, limited) {
+            return;
+        }
+        let (level, text) = if limited {
+            let which: Vec<String> = (0..6)
+                .filter(|n| p.limited & (1 << n) != 0)
+                .map(|n| (n + 1).to_string())
+                .collect();
+            (
+                EventLevel::Warning,
+                format!(
+                    "actuators {}: the pose is beyond their reach (crank limits): the nearest \
+                     position they can give is sent",
+                    which.join(", ")
+                ),
+            )
+        } else {
+            (
+                EventLevel::Info,
+                "actuators: every pose within their reach again".to_string(),
+            )
+        };
+        self.events.push(Event { t_s, level, text });
     }
 
     /// Counts the way back to neutral planned at this step, and tells the operator of every

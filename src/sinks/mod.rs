@@ -4,8 +4,10 @@
 //! (hexcue's JSON over UDP, Moog's 6DOF2000E DOF mode), and a platform that answers says
 //! where it is in its own sequence ([`PlatformStatus`]): the safety stage waits for it.
 
+pub mod actuator_stream;
 pub mod live_recording;
 pub mod moog;
+pub mod reach;
 pub mod recorder;
 pub mod udp_json;
 
@@ -93,6 +95,8 @@ pub struct PlatformOutput {
     pub stopped: bool,
     /// The algorithm driving the platform.
     pub algorithm: AlgorithmId,
+    /// The actuator positions of this pose, when the profile has `[actuators]`.
+    pub actuators: Option<crate::actuators::ActuatorPositions>,
 }
 
 /// A platform, or anything listening like one, fed one command per step.
@@ -113,23 +117,105 @@ pub trait CommandSink: Send {
     }
     /// What it is, for the user (`udp://…`).
     fn describe(&self) -> String;
+    /// Nothing listens at its address: an ICMP port unreachable came back lately
+    /// ([`reach`]). Asked every step after [`CommandSink::poll`]; an output that cannot
+    /// know says `false`.
+    fn unreachable(&self) -> bool {
+        false
+    }
 }
 
-/// Opens a command sink from `udp://HOST:PORT` or `moog://HOST:PORT`; a Moog base is driven
-/// with `moog` (the profile's `[moog]`) at one command every `period`.
+/// What `--output` accepts, for messages.
+const OUTPUT_FORMS: &str = "udp://HOST:PORT (JSON), udp://HOST:PORT?frame=actuators, \
+     serial://PATH?baud=N or moog://HOST:PORT";
+
+/// Opens a command sink from its URL: `udp://HOST:PORT` (hexcue's JSON; `?frame=json` says
+/// so explicitly), `udp://HOST:PORT?frame=actuators` and `serial://PATH?baud=N` (the
+/// profile's `[actuators]` frame) or `moog://HOST:PORT` (the profile's `[moog]`, one command
+/// every `period`).
 pub fn open_output(
     url: &str,
-    moog: &crate::profile::MoogParams,
+    profile: &crate::profile::Profile,
     period: std::time::Duration,
 ) -> Result<Box<dyn CommandSink>> {
-    let (scheme, addr) = url
+    let (scheme, rest) = url
         .split_once("://")
-        .with_context(|| format!("--output {url}: expected udp://HOST:PORT or moog://HOST:PORT"))?;
-    let addr = crate::sources::resolve(addr).with_context(|| format!("--output {url}"))?;
+        .with_context(|| format!("--output {url}: expected {OUTPUT_FORMS}"))?;
+    let (place, query) = rest.split_once('?').unwrap_or((rest, ""));
+    let mut params: Vec<(&str, &str)> = Vec::new();
+    for pair in query.split('&').filter(|p| !p.is_empty()) {
+        let (k, v) = pair
+            .split_once('=')
+            .with_context(|| format!("--output {url}: `{pair}`: expected KEY=VALUE after `?`"))?;
+        params.push((k, v));
+    }
+    let allowed: &[&str] = match scheme {
+        "udp" => &["frame"],
+        "serial" => &["baud"],
+        _ => &[],
+    };
+    if let Some((k, _)) = params.iter().find(|(k, _)| !allowed.contains(k)) {
+        let expected = if allowed.is_empty() {
+            "no options".to_string()
+        } else {
+            allowed.join(", ")
+        };
+        bail!("--output {url}: unknown option `{k}`; {scheme}:// takes {expected}");
+    }
+    let param = |key: &str| params.iter().find(|(k, _)| *k == key).map(|(_, v)| *v);
+    let frame = || -> Result<crate::actuators::FrameFormat> {
+        let actuators = profile
+            .actuators()
+            .with_context(|| format!("--output {url}: the profile's [actuators]"))?;
+        match actuators {
+            Some(a) => Ok(a.frame().clone()),
+            None => bail!(
+                "--output {url}: the profile `{}` has no [actuators] section; an actuator \
+                 stream needs one (its kind and frame: docs/live.md, *Actuator streams*)",
+                profile.name
+            ),
+        }
+    };
     Ok(match scheme {
-        "udp" => Box::new(udp_json::UdpJson::open(addr)?),
-        "moog" => Box::new(moog::Moog::open(addr, moog, period)?),
-        other => bail!("--output {url}: unknown scheme `{other}`; expected udp:// or moog://"),
+        "udp" => {
+            let addr = crate::sources::resolve(place).with_context(|| format!("--output {url}"))?;
+            match param("frame").unwrap_or("json") {
+                "json" => {
+                    let rotary = profile
+                        .actuators()
+                        .ok()
+                        .flatten()
+                        .is_some_and(|a| a.is_rotary());
+                    Box::new(udp_json::UdpJson::open(addr, rotary)?)
+                }
+                "actuators" => Box::new(actuator_stream::UdpActuators::open(addr, frame()?)?),
+                other => bail!(
+                    "--output {url}: frame={other}: expected frame=json (hexcue's JSON, the \
+                     default) or frame=actuators (the profile's [actuators] frame)"
+                ),
+            }
+        }
+        "serial" => {
+            if place.is_empty() {
+                bail!("--output {url}: expected serial://PATH?baud=N, e.g. serial:///dev/ttyUSB0?baud=115200");
+            }
+            let baud = match param("baud") {
+                None => 115_200,
+                Some(b) => b.parse::<u32>().ok().filter(|b| *b > 0).with_context(|| {
+                    format!("--output {url}: baud={b}: expected a positive whole number of bits per second")
+                })?,
+            };
+            Box::new(actuator_stream::SerialActuators::open(
+                place,
+                baud,
+                frame()?,
+            )?)
+        }
+        "moog" => {
+            let addr = crate::sources::resolve(place).with_context(|| format!("--output {url}"))?;
+            Box::new(moog::Moog::open(addr, &profile.moog, period)?)
+        }
+        other => bail!("--output {url}: unknown scheme `{other}`; expected {OUTPUT_FORMS}"),
     })
 }
 

@@ -51,6 +51,12 @@ impl LiveStatus {
             step_p99_ms: s.step_p99_ms,
             stopping,
             unit_warning: s.unit_warning,
+            unreachable: outputs
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| s.unreachable_outputs & (1 << (*i).min(31)) != 0)
+                .map(|(_, o)| o.clone())
+                .collect(),
             platform: report.platform.clone(),
             t_s: report.frame.t_s,
             notice: None,
@@ -166,6 +172,12 @@ pub(super) fn header_line2(app: &App, live: &LiveStatus) -> Line<'static> {
     }
     if live.unit_warning {
         spans.push(Span::styled("  ⚠ input units?", th.crit()));
+    }
+    for output in &live.unreachable {
+        spans.push(Span::styled(
+            format!("  ⚠ NOT LISTENING {output}"),
+            th.crit(),
+        ));
     }
     if live.malformed > 0 {
         spans.push(Span::styled(
@@ -579,6 +591,7 @@ mod tests {
             step_p99_ms: 3.1,
             stopping,
             unit_warning: false,
+            unreachable: Vec::new(),
             platform: None,
             t_s: 4.5,
             notice: None,
@@ -700,6 +713,19 @@ mod tests {
         ] {
             assert!(text.contains(want), "missing {want:?} in\n{text}");
         }
+    }
+
+    #[test]
+    fn an_output_with_nothing_listening_is_said_in_the_header() {
+        let mut app = live_app(SafetyState::Running, false);
+        if let Some(l) = app.live.as_mut() {
+            l.unreachable = vec!["udp://127.0.0.1:6000".into()];
+        }
+        let text = screen(&app, 160, 24);
+        assert!(
+            text.contains("⚠ NOT LISTENING udp://127.0.0.1:6000"),
+            "{text}"
+        );
     }
 
     #[test]

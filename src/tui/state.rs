@@ -152,6 +152,8 @@ pub struct LiveStatus {
     pub stopping: bool,
     /// The first seconds of input suggest a unit or sign mistake (the summary says which).
     pub unit_warning: bool,
+    /// The outputs at whose address nothing listens (ICMP port unreachable).
+    pub unreachable: Vec<String>,
     /// What the platform says of itself (a Moog base), if it answers.
     pub platform: Option<crate::sinks::PlatformStatus>,
     /// Session time (s), for how long input has been awaited.

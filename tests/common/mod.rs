@@ -87,3 +87,208 @@ pub const CWF_TOPICS: &[&str] = &[
     "/cwf/tf",
     "/cwf/scene",
 ];
+
+/// A UDP port on 127.0.0.1 that was free a moment ago.
+pub fn free_udp_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// Collects hexcue's JSON commands (`udp://` output) on a port of 127.0.0.1 until `stop`,
+/// then what was already on its way.
+pub fn json_listener(
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> (u16, std::thread::JoinHandle<Vec<serde_json::Value>>) {
+    use std::sync::atomic::Ordering;
+    let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let port = socket.local_addr().unwrap().port();
+    socket
+        .set_read_timeout(Some(std::time::Duration::from_millis(50)))
+        .unwrap();
+    let handle = std::thread::spawn(move || {
+        let mut out = Vec::new();
+        let mut buf = [0u8; 65536];
+        while !stop.load(Ordering::Relaxed) {
+            if let Ok((n, _)) = socket.recv_from(&mut buf) {
+                out.push(serde_json::from_slice(&buf[..n]).expect("a JSON command"));
+            }
+        }
+        while let Ok((n, _)) = socket.recv_from(&mut buf) {
+            out.push(serde_json::from_slice(&buf[..n]).unwrap());
+        }
+        out
+    });
+    (port, handle)
+}
+
+/// One JSBSim socket line (Time, then the directive's nine values in its units) from a row
+/// of a hexcue trace (t, fx, fy, fz in m/s², p, q, r, phi, theta, psi).
+pub fn jsbsim_line(t: f64, row: &[f64]) -> String {
+    let ft = |v: f64| v / 0.3048;
+    format!(
+        "{t:12.6},{:12.6},{:12.6},{:12.6},{:12.8},{:12.8},{:12.8},{:12.8},{:12.8},{:12.8}\n",
+        ft(row[1]),
+        ft(row[2]),
+        ft(row[3]),
+        row[4],
+        row[5],
+        row[6],
+        row[7],
+        row[8],
+        row[9]
+    )
+}
+
+/// The rows of a shipped trace (recordings/traces/NAME.csv).
+pub fn trace_rows(name: &str) -> Vec<Vec<f64>> {
+    let text = std::fs::read_to_string(repo().join("recordings/traces").join(name)).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect()
+}
+
+/// A JSBSim stand-in: sends `rows` to 127.0.0.1:port in real time at 100 Hz after `wait`
+/// (the labels line first); returns how many samples it sent.
+pub fn replay_jsbsim(
+    port: u16,
+    rows: Vec<Vec<f64>>,
+    wait: std::time::Duration,
+) -> std::thread::JoinHandle<usize> {
+    std::thread::spawn(move || {
+        let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let to = format!("127.0.0.1:{port}");
+        std::thread::sleep(wait);
+        sender
+            .send_to(b"<LABELS> ,Time,a-pilot-x-ft sec2,a-pilot-y-ft sec2,a-pilot-z-ft sec2,p-rad sec,q-rad sec,r-rad sec,phi-rad,theta-rad,psi-rad\n", &to)
+            .unwrap();
+        let start = std::time::Instant::now();
+        for (k, row) in rows.iter().enumerate() {
+            let due = start + std::time::Duration::from_secs_f64(k as f64 * 0.01);
+            std::thread::sleep(due.saturating_duration_since(std::time::Instant::now()));
+            sender
+                .send_to(jsbsim_line(row[0], row).as_bytes(), &to)
+                .unwrap();
+        }
+        rows.len()
+    })
+}
+
+/// The session time of the first stderr event line of `hexcue live` containing `text`.
+pub fn event_time(err: &str, text: &str) -> f64 {
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("live: t ") && l.contains(text))
+        .unwrap_or_else(|| panic!("no event with {text:?} in\n{err}"));
+    line["live: t ".len()..]
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+/// A pseudo-terminal pair: the controller's end (the master, read by the test) and the path
+/// of the port end that hexcue opens. The port end stays open here too until dropped, so
+/// that the master reads no hang-up before hexcue has opened it.
+pub struct Pty {
+    pub master: std::os::fd::OwnedFd,
+    pub slave: std::os::fd::OwnedFd,
+    pub path: String,
+}
+
+pub fn openpty() -> Pty {
+    use std::os::fd::FromRawFd;
+    let (mut master, mut slave) = (-1, -1);
+    // SAFETY: openpty writes two descriptors into the given ints; name, termios and window
+    // size are optional and left null.
+    let rc = unsafe {
+        libc::openpty(
+            &mut master,
+            &mut slave,
+            std::ptr::null_mut(),
+            std::ptr::null(),
+            std::ptr::null(),
+        )
+    };
+    assert_eq!(rc, 0, "openpty: {}", std::io::Error::last_os_error());
+    // Not inherited by hexcue: a child holding the controller's end would keep the port
+    // alive after the test closes it.
+    for fd in [master, slave] {
+        // SAFETY: fcntl on a descriptor just opened.
+        assert_eq!(
+            unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) },
+            0
+        );
+    }
+    // SAFETY: both descriptors were just opened for us and are owned from here on.
+    let (master, slave) = unsafe {
+        (
+            std::os::fd::OwnedFd::from_raw_fd(master),
+            std::os::fd::OwnedFd::from_raw_fd(slave),
+        )
+    };
+    let path = std::fs::read_link(format!("/proc/self/fd/{}", {
+        use std::os::fd::AsRawFd;
+        slave.as_raw_fd()
+    }))
+    .expect("the port end's path")
+    .display()
+    .to_string();
+    Pty {
+        master,
+        slave,
+        path,
+    }
+}
+
+/// Reads everything the controller's end receives until `stop`, then what is still
+/// buffered (until 200 ms of quiet); or, given `close_after`, until that many bytes have
+/// come, and then closes the controller's end (the device gone).
+pub fn read_pty(
+    master: std::os::fd::OwnedFd,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    close_after: Option<usize>,
+) -> std::thread::JoinHandle<Vec<u8>> {
+    use std::os::fd::AsRawFd;
+    use std::sync::atomic::Ordering;
+    std::thread::spawn(move || {
+        let mut out = Vec::new();
+        let mut buf = [0u8; 4096];
+        let mut quiet_since: Option<std::time::Instant> = None;
+        loop {
+            let mut pfd = libc::pollfd {
+                fd: master.as_raw_fd(),
+                events: libc::POLLIN,
+                revents: 0,
+            };
+            // SAFETY: one valid pollfd for the duration of the call.
+            let ready = unsafe { libc::poll(&mut pfd, 1, 20) };
+            if ready > 0 && pfd.revents & libc::POLLIN != 0 {
+                // SAFETY: reads into a buffer of the given length.
+                let n =
+                    unsafe { libc::read(master.as_raw_fd(), buf.as_mut_ptr().cast(), buf.len()) };
+                if n > 0 {
+                    out.extend_from_slice(&buf[..n as usize]);
+                    quiet_since = None;
+                    if close_after.is_some_and(|c| out.len() >= c) {
+                        return out;
+                    }
+                    continue;
+                }
+            }
+            if stop.load(Ordering::Relaxed) {
+                let since = *quiet_since.get_or_insert_with(std::time::Instant::now);
+                if since.elapsed() > std::time::Duration::from_millis(200) {
+                    return out;
+                }
+            } else if ready > 0 && pfd.revents & (libc::POLLHUP | libc::POLLERR) != 0 {
+                // No port end open (before hexcue opens it, or after it closed it).
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            }
+        }
+    })
+}
