@@ -7,6 +7,10 @@
 //! parked, latched. The fade-in waits for the platform to be ready (a Moog base engaged);
 //! a platform fault → fault from any state: the pose is held, latched. The workspace
 //! limiter still follows every command it produces.
+//!
+//! Every way back to neutral is a jerk-limited path per DoF ([`path`]) planned from the
+//! platform's pose, velocity and acceleration as the poses sent define them, at the gentlest
+//! limits of the profile's `[safety]` that do; the fade-in's gain is a C² ramp.
 
 pub mod path;
 
