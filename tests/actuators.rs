@@ -4,7 +4,8 @@
 //! checked frame by frame against frames computed here, independently, from the same step's
 //! legs (linear: round((leg − min) / (max − min) × (2^bits − 1))) or pose (rotary: the crank
 //! angle found by bisection on the rod's length, not by hexcue's closed form); the start
-//! frame comes before the first position and the stop frame after the last. A port that
+//! frame comes before the first position and the stop frame after the last, and the same
+//! frames arrive one per datagram at a `udp://…?frame=actuators` output beside them. A port that
 //! disappears mid-session is a fault (exit 1, said on stderr, in the summary and /events); a
 //! UDP output with nothing listening is said within 2 s of session time, and its recovery.
 
@@ -60,7 +61,32 @@ struct Session {
     stderr: String,
     commands: Vec<Value>,
     serial: Vec<u8>,
+    /// The datagrams of the `udp://…?frame=actuators` output, one frame each.
+    datagrams: Vec<Vec<u8>>,
     summary: Value,
+}
+
+/// Collects raw datagrams on a port of 127.0.0.1 until `stop`.
+fn datagram_listener(stop: Arc<AtomicBool>) -> (u16, std::thread::JoinHandle<Vec<Vec<u8>>>) {
+    let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let port = socket.local_addr().unwrap().port();
+    socket
+        .set_read_timeout(Some(Duration::from_millis(50)))
+        .unwrap();
+    let handle = std::thread::spawn(move || {
+        let mut out = Vec::new();
+        let mut buf = [0u8; 2048];
+        while !stop.load(Ordering::Relaxed) {
+            if let Ok(n) = socket.recv(&mut buf) {
+                out.push(buf[..n].to_vec());
+            }
+        }
+        while let Ok(n) = socket.recv(&mut buf) {
+            out.push(buf[..n].to_vec());
+        }
+        out
+    });
+    (port, handle)
 }
 
 /// A session of `duration_s` on `profile` with the steep turn's rows 2000.. sent for
@@ -78,6 +104,7 @@ fn session(
     let stop = Arc::new(AtomicBool::new(false));
     let (json_port, listener) = json_listener(stop.clone());
     let reader = read_pty(pty.master, stop.clone(), close_after);
+    let (frames_port, frames) = datagram_listener(stop.clone());
     let in_port = free_udp_port();
     let args: Vec<String> = [
         "live",
@@ -88,6 +115,8 @@ fn session(
         &format!("udp://127.0.0.1:{json_port}"),
         "--output",
         &format!("serial://{}?baud={baud}", pty.path),
+        "--output",
+        &format!("udp://127.0.0.1:{frames_port}?frame=actuators"),
         "--profile",
         &profile.display().to_string(),
         "--algorithms",
@@ -117,6 +146,7 @@ fn session(
     sim.join().unwrap();
     let commands = listener.join().unwrap();
     let serial = reader.join().unwrap();
+    let datagrams = frames.join().unwrap();
     drop(pty.slave);
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
     assert!(!stderr.contains("panicked"), "{stderr}");
@@ -126,6 +156,7 @@ fn session(
         stderr,
         commands,
         serial,
+        datagrams,
     }
 }
 
@@ -206,6 +237,11 @@ fn a_linear_rig_gets_every_step_as_its_template_says() {
         );
     }
     assert_eq!(s.serial.len(), want.len(), "frames received vs computed");
+    // The same frames over UDP, one datagram each: start, the positions, stop.
+    assert_eq!(s.datagrams.len(), streamed.len() + 2);
+    assert_eq!(s.datagrams[0], START);
+    assert_eq!(s.datagrams.last().unwrap(), STOP);
+    assert_eq!(s.datagrams.concat(), s.serial);
     // The rig moved: not a session of neutral frames.
     let mid = (full as f64 * (0.845 - lo) / (hi - lo)).round() as u64;
     assert!(streamed
@@ -314,6 +350,12 @@ fn a_rotary_rig_follows_the_crank_angles() {
         }
     }
     assert!(moved, "the cranks never moved");
+    assert_eq!(s.datagrams.len(), streamed.len());
+    assert_eq!(
+        s.datagrams.concat(),
+        s.serial,
+        "UDP frames vs serial frames"
+    );
     assert_eq!(
         s.summary["live"]["actuators_limited_steps"].as_u64(),
         Some(0)

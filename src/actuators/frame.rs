@@ -139,7 +139,7 @@ impl FrameFormat {
         template: &str,
         start: &str,
         stop: &str,
-        bits: u8,
+        bits: u32,
         encoding: Encoding,
     ) -> Result<Self, ProfileError> {
         let err = |key: &str, reason: String| ProfileError {
@@ -149,6 +149,7 @@ impl FrameFormat {
         if !(8..=24).contains(&bits) {
             return Err(err("bits", format!("{bits}: expected 8 to 24")));
         }
+        let bits = bits as u8;
         let compiled = compile(template, true).map_err(|r| err("template", r))?;
         let mut seen = [0usize; 6];
         for p in &compiled.pieces {
@@ -364,7 +365,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn frame(template: &str, bits: u8, encoding: Encoding, positions: [u32; 6]) -> Vec<u8> {
+    fn frame(template: &str, bits: u32, encoding: Encoding, positions: [u32; 6]) -> Vec<u8> {
         let f = FrameFormat::new(template, "", "", bits, encoding).unwrap();
         let mut out = Vec::new();
         f.encode_into(&positions, &mut out);
@@ -468,14 +469,14 @@ mod tests {
         assert_eq!(f.stop(), b"S\r\n");
     }
 
-    fn reason(template: &str, start: &str, bits: u8, encoding: Encoding) -> ProfileError {
+    fn reason(template: &str, start: &str, bits: u32, encoding: Encoding) -> ProfileError {
         FrameFormat::new(template, start, "", bits, encoding).unwrap_err()
     }
 
     #[test]
     fn a_bad_template_is_refused_with_its_key_and_what_was_expected() {
         let all = "<Axis1a><Axis2a><Axis3a><Axis4a><Axis5a><Axis6a>";
-        let e = reason(all, "", 25, Encoding::Binary);
+        let e = reason(all, "", 300, Encoding::Binary);
         assert_eq!(e.key, "actuators.bits");
         assert!(e.reason.contains("8 to 24"), "{e}");
         let e = reason(&format!("{all}<Axis7a>"), "", 16, Encoding::Binary);
@@ -580,7 +581,7 @@ mod tests {
         /// takes the whole frame.
         #[test]
         fn encode_then_parse_is_the_identity(
-            bits in 8u8..=24,
+            bits in 8u32..=24,
             enc in encoding(),
             raw in prop::array::uniform6(any::<u32>()),
             header in prop::collection::vec(any::<u8>(), 0..4),

@@ -33,7 +33,7 @@ pub struct ActuatorParams {
     /// The position frame: `<AxisNa>`, `<n>` and literal text.
     pub template: String,
     /// Resolution of a position (8–24 bits).
-    pub bits: u8,
+    pub bits: u32,
     /// `binary` (big-endian), `decimal` or `hex`.
     pub encoding: String,
     /// Sent once when the platform engages (same language, no positions).

@@ -135,10 +135,12 @@ mod tests {
     }
 
     #[test]
-    fn per_axis_extremes_fit_the_legs_of_both_profiles() {
+    fn per_axis_extremes_fit_the_legs_of_the_shipped_profiles() {
         for text in [
             DEFAULT_PROFILE_TOML,
             include_str!("../../profiles/compact.toml"),
+            include_str!("../../profiles/hobby-linear.toml"),
+            include_str!("../../profiles/hobby-rotary.toml"),
         ] {
             let p = parse_profile(text, "p").unwrap();
             let s = p.stewart();
