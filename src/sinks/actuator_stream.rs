@@ -251,6 +251,8 @@ mod tests {
             t_s: 0.0,
             seq: 0,
             pose: Vector6::zeros(),
+            velocity: Vector6::zeros(),
+            acceleration: Vector6::zeros(),
             legs_m: Vector6::zeros(),
             state,
             stopped,
