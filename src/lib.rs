@@ -17,6 +17,7 @@ pub mod events;
 pub(crate) mod export;
 pub mod formats;
 pub mod foxglove;
+pub mod jolts;
 pub mod live;
 pub mod mca;
 pub mod metrics;

@@ -37,6 +37,10 @@ pub struct ChannelMetrics {
     pub rmse: f64,
     /// Time during which y and x have opposite signs while both exceed the threshold (s).
     pub false_cue_s: f64,
+    /// Jolts at the pilot's head on this channel (`crate::jolts`); set by the summary, which
+    /// sees the platform's motion and not only the perceived channels.
+    #[serde(default)]
+    pub jolts: crate::jolts::Jolts,
 }
 
 /// Streaming accumulator for one channel. The cross-correlation is kept for lags within
@@ -212,6 +216,7 @@ impl ChannelAccumulator {
             ed_at_bound: max_lag > 0 && best.1.unsigned_abs() as usize == self.lag_xy.len() - 1,
             rmse: (self.sum_sq_err / n).sqrt(),
             false_cue_s: self.false_cues as f64 * self.dt_s,
+            jolts: Default::default(),
         }
     }
 }

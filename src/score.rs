@@ -5,17 +5,25 @@
 //!       + w_false · Σ_c (false-cue time of c) / (flight time)   (false cues)
 //!       + w_limiter · (share of steps the limiter acted)         (workspace)
 //!       + w_legs · mean_k ((u_k − u₀)⁺ / (1 − u₀))²              (legs near their end stops)
+//!       + w_jolt · (60 s / T) · Σ_c mean_k (e_c,k / θ_c − 1)⁺        (jolts, `crate::jolts`)
 //!
 //! with x the perceived reference, y the perceived simulator motion, τ_c the channel's
 //! perception threshold, φ(u) = s·min(u, 1) + max(u − 1, 0) a soft dead zone (an error below
 //! the threshold costs s per threshold, one above it costs 1 per threshold), and u_k the
 //! usage of the most used leg (0 at neutral, 1 at an end stop). A perfect cue inside the
-//! workspace scores 0. The choice of terms and the defaults are argued in docs/tuning.md.
+//! workspace scores 0. In the jolt term e_c,k is the onset at the head charged to the
+//! algorithm (beyond the aircraft's own), θ_c the channel's onset threshold and T the onset
+//! window: the term counts, per minute of flight, the windows of onset above the threshold,
+//! each by its excess in thresholds. Beside the terms, the *felt* error per channel,
+//! mean_k max(|u| − 1, 0), the supra-threshold part of the error, is reported (unweighted; it
+//! is part of the error term, not added again). The choice of terms and the defaults are
+//! argued in docs/tuning.md.
 
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
+use crate::jolts::JOLT_WINDOW_S;
 use crate::vocab::Channel;
 use crate::vocab::ProfileError;
 
@@ -38,6 +46,9 @@ pub struct ScoreWeights {
     /// Penalty on the mean squared leg usage beyond `leg_usage_start`, normalised to 1 at an
     /// end stop.
     pub leg_usage_weight: f64,
+    /// Penalty on jolts beyond the aircraft's: per minute of flight, the onset windows above
+    /// the onset threshold, each counted by its excess in thresholds (`crate::jolts`).
+    pub jolt_weight: f64,
 }
 
 impl Default for ScoreWeights {
@@ -49,6 +60,7 @@ impl Default for ScoreWeights {
             limiter_weight: 10.0,
             leg_usage_start: 0.8,
             leg_usage_weight: 1.0,
+            jolt_weight: 0.2,
         }
     }
 }
@@ -69,6 +81,7 @@ impl ScoreWeights {
         non_negative("score.false_cue_weight".into(), self.false_cue_weight)?;
         non_negative("score.limiter_weight".into(), self.limiter_weight)?;
         non_negative("score.leg_usage_weight".into(), self.leg_usage_weight)?;
+        non_negative("score.jolt_weight".into(), self.jolt_weight)?;
         let s = self.below_threshold_weight;
         if !(s.is_finite() && (0.0..=1.0).contains(&s)) {
             return err(
@@ -95,12 +108,24 @@ pub struct ScoreTerms {
     pub false_cue: f64,
     pub limiter: f64,
     pub legs: f64,
+    /// Jolts beyond the aircraft's (`crate::jolts`).
+    #[serde(default)]
+    pub jolt: f64,
+    /// Not a term: per channel the felt error, mean_k max(|u| − 1, 0) with u the error in
+    /// perception thresholds, unweighted (the supra-threshold part of `error`).
+    #[serde(default)]
+    pub felt: BTreeMap<String, f64>,
 }
 
 /// The soft dead zone φ(u) on an error of u perception thresholds.
 pub fn soft_dead_zone(u: f64, below_threshold_weight: f64) -> f64 {
     let u = u.abs();
     below_threshold_weight * u.min(1.0) + (u - 1.0).max(0.0)
+}
+
+/// The felt part of an error of u perception thresholds: what exceeds the threshold.
+pub fn felt(u: f64) -> f64 {
+    (u.abs() - 1.0).max(0.0)
 }
 
 /// Accumulates one algorithm's run into its score.
@@ -111,6 +136,7 @@ pub struct ScoreAccumulator {
     thresholds: [f64; 6],
     steps: u64,
     error_sum: [f64; 6],
+    felt_sum: [f64; 6],
     false_cue_steps: [u64; 6],
     limiter_steps: u64,
     leg_sum: f64,
@@ -123,6 +149,7 @@ impl ScoreAccumulator {
             thresholds,
             steps: 0,
             error_sum: [0.0; 6],
+            felt_sum: [0.0; 6],
             false_cue_steps: [0; 6],
             limiter_steps: 0,
             leg_sum: 0.0,
@@ -141,7 +168,9 @@ impl ScoreAccumulator {
         self.steps += 1;
         for c in 0..6 {
             let (x, y, tau) = (reference[c], perceived[c], self.thresholds[c]);
-            self.error_sum[c] += soft_dead_zone((y - x) / tau, self.weights.below_threshold_weight);
+            let u = (y - x) / tau;
+            self.error_sum[c] += soft_dead_zone(u, self.weights.below_threshold_weight);
+            self.felt_sum[c] += felt(u);
             // The same definition as the metrics' false-cue time.
             if x.abs() > tau && y.abs() > tau && x.signum() != y.signum() {
                 self.false_cue_steps[c] += 1;
@@ -153,31 +182,38 @@ impl ScoreAccumulator {
         self.leg_sum += excess * excess;
     }
 
-    /// The score and its terms; 0 before any step.
-    pub fn finish(&self) -> (f64, ScoreTerms) {
+    /// The score and its terms; 0 before any step. `jolt_excess_sum`: per channel, Σ_k of
+    /// the charged onsets' excess over their thresholds, in thresholds
+    /// ([`crate::jolts::JoltAccumulator::excess_sum`]), over the same steps.
+    pub fn finish(&self, jolt_excess_sum: &[f64; 6]) -> (f64, ScoreTerms) {
         if self.steps == 0 {
             return (0.0, ScoreTerms::default());
         }
         let n = self.steps as f64;
         let w = &self.weights;
-        let error: BTreeMap<String, f64> = Channel::ALL
-            .iter()
-            .enumerate()
-            .map(|(c, channel)| {
-                (
-                    channel.key().to_string(),
-                    w.channel_weight[c] * self.error_sum[c] / n,
-                )
-            })
-            .collect();
+        let per_channel = |sums: &[f64; 6], weighted: bool| -> BTreeMap<String, f64> {
+            Channel::ALL
+                .iter()
+                .enumerate()
+                .map(|(c, channel)| {
+                    let wc = if weighted { w.channel_weight[c] } else { 1.0 };
+                    (channel.key().to_string(), wc * sums[c] / n)
+                })
+                .collect()
+        };
         let terms = ScoreTerms {
             false_cue: w.false_cue_weight * self.false_cue_steps.iter().sum::<u64>() as f64 / n,
             limiter: w.limiter_weight * self.limiter_steps as f64 / n,
             legs: w.leg_usage_weight * self.leg_sum / n,
-            error,
+            jolt: w.jolt_weight * (60.0 / JOLT_WINDOW_S) * jolt_excess_sum.iter().sum::<f64>() / n,
+            error: per_channel(&self.error_sum, true),
+            felt: per_channel(&self.felt_sum, false),
         };
-        let score =
-            terms.error.values().sum::<f64>() + terms.false_cue + terms.limiter + terms.legs;
+        let score = terms.error.values().sum::<f64>()
+            + terms.false_cue
+            + terms.limiter
+            + terms.legs
+            + terms.jolt;
         (score, terms)
     }
 }
@@ -208,7 +244,7 @@ mod tests {
         for (k, x) in reference().iter().enumerate() {
             acc.push(x, &perceived(k, x), limiter(k), legs(k));
         }
-        acc.finish()
+        acc.finish(&[0.0; 6])
     }
 
     #[test]
@@ -288,6 +324,64 @@ mod tests {
     }
 
     #[test]
+    fn the_felt_error_is_the_mean_supra_threshold_part() {
+        // By hand, fx (τ 0.17) over four steps off by 0.5, 1, 2 and −3 thresholds:
+        // max(|u| − 1, 0) = 0, 0, 1, 2, mean 0.75; the soft dead zone charges
+        // 0.05 + 0.1 + 1.1 + 2.1 = 3.35, mean 0.8375.
+        let mut acc = ScoreAccumulator::new(&ScoreWeights::default(), TAU);
+        for u in [0.5, 1.0, 2.0, -3.0] {
+            let y = [u * TAU[0], 0.0, 0.0, 0.0, 0.0, 0.0];
+            acc.push(&[0.0; 6], &y, false, 0.0);
+        }
+        let (score, terms) = acc.finish(&[0.0; 6]);
+        assert!((terms.felt["fx"] - 0.75).abs() < 1e-12, "{terms:?}");
+        assert!((terms.error["fx"] - 0.8375).abs() < 1e-12, "{terms:?}");
+        assert_eq!(terms.felt["fy"], 0.0);
+        // The felt error is reported, not added: the score is the error's sum.
+        assert!((score - 0.8375).abs() < 1e-12);
+        // Differences below a threshold are not felt at all, however large the error's share.
+        let (_, below) = score_of(
+            |_, x| std::array::from_fn(|c| x[c] + 0.99 * TAU[c]),
+            |_| false,
+            |_| 0.0,
+        );
+        assert!(below.felt.values().all(|&f| f == 0.0), "{below:?}");
+        assert!(below.error.values().all(|&e| e > 0.09), "{below:?}");
+        // And a channel weight does not scale it.
+        let w = ScoreWeights {
+            channel_weight: [3.0, 1.0, 1.0, 1.0, 1.0, 1.0],
+            ..Default::default()
+        };
+        let mut acc = ScoreAccumulator::new(&w, TAU);
+        acc.push(
+            &[0.0; 6],
+            &[2.0 * TAU[0], 0.0, 0.0, 0.0, 0.0, 0.0],
+            false,
+            0.0,
+        );
+        let (_, terms) = acc.finish(&[0.0; 6]);
+        assert_eq!(terms.felt["fx"], 1.0);
+        assert!((terms.error["fx"] - 3.0 * 1.1).abs() < 1e-12);
+    }
+
+    #[test]
+    fn jolts_are_priced_per_minute_of_flight_by_their_excess() {
+        // 6000 steps (60 s at 100 Hz) of a perfect cue, with charged onsets whose excess sums
+        // to 10 thresholds·steps on fx: one window (10 steps at 100 Hz) of a jolt twice its
+        // threshold, once a minute: 0.2 × 600 × 10 / 6000 = 0.2.
+        let mut acc = ScoreAccumulator::new(&ScoreWeights::default(), TAU);
+        for _ in 0..6000 {
+            acc.push(&[0.0; 6], &[0.0; 6], false, 0.0);
+        }
+        let (score, terms) = acc.finish(&[10.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        assert!((terms.jolt - 0.2).abs() < 1e-12, "{terms:?}");
+        assert_eq!(score, terms.jolt);
+        // The old profiles' weights (no jolt_weight) load with the default.
+        let old: ScoreWeights = toml::from_str("false_cue_weight = 10.0").unwrap();
+        assert_eq!(old.jolt_weight, ScoreWeights::default().jolt_weight);
+    }
+
+    #[test]
     fn weights_are_validated_with_their_key() {
         let mut w = ScoreWeights::default();
         assert!(w.validate().is_ok());
@@ -306,5 +400,10 @@ mod tests {
             w.validate().unwrap_err().key,
             "score.below_threshold_weight"
         );
+        let w = ScoreWeights {
+            jolt_weight: f64::NAN,
+            ..Default::default()
+        };
+        assert_eq!(w.validate().unwrap_err().key, "score.jolt_weight");
     }
 }

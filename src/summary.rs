@@ -7,9 +7,10 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::engine::Frame;
+use crate::jolts::{self, AircraftOnsets, JoltAccumulator, Jolts};
 use crate::mca::AlgorithmId;
 use crate::metrics::{ChannelAccumulator, ChannelMetrics, StepTimes, TimeHistogram};
-use crate::model::stewart::Stewart;
+use crate::model::stewart::{head_motion, Stewart};
 use crate::profile::Profile;
 use crate::score::{ScoreAccumulator, ScoreTerms, ScoreWeights};
 use crate::vocab::Channel;
@@ -28,6 +29,10 @@ pub struct Summary {
     /// (fx, fy, fz as the change from 1 g; p, q, r), before any algorithm saw them.
     #[serde(default)]
     pub input_clipped: BTreeMap<String, u64>,
+    /// The aircraft's own jolts per channel (fx..wz), measured at the head as the
+    /// simulator's are (`crate::jolts`): the onsets that excuse the simulator's.
+    #[serde(default)]
+    pub aircraft_jolts: BTreeMap<String, Jolts>,
     /// A live session's real-time record (`hexcue live`); absent for a playback.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub live: Option<LiveSummary>,
@@ -214,6 +219,11 @@ pub struct AlgorithmSummary {
     pub score_terms: ScoreTerms,
 }
 
+/// Specific force (Δf) and angular velocity at the head as one six-channel signal.
+fn head_signal(df: &nalgebra::Vector3<f64>, w: &nalgebra::Vector3<f64>) -> [f64; 6] {
+    [df.x, df.y, df.z, w.x, w.y, w.z]
+}
+
 /// DoF names in pose order.
 pub const DOFS: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
 
@@ -229,6 +239,7 @@ struct AlgorithmAccumulator {
     switches: u64,
     max_dof_usage: [f64; 6],
     score: ScoreAccumulator,
+    jolts: JoltAccumulator,
 }
 
 /// Accumulates frames into a [`Summary`] in constant memory. Cloned, it is a checkpoint of
@@ -247,12 +258,19 @@ pub struct SummaryBuilder {
     input_limits: (f64, f64),
     input_clipped: [u64; 6],
     score_weights: ScoreWeights,
+    eye_m: nalgebra::Vector3<f64>,
+    /// Onset thresholds (`crate::jolts::onset_thresholds`) and window (steps).
+    onset_thresholds: [f64; 6],
+    onset_window: usize,
+    aircraft_onsets: AircraftOnsets,
 }
 
 impl SummaryBuilder {
     pub fn new(profile: &Profile, trace_name: &str) -> Self {
         let v = &profile.vestibular;
         let w = v.canal_threshold_radps();
+        let onset_thresholds = jolts::onset_thresholds(v, jolts::JOLT_WINDOW_S);
+        let onset_window = jolts::window_steps(profile.rate_hz);
         SummaryBuilder {
             trace: trace_name.to_string(),
             profile: profile.name.clone(),
@@ -275,6 +293,10 @@ impl SummaryBuilder {
             ),
             input_clipped: [0; 6],
             score_weights: profile.score.clone(),
+            eye_m: profile.eye_point(),
+            onset_thresholds,
+            onset_window,
+            aircraft_onsets: AircraftOnsets::new(onset_thresholds, onset_window),
         }
     }
 
@@ -288,11 +310,13 @@ impl SummaryBuilder {
             self.input_clipped[i] += u64::from(df[i].abs() > f_max);
             self.input_clipped[3 + i] += u64::from(w[i].abs() > w_max);
         }
+        let allowance = self.aircraft_onsets.push(&head_signal(&df, &w));
         let reference = frame.reference.channels();
         for lane in &frame.lanes {
             let (thresholds, dt) = (self.thresholds, 1.0 / self.rate_hz);
             let max_lag = (MAX_LAG_S * self.rate_hz).round() as usize;
             let weights = &self.score_weights;
+            let (onset_thresholds, onset_window) = (self.onset_thresholds, self.onset_window);
             let acc = self
                 .algorithms
                 .entry(lane.id)
@@ -310,7 +334,16 @@ impl SummaryBuilder {
                     switches: 0,
                     max_dof_usage: [0.0; 6],
                     score: ScoreAccumulator::new(weights, thresholds),
+                    jolts: JoltAccumulator::new(onset_thresholds, onset_window),
                 });
+            // What the body gets at the head: the same motion the perception model is fed
+            // (the engine's `head_motion` of the limited command).
+            let cmd = &lane.command;
+            let head = head_motion(&cmd.pose, &cmd.velocity, &cmd.acceleration, &self.eye_m);
+            acc.jolts.push(
+                &head_signal(&head.delta_f_mps2, &head.angular_velocity_radps),
+                &allowance,
+            );
             let perceived = lane.perceived.channels();
             for (c, ch) in acc.channels.iter_mut().enumerate() {
                 ch.push(reference[c], perceived[c]);
@@ -337,12 +370,18 @@ impl SummaryBuilder {
             .algorithms
             .iter()
             .map(|(id, acc)| {
+                let jolts = acc.jolts.jolts();
                 let metrics = Channel::ALL
                     .iter()
                     .zip(&acc.channels)
-                    .map(|(c, ch)| (c.key().to_string(), ch.finish()))
+                    .zip(jolts)
+                    .map(|((c, ch), j)| {
+                        let mut m = ch.finish();
+                        m.jolts = j;
+                        (c.key().to_string(), m)
+                    })
                     .collect();
-                let (score, score_terms) = acc.score.finish();
+                let (score, score_terms) = acc.score.finish(&acc.jolts.excess_sum());
                 let summary = AlgorithmSummary {
                     metrics,
                     step_time_us: acc.times.summary(),
@@ -381,6 +420,11 @@ impl SummaryBuilder {
                 .iter()
                 .zip(self.input_clipped)
                 .map(|(axis, n)| (axis.to_string(), n))
+                .collect(),
+            aircraft_jolts: Channel::ALL
+                .iter()
+                .zip(self.aircraft_onsets.jolts())
+                .map(|(c, j)| (c.key().to_string(), j))
                 .collect(),
             live: None,
         }

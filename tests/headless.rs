@@ -252,8 +252,17 @@ fn assert_close(a: &serde_json::Value, b: &serde_json::Value, what: &str) {
     match (a, b) {
         (Value::Number(x), Value::Number(y)) => {
             let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+            // A jolt's size is the change of the head's specific force (or angular velocity)
+            // over 0.1 s, computed from the platform's acceleration, which a recording keeps
+            // at 10⁻³ m/s² and rad/s² (docs/recordings.md): the linear term and the lever
+            // arm's each carry up to half of that.
+            let absolute = if what.contains(".jolts.") && what.ends_with("worst") {
+                2e-3
+            } else {
+                1e-6
+            };
             assert!(
-                (x - y).abs() <= 1e-6 + 1e-5 * x.abs().max(y.abs()),
+                (x - y).abs() <= absolute + 1e-5 * x.abs().max(y.abs()),
                 "{what}: {x} vs {y}"
             );
         }

@@ -9,7 +9,7 @@ mod verdict;
 
 pub use self::common::TraceResult;
 pub use self::tables::{pilot_table, render_markdown};
-pub use self::verdict::{ERROR_TOLERANCE_ABS, ERROR_TOLERANCE_REL, FALSE_CUE_MARGIN};
+pub use self::verdict::{ERROR_TOLERANCE_ABS, ERROR_TOLERANCE_REL, FALSE_CUE_MARGIN, JOLT_MARGIN};
 
 #[cfg(test)]
 mod tests {
@@ -23,8 +23,8 @@ mod tests {
     use crate::summary::Summary;
     use std::collections::BTreeMap;
 
-    /// An algorithm whose threshold-aware error equals its RAE on every channel (a stand-in:
-    /// the tests set the two together).
+    /// An algorithm whose threshold-aware error and felt error equal its RAE on every channel
+    /// (a stand-in: the tests set them together).
     fn alg(rae_fx: f64, switches: u64) -> AlgorithmSummary {
         let rae = |c: &str| if c == "fx" { rae_fx } else { 0.5 };
         let metrics = CHANNELS
@@ -58,6 +58,7 @@ mod tests {
             score: 1.0,
             score_terms: crate::score::ScoreTerms {
                 error: CHANNELS.iter().map(|c| (c.to_string(), rae(c))).collect(),
+                felt: CHANNELS.iter().map(|c| (c.to_string(), rae(c))).collect(),
                 ..Default::default()
             },
         }
@@ -80,6 +81,7 @@ mod tests {
                 rate_hz: 100.0,
                 algorithms,
                 input_clipped: BTreeMap::new(),
+                aircraft_jolts: BTreeMap::new(),
                 live: None,
             },
             description: Some("a test".into()),
@@ -151,11 +153,12 @@ mod tests {
     }
 
     /// One channel's numbers for one algorithm of a result, on a 90 s flight (1 %: 0.9 s):
-    /// the threshold-aware error and the RAE are both set to `error`.
+    /// the threshold-aware error, the felt error and the RAE are all set to `error`.
     fn set(r: &mut TraceResult, alg: &str, ch: &str, error: f64, pc: f64, false_s: f64) {
         r.summary.steps = 9000;
         let a = r.summary.algorithms.get_mut(alg).unwrap();
         a.score_terms.error.insert(ch.to_string(), error);
+        a.score_terms.felt.insert(ch.to_string(), error);
         let m = a.metrics.get_mut(ch).unwrap();
         m.rae = error;
         m.pc = pc;
@@ -209,8 +212,8 @@ mod tests {
         assert_eq!(
             v.losses(),
             vec![
-                "S-MPC loses to MPC: error 0.900 against 0.800",
-                "CWF loses to MPC: error 1.000 against 0.800"
+                "S-MPC loses to MPC: felt error 0.900 against 0.800",
+                "CWF loses to MPC: felt error 1.000 against 0.800"
             ]
         );
         // 1.3 s: beyond it, and the MPCs are worse than the CWF.
@@ -232,7 +235,7 @@ mod tests {
         set(&mut r, "cwf", "fz", 0.5, 0.3, 0.5);
         let v = verdict(&r.summary, "fz");
         assert_eq!(v.best(), Best::One("cwf"));
-        assert_eq!(v.worse_than_cwf(), vec![("smpc", Criterion::Error)]);
+        assert_eq!(v.worse_than_cwf(), vec![("smpc", Criterion::Felt)]);
         // The CWF out on false cues against the S-MPC: the best MPC is not called worse than
         // it for a lower error the CWF bought with them.
         set(&mut r, "mpc", "fz", 0.8, 0.3, 0.5);
@@ -252,7 +255,7 @@ mod tests {
         set(&mut r, "mpc", "fy", 0.53, 0.88, 0.0);
         set(&mut r, "cwf", "fy", 0.90, 0.70, 0.0);
         let v = verdict(&r.summary, "fy");
-        // 0.53 is within 0.50 × 1.05 + 0.005: level.
+        // 0.53 is within 0.50 × 1.05 + 0.01: level.
         assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc"]));
         assert_eq!(v.best_label(), "S-MPC = MPC");
         assert_eq!(v.pilot_cell(), "**S-MPC** = **MPC** 0.0 s");
@@ -268,7 +271,7 @@ mod tests {
         assert_eq!(v.best(), Best::One("smpc"));
         assert!(v
             .losses()
-            .contains(&"MPC loses to S-MPC: error 0.540 against 0.500".to_string()));
+            .contains(&"MPC loses to S-MPC: felt error 0.540 against 0.500".to_string()));
         // Errors of a few thousandths are level whatever their ratio: nothing is felt.
         set(&mut r, "smpc", "wz", 0.000, 0.9, 0.0);
         set(&mut r, "mpc", "wz", 0.004, 0.9, 0.0);
@@ -276,10 +279,83 @@ mod tests {
         let v = verdict(&r.summary, "wz");
         assert_eq!(v.worse_than_cwf(), vec![]);
         assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc", "cwf"]));
-        // An MPC beyond the CWF's error × 1.05 + 0.005 is worse than it.
+        // An MPC beyond the CWF's felt error × 1.05 + 0.01 is worse than it.
         set(&mut r, "mpc", "wz", 0.030, 0.9, 0.0);
         let v = verdict(&r.summary, "wz");
-        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Error)]);
+        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Felt)]);
+    }
+
+    #[test]
+    fn cues_that_differ_only_below_the_threshold_are_not_worse() {
+        let mut r = result(0.2, 0.28, 0.32);
+        // Heave: the MPC's soft-dead-zone error is three times the CWF's, all of it below the
+        // threshold (the two never differ by a threshold): the felt errors are equal, and the
+        // MPC is not worse than the CWF. Under the old rule (error) it was.
+        set(&mut r, "smpc", "fz", 0.05, 0.9, 0.0);
+        set(&mut r, "mpc", "fz", 0.09, 0.9, 0.0);
+        set(&mut r, "cwf", "fz", 0.03, 0.9, 0.0);
+        for k in ["smpc", "mpc", "cwf"] {
+            let a = r.summary.algorithms.get_mut(k).unwrap();
+            a.score_terms.felt.insert("fz".into(), 0.0);
+        }
+        let v = verdict(&r.summary, "fz");
+        assert_eq!(v.worse_than_cwf(), vec![]);
+        assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc", "cwf"]));
+        // The old error stays in the report for comparison.
+        let copy = TraceResult {
+            summary: r.summary.clone(),
+            description: None,
+        };
+        let md = render_markdown(&[copy], &full_flight(), "hexcue compare");
+        assert!(md.contains("| algorithm | error fx |"), "{md}");
+        assert!(md.contains("| algorithm | felt fx |"), "{md}");
+        // A felt difference beyond one threshold over 1 % of the flight decides.
+        r.summary
+            .algorithms
+            .get_mut("mpc")
+            .unwrap()
+            .score_terms
+            .felt
+            .insert("fz".into(), 0.011);
+        let v = verdict(&r.summary, "fz");
+        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Felt)]);
+    }
+
+    #[test]
+    fn a_jolt_beyond_the_aircrafts_decides_before_the_felt_error() {
+        let mut r = result(0.2, 0.28, 0.32);
+        set(&mut r, "smpc", "fx", 0.10, 0.9, 0.0);
+        set(&mut r, "mpc", "fx", 0.10, 0.9, 0.0);
+        set(&mut r, "cwf", "fx", 0.50, 0.9, 0.0);
+        let jolts = |r: &mut TraceResult, k: &str, count: u64, charged: u64| {
+            let m = r
+                .summary
+                .algorithms
+                .get_mut(k)
+                .unwrap()
+                .metrics
+                .get_mut("fx")
+                .unwrap();
+            m.jolts.count = count;
+            m.jolts.charged = charged;
+        };
+        // The CWF passes the aircraft's two jolts through (charged 0); the MPC adds one of
+        // its own: worse than the CWF, however much lower its felt error.
+        jolts(&mut r, "cwf", 2, 0);
+        jolts(&mut r, "smpc", 2, 0);
+        jolts(&mut r, "mpc", 3, 1);
+        let v = verdict(&r.summary, "fx");
+        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Jolts)]);
+        assert_eq!(v.best(), Best::One("smpc"));
+        assert!(v
+            .worse_than_cwf_sentences()
+            .contains(&"MPC is worse than the CWF (1 jolt against 0)".to_string()));
+        let md = render_markdown(&[r], &full_flight(), "hexcue compare");
+        // The felt and jolts table: charged/all per channel.
+        assert!(
+            md.contains("| MPC | 0.100 | 0.500 | 0.500 | 0.500 | 0.500 | 0.500 | 1/3 | 0/0 |"),
+            "{md}"
+        );
     }
 
     #[test]
@@ -294,7 +370,7 @@ mod tests {
         assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc"]));
         assert_eq!(
             v.losses(),
-            vec!["CWF loses to S-MPC: error 1.080 against 1.000"]
+            vec!["CWF loses to S-MPC: felt error 1.080 against 1.000"]
         );
     }
 

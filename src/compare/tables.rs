@@ -26,9 +26,15 @@ pub fn render_markdown(
          NAAD = mean|x − y| / range(x): lower is better; a platform at rest has RAE 1. PC: \
          Pearson correlation, higher is better. Error: the threshold-aware error of the \
          score on that channel, the mean over the flight of the error in perception thresholds \
-         through a soft dead zone (below one threshold it costs a tenth), lower is better: \
-         what the pilot can feel, and what decides the verdicts. Score: the cueing score of docs/tuning.md \
-         (threshold-aware error, false cues, limiter and legs), lower is better. False cues: the time during which the \
+         through a soft dead zone (below one threshold it costs a tenth), lower is better; \
+         shown for comparison, it no longer decides. Felt: the supra-threshold part of that \
+         error, the mean of max(|u| − 1, 0) for an error of u thresholds: what the pilot \
+         feels of it, and what decides the verdicts after false cues and jolts. Jolts: abrupt \
+         onsets at the pilot's head (a change of specific force or angular velocity within \
+         0.1 s above the onset threshold of docs/tuning.md), as `charged/all`: those beyond \
+         what the aircraft itself had at that time, and all. Score: the cueing score of \
+         docs/tuning.md (threshold-aware error, false cues, limiter, legs and jolts), lower is \
+         better. False cues: the time during which the \
          simulator's perceived motion has the opposite sign of the aircraft's while both \
          exceed the perception thresholds (motion felt in the wrong direction). Step times are \
          wall-clock per step on this machine (2 cores), the algorithm and its limiter, with the \
@@ -68,6 +74,47 @@ pub fn render_markdown(
                 })
                 .collect();
             let _ = writeln!(out, "| {} | {} |", label(k), errors.join(" | "));
+        }
+        let _ = writeln!(out);
+        let header: Vec<String> = CHANNELS
+            .iter()
+            .map(|c| format!("felt {c}"))
+            .chain(CHANNELS.iter().map(|c| format!("jolts {c}")))
+            .collect();
+        let _ = writeln!(out, "| algorithm | {} |", header.join(" | "));
+        let _ = writeln!(out, "|---|{}", "---:|".repeat(header.len()));
+        for (k, a) in ordered(s) {
+            let felt: Vec<String> = CHANNELS
+                .iter()
+                .map(|c| match a.score_terms.felt.get(*c) {
+                    Some(e) => format!("{e:.3}"),
+                    None => "–".to_string(),
+                })
+                .collect();
+            let jolts: Vec<String> = CHANNELS
+                .iter()
+                .map(|c| match a.metrics.get(*c) {
+                    Some(m) => format!("{}/{}", m.jolts.charged, m.jolts.count),
+                    None => "–".to_string(),
+                })
+                .collect();
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} |",
+                label(k),
+                felt.join(" | "),
+                jolts.join(" | ")
+            );
+        }
+        if !s.aircraft_jolts.is_empty() {
+            let own: Vec<String> = CHANNELS
+                .iter()
+                .map(|c| {
+                    let n = s.aircraft_jolts.get(*c).map_or(0, |j| j.count);
+                    format!("{c} {n}")
+                })
+                .collect();
+            let _ = writeln!(out, "\nThe aircraft's own jolts: {}.", own.join(", "));
         }
         let _ = writeln!(out);
         let header: Vec<String> = CHANNELS
@@ -148,22 +195,27 @@ pub fn render_markdown(
 /// How a channel's verdict is reached, as the report states it.
 pub(super) fn verdict_rule() -> String {
     format!(
-        "**How a channel's verdict is reached.** (1) False cues first, because motion felt \
-         in the wrong direction is worse than missing motion: an algorithm whose false-cue time \
-         exceeds the fewest by more than {:.0} % of the flight's duration is out, whatever its \
-         other numbers. (2) The rest are compared two by two on the threshold-aware error \
-         (`error`): the higher loses when it exceeds the lower × {:.2} + {:.3}, since a smaller \
-         difference is not felt. Otherwise the two are level: RAE and PC, which count \
-         differences below the perception threshold as fully as felt ones, are shown but do \
-         not decide. The best is the one that none \
+        "**How a channel's verdict is reached.** By what the pilot feels. (1) False cues first, \
+         because motion felt in the wrong direction is worse than missing motion: an algorithm \
+         whose false-cue time exceeds the fewest by more than {:.0} % of the flight's duration \
+         is out, whatever its other numbers. (2) The rest are compared two by two on jolts \
+         charged to them (onsets at the head above the onset threshold, beyond what the \
+         aircraft itself had at that time): more than {} more loses, since each is a bump the \
+         pilot feels that the flight did not have. (3) Then on the felt error (`felt`, the \
+         supra-threshold part of the error): the higher loses when it exceeds the lower × {:.2} \
+         + {:.3}, that is by more than one threshold over 1 % of the flight; a smaller \
+         difference is not felt. Otherwise the two are level: the threshold-aware error \
+         (`error`), RAE and PC, which count differences below the perception threshold, are \
+         shown but do not decide. The best is the one that none \
          of the others beats; several such are level at the top (`=`); when each loses to \
          another, which close numbers can give, there is no clear best. Those left are ranked \
          below in the same way. An MPC is worse than the CWF when it ranks below the CWF and \
-         also loses to it head to head (false cues, then error, as above). Caveats on \
-         the best: PC < 0 (its cue runs against the aircraft's motion more than with it) and \
-         RAE ≥ 1 (its cue is no closer to the aircraft's motion than a platform at rest, \
+         also loses to it head to head (false cues, jolts, then felt error, as above). Caveats \
+         on the best: PC < 0 (its cue runs against the aircraft's motion more than with it) \
+         and RAE ≥ 1 (its cue is no closer to the aircraft's motion than a platform at rest, \
          which gives RAE 1 and no false cue).\n\n",
         100.0 * FALSE_CUE_MARGIN,
+        JOLT_MARGIN,
         1.0 + ERROR_TOLERANCE_REL,
         ERROR_TOLERANCE_ABS
     )

@@ -1,5 +1,7 @@
-//! The verdict on one channel of one trace: which algorithm is best, on false cues first and
-//! then the threshold-aware error, and why the others lose.
+//! The verdict on one channel of one trace: which algorithm is best, on what the pilot feels
+//! (false cues first, then jolts beyond the aircraft's, then the felt, supra-threshold error),
+//! and why the others lose. The soft-dead-zone error of the score stays in the tables but no
+//! longer decides: it charges differences below the threshold, which are not felt.
 
 use std::fmt::Write;
 
@@ -11,16 +13,20 @@ use crate::summary::Summary;
 /// loses to it on that channel, whatever its RAE: the margin of DESIGN §9 and issue 11 (no MPC
 /// with more false-cue time than the CWF plus 1 % of the flight).
 pub const FALSE_CUE_MARGIN: f64 = 0.01;
-/// Threshold-aware errors (the score's per-channel term, `crate::score`) count as level when
-/// the higher is within this share of the lower plus [`ERROR_TOLERANCE_ABS`]: the bar of issue
-/// 21 and DESIGN §9. Closer than this the difference is below what the pilot can feel, and
-/// the order moves with any retuning.
+/// Felt errors (`score_terms.felt`, the mean supra-threshold error in thresholds) count as
+/// level when the higher is within this share of the lower plus [`ERROR_TOLERANCE_ABS`]: the
+/// relative bar of issue 21 and DESIGN §9, within which the order moves with any retuning.
 pub const ERROR_TOLERANCE_REL: f64 = 0.05;
-/// The absolute part of the error tolerance: errors this small are a few steps of a cue
-/// near its threshold.
-pub const ERROR_TOLERANCE_ABS: f64 = 0.005;
+/// The absolute part of the felt-error tolerance, in thresholds: one threshold of felt error
+/// over 1 % of the flight (the false cues' margin). A smaller felt difference is an error
+/// beyond the other's by less than a threshold for all but 1 % of the flight: not felt.
+pub const ERROR_TOLERANCE_ABS: f64 = 0.01;
+/// An algorithm with more jolts charged to it (beyond the aircraft's, `crate::jolts`) than
+/// another by more than this many loses to it: each such jolt is an onset above the
+/// threshold the aircraft did not have, felt on its own.
+pub const JOLT_MARGIN: u64 = 0;
 
-/// Whether error `a` loses to `b`: above `b` by more than the tolerance.
+/// Whether felt error `a` loses to `b`: above `b` by more than the tolerance.
 pub(super) fn error_loses(a: f64, b: f64) -> bool {
     a > b * (1.0 + ERROR_TOLERANCE_REL) + ERROR_TOLERANCE_ABS
 }
@@ -29,15 +35,24 @@ pub(super) fn error_loses(a: f64, b: f64) -> bool {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Criterion {
     FalseCues,
-    Error,
+    Jolts,
+    Felt,
 }
 
-/// One algorithm's numbers on one channel, as the verdict reads them: the metrics, and the
-/// threshold-aware error of the score (NaN when the summary has none).
+/// One algorithm's numbers on one channel, as the verdict reads them: the metrics and the
+/// felt error (NaN when the summary has none). The soft-dead-zone error is in the report's
+/// tables, not here: it does not decide.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Judged {
     pub(super) metrics: ChannelMetrics,
-    pub(super) error: f64,
+    pub(super) felt: f64,
+}
+
+impl Judged {
+    /// Jolts charged to the algorithm (beyond the aircraft's).
+    pub(super) fn jolts(&self) -> u64 {
+        self.metrics.jolts.charged
+    }
 }
 
 impl std::ops::Deref for Judged {
@@ -55,21 +70,25 @@ pub(super) enum Outcome {
     Level,
 }
 
-/// `a` against `b`: false cues first (more than `margin_s` longer loses), then the
-/// threshold-aware error (beyond the other's by more than the tolerance loses): what the
-/// pilot feels, and what `hexcue tune` minimises. RAE and PC stay in the tables; an error
-/// below the threshold is all but free there, so RAE would rank differences no one feels.
-/// A missing number (NaN) decides nothing.
+/// `a` against `b` on what the pilot feels: false cues first (more than `margin_s` longer
+/// loses), then jolts charged to the algorithm (more than [`JOLT_MARGIN`] more loses), then the
+/// felt error (beyond the other's by more than the tolerance loses). The soft-dead-zone error,
+/// RAE and PC stay in the tables; they count differences below the threshold, which no one
+/// feels. A missing number (NaN) decides nothing.
 pub(super) fn judge(a: &Judged, b: &Judged, margin_s: f64) -> Outcome {
     use Criterion::*;
     if a.false_cue_s > b.false_cue_s + margin_s {
         Outcome::Worse(FalseCues)
     } else if b.false_cue_s > a.false_cue_s + margin_s {
         Outcome::Better(FalseCues)
-    } else if error_loses(a.error, b.error) {
-        Outcome::Worse(Error)
-    } else if error_loses(b.error, a.error) {
-        Outcome::Better(Error)
+    } else if a.jolts() > b.jolts() + JOLT_MARGIN {
+        Outcome::Worse(Jolts)
+    } else if b.jolts() > a.jolts() + JOLT_MARGIN {
+        Outcome::Better(Jolts)
+    } else if error_loses(a.felt, b.felt) {
+        Outcome::Worse(Felt)
+    } else if error_loses(b.felt, a.felt) {
+        Outcome::Better(Felt)
     } else {
         Outcome::Level
     }
@@ -128,15 +147,15 @@ pub(super) fn within_false_cue_margin(
 }
 
 /// Ranks the algorithms on one channel: of those still unranked, the ones whose false cues
-/// are within the margin of the fewest compete, and those none of them beats (on the
-/// threshold-aware error) take the next rank; when each competitor loses to another, they all take it.
+/// are within the margin of the fewest compete, and those none of them beats (on jolts, then
+/// the felt error) take the next rank; when each competitor loses to another, they all take it.
 pub(super) fn verdict<'a>(summary: &'a Summary, ch: &str) -> Verdict<'a> {
     let algorithms: Vec<(&str, Judged)> = ordered(summary)
         .into_iter()
         .filter_map(|(k, a)| {
             a.metrics.get(ch).map(|m| {
-                let error = a.score_terms.error.get(ch).copied().unwrap_or(f64::NAN);
-                (k, Judged { metrics: *m, error })
+                let felt = a.score_terms.felt.get(ch).copied().unwrap_or(f64::NAN);
+                (k, Judged { metrics: *m, felt })
             })
         })
         .collect();
@@ -175,15 +194,21 @@ pub(super) fn verdict<'a>(summary: &'a Summary, ch: &str) -> Verdict<'a> {
     }
 }
 
-/// "17.8 s of false cues against 0.3 s", "error 0.467 against 0.255", ...: what decided
-/// between the loser `a` and the winner `b`, in numbers.
+/// "17.8 s of false cues against 0.3 s", "3 jolts against 0", "felt error 0.467 against
+/// 0.255": what decided between the loser `a` and the winner `b`, in numbers.
 pub(super) fn loss_detail(c: Criterion, a: &Judged, b: &Judged) -> String {
     match c {
         Criterion::FalseCues => format!(
             "{:.1} s of false cues against {:.1} s",
             a.false_cue_s, b.false_cue_s
         ),
-        Criterion::Error => format!("error {:.3} against {:.3}", a.error, b.error),
+        Criterion::Jolts => format!(
+            "{} {} against {}",
+            a.jolts(),
+            if a.jolts() == 1 { "jolt" } else { "jolts" },
+            b.jolts()
+        ),
+        Criterion::Felt => format!("felt error {:.3} against {:.3}", a.felt, b.felt),
     }
 }
 
@@ -209,7 +234,7 @@ impl<'a> Verdict<'a> {
     }
 
     /// The MPCs (every algorithm other than the CWF) ranked below the CWF that also lose to
-    /// it head to head, with what decided. Both, because the margins make the comparison
+    /// it head to head (false cues, jolts or the felt error), with what decided. Both, because the margins make the comparison
     /// intransitive: an MPC can rank below the CWF only through a third algorithm's fewer
     /// false cues, or lose to a CWF that is itself out on false cues; neither is the MPC
     /// being worse than the CWF.

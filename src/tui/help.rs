@@ -83,6 +83,22 @@ pub const LEGEND: &[(&str, &str)] = &[
         "· standby",
         "not solved by design: the other controller is in charge",
     ),
+    (
+        "felt",
+        "error above the perception threshold, in thresholds; 0 is best",
+    ),
+    (
+        "false fc",
+        "seconds felt the wrong way (ref and sim beyond threshold)",
+    ),
+    (
+        "jolts j",
+        "onsets at the head above threshold beyond the aircraft's",
+    ),
+    (
+        "score sc",
+        "the cueing score so far, all channels; lower is better",
+    ),
     ("RAE", "Σ|ref − sim| / Σ|ref| since the start; 0 is best"),
     ("PC", "correlation of ref and sim; +1 is best"),
     (
@@ -90,8 +106,8 @@ pub const LEGEND: &[(&str, &str)] = &[
         "share of steps the workspace limiter changed; ▲ACT now",
     ),
     (
-        "step",
-        "wall time of this algorithm's last step, limiter included",
+        "step 12µs",
+        "wall time of the last step, limiter included (narrow: 12µs)",
     ),
     (
         "legs ±%",

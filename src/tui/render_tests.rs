@@ -327,6 +327,10 @@ fn every_word_on_screen_is_in_the_help() {
         "why",
         "RAE",
         "PC",
+        "felt",
+        "false fc",
+        "jolts j",
+        "score sc",
         "lim",
         "▲ACT",
         "•ref ⣿sim",
@@ -368,4 +372,42 @@ fn renders_at_120x40() {
     });
     app.snapshot = Arc::new(s);
     insta::assert_snapshot!("console_120x40", screen(&draw(&app, 120, 40)));
+}
+
+#[test]
+fn the_columns_show_what_the_verdict_decides_by() {
+    // Issue #38 item 8: `compare` decides by false cues, jolts and the felt error, and ranks
+    // by the score; each column shows those, compactly at 80×24.
+    let (mut app, mut s) = dressed_snapshot();
+    let mut summary = (**s.summary.as_ref().expect("a running summary")).clone();
+    let cwf = summary.algorithms.get_mut("cwf").unwrap();
+    cwf.score = 3.21;
+    cwf.score_terms.felt.insert("fx".into(), 0.123);
+    let fx = cwf.metrics.get_mut("fx").unwrap();
+    fx.false_cue_s = 1.5;
+    fx.jolts.charged = 2;
+    fx.jolts.count = 5;
+    fx.rae = 0.456;
+    s.summary = Some(Arc::new(summary));
+    app.snapshot = Arc::new(s);
+    let narrow = screen(&draw(&app, 80, 24));
+    for want in ["fx felt 0.123 fc 1.5s j2", "score 3.21 lim"] {
+        assert!(
+            narrow.contains(want),
+            "missing {want:?} at 80×24:\n{narrow}"
+        );
+    }
+    // RAE gives way at 80×24; wide columns keep it after what decides.
+    assert!(!narrow.contains("RAE"), "{narrow}");
+    let wide = screen(&draw(&app, 200, 50));
+    for want in [
+        "fx felt 0.123 false 1.5s jolts 2 RAE 0.46",
+        "score 3.21 lim",
+        "step",
+    ] {
+        assert!(wide.contains(want), "missing {want:?} at 200×50:\n{wide}");
+    }
+    // A column of one metrics row keeps them too.
+    let short = screen(&draw(&app, 80, 16));
+    assert!(short.contains("felt 0.1"), "{short}");
 }

@@ -709,61 +709,146 @@ fn truncate(s: &str, n: usize) -> String {
     }
 }
 
-/// The selected channel's metrics of one lane: (RAE, PC, limiter share), when known.
-fn lane_metrics(app: &App, lane: usize) -> Option<(f64, f64, f64)> {
+/// The selected channel's running numbers of one lane, when known: what `compare` decides by
+/// (false cues, jolts beyond the aircraft's, the felt error, and the score) and what it shows.
+#[derive(Clone, Copy, Debug)]
+struct LaneNumbers {
+    felt: f64,
+    false_cue_s: f64,
+    jolts: u64,
+    score: f64,
+    rae: f64,
+    pc: f64,
+    limiter: f64,
+}
+
+fn lane_metrics(app: &App, lane: usize) -> Option<LaneNumbers> {
     let s = &app.snapshot;
     let id = s.algorithms.get(lane)?;
     let sum = s.summary.as_ref()?;
     let alg = sum.algorithms.get(id.key())?;
-    let m = alg.metrics.get(app.channel_name())?;
-    Some((m.rae, m.pc, alg.limiter_fraction))
+    let ch = app.channel_name();
+    let m = alg.metrics.get(ch)?;
+    Some(LaneNumbers {
+        felt: alg.score_terms.felt.get(ch).copied().unwrap_or(f64::NAN),
+        false_cue_s: m.false_cue_s,
+        jolts: m.jolts.charged,
+        score: alg.score,
+        rae: m.rae,
+        pc: m.pc,
+        limiter: alg.limiter_fraction,
+    })
+}
+
+/// The first of the texts that fits in `w` cells, else the last (which `fit` cuts).
+fn first_fitting(texts: Vec<String>, w: usize) -> String {
+    let last = texts.last().cloned().unwrap_or_default();
+    texts
+        .into_iter()
+        .find(|t| t.chars().count() <= w)
+        .unwrap_or(last)
 }
 
 fn metric_lines(app: &App, lane: usize, frame: Option<&LaneFrame>, w: usize) -> Vec<Line<'static>> {
     let th = &app.theme;
-    let (rae, pc, lim) = match lane_metrics(app, lane) {
-        Some((r, p, l)) => (
-            format!("{r:.3}"),
-            format!("{p:+.2}"),
-            format!("{:.1}%", l * 100.0),
-        ),
-        None => ("-".into(), "-".into(), "-".into()),
-    };
+    let ch = channel_label(app.channel);
     let active = frame.is_some_and(|l| l.limiter_active);
     let step = frame.map_or("-".into(), |l| fmt_us(l.step_time_us));
-    let mut second = vec![Span::styled("lim ", th.dim()), Span::styled(lim, th.text())];
-    if active {
-        // "lim 0.6% ▲ACTIVE step 2.3ms" is 27 cells: narrower columns get "▲ACT".
-        let word = if w >= 27 { " ▲ACTIVE" } else { " ▲ACT" };
-        second.push(Span::styled(word, th.warn().add_modifier(Modifier::BOLD)));
-    }
-    second.push(Span::styled(format!(" step {step}"), th.dim()));
-    vec![
-        Line::from(vec![
-            Span::styled(format!("{} ", channel_label(app.channel)), th.key()),
-            Span::styled("RAE ", th.dim()),
-            Span::styled(rae, th.text()),
-            Span::styled(" PC ", th.dim()),
-            Span::styled(pc, th.text()),
-        ]),
-        Line::from(second),
-    ]
+    let (first, second) = match lane_metrics(app, lane) {
+        Some(n) => {
+            let (felt, fc, j) = (n.felt, n.false_cue_s, n.jolts);
+            // What decides first, then RAE and PC where the column is wide enough.
+            let first = first_fitting(
+                vec![
+                    format!(
+                        "{ch} felt {felt:.3} false {fc:.1}s jolts {j} RAE {:.2} PC {:+.2}",
+                        n.rae, n.pc
+                    ),
+                    format!("{ch} felt {felt:.3} false {fc:.1}s jolts {j}"),
+                    format!("{ch} felt {felt:.3} fc {fc:.1}s j{j}"),
+                    format!("{ch} felt {felt:.2} fc{fc:.1} j{j}"),
+                ],
+                w,
+            );
+            let lim = format!("{:.1}%", n.limiter * 100.0);
+            // "score 2.75 lim 0.6% ▲ACTIVE step 2.3ms"; narrower columns lose the step
+            // time's label (its unit says what it is), then shorten the words, and drop the
+            // step time last.
+            let act = |word: &str| {
+                if active {
+                    word.to_string()
+                } else {
+                    String::new()
+                }
+            };
+            let sc = n.score;
+            let second = first_fitting(
+                vec![
+                    format!("score {sc:.2} lim {lim}{} step {step}", act(" ▲ACTIVE")),
+                    format!("score {sc:.2} lim {lim}{} step {step}", act(" ▲ACT")),
+                    format!("score {sc:.2} lim {lim}{} {step}", act(" ▲ACT")),
+                    format!("score {sc:.2} lim {lim}{}", act(" ▲ACT")),
+                    format!("sc {sc:.2} lim {lim}{} {step}", act("▲")),
+                    format!("sc {sc:.2} lim {lim}{}", act("▲")),
+                ],
+                w,
+            );
+            (first, second)
+        }
+        None => (
+            format!("{ch} felt - fc - j -"),
+            format!("score - lim - step {step}"),
+        ),
+    };
+    let styled = |text: String| -> Line<'static> {
+        // Labels dim, numbers plain, the limiter's mark as a warning: split on spaces.
+        let mut spans = Vec::new();
+        for (i, word) in text.split(' ').enumerate() {
+            if i > 0 {
+                spans.push(Span::raw(" "));
+            }
+            let number = |c: char| c.is_ascii_digit() || c == '+' || c == '-';
+            if word.starts_with('▲') {
+                spans.push(Span::styled(
+                    word.to_string(),
+                    th.warn().add_modifier(Modifier::BOLD),
+                ));
+            } else if i == 0 && word == ch {
+                spans.push(Span::styled(word.to_string(), th.key()));
+            } else {
+                // "felt", "0.123", and the short forms "j1", "fc0.3s": label dim, number plain.
+                let at = word.find(number).unwrap_or(word.len());
+                let (label, value) = word.split_at(at);
+                if !label.is_empty() {
+                    spans.push(Span::styled(label.to_string(), th.dim()));
+                }
+                if !value.is_empty() {
+                    spans.push(Span::styled(value.to_string(), th.text()));
+                }
+            }
+        }
+        Line::from(spans)
+    };
+    vec![styled(first), styled(second)]
 }
 
 fn compact_metrics(app: &App, lane: usize, frame: Option<&LaneFrame>, w: usize) -> Line<'static> {
     let th = &app.theme;
     let text = match lane_metrics(app, lane) {
-        Some((r, p, l)) => {
-            let full = format!("RAE {r:.2} PC {p:+.2} lim {:.0}%", l * 100.0);
-            // The limiter's share goes first when the column is narrow: RAE and PC are
-            // what the column is compared by.
-            if full.chars().count() + 2 <= w {
-                full
-            } else {
-                format!("RAE {r:.2} PC {p:+.2}")
-            }
+        Some(n) => {
+            let (felt, fc, j, sc) = (n.felt, n.false_cue_s, n.jolts, n.score);
+            // What `compare` decides by, shortest words last.
+            first_fitting(
+                vec![
+                    format!("felt {felt:.3} false {fc:.1}s jolts {j} score {sc:.2}"),
+                    format!("felt {felt:.3} fc {fc:.1}s j{j} score {sc:.2}"),
+                    format!("felt {felt:.2} fc {fc:.1}s j{j} sc {sc:.2}"),
+                    format!("felt {felt:.2} fc{fc:.1} j{j} sc{sc:.1}"),
+                ],
+                w.saturating_sub(2),
+            )
         }
-        None => "RAE - PC -".into(),
+        None => "felt - fc - j - sc -".into(),
     };
     let mut spans = vec![Span::styled(text, th.text())];
     if frame.is_some_and(|l| l.limiter_active) {

@@ -292,3 +292,26 @@ pub fn read_pty(
         }
     })
 }
+
+/// Writes a trace CSV (docs/formats.md) at `rate_hz` for `duration_s`: `sample(t)` gives
+/// fx, fy, fz (m/s², head frame), p, q, r (rad/s), φ, θ, ψ (rad) at time t.
+pub fn write_trace(path: &Path, rate_hz: f64, duration_s: f64, sample: impl Fn(f64) -> [f64; 9]) {
+    use std::fmt::Write;
+    let mut csv = String::from("t,fx,fy,fz,p,q,r,phi,theta,psi\n");
+    let steps = (duration_s * rate_hz).round() as usize;
+    for k in 0..steps {
+        let t = k as f64 / rate_hz;
+        let s = sample(t);
+        let _ = write!(csv, "{t:.4}");
+        for v in s {
+            let _ = write!(csv, ",{v:.6}");
+        }
+        csv.push('\n');
+    }
+    std::fs::write(path, csv).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+}
+
+/// Level, unaccelerated flight: 1 g up through the seat and nothing else.
+pub fn quiet_sample() -> [f64; 9] {
+    [0.0, 0.0, -9.81, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+}
