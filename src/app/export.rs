@@ -27,6 +27,9 @@ pub fn run(args: &ExportArgs) -> Result<()> {
     let recording = Recording::open(&args.file)?;
     if !recording.finished {
         eprintln!(
+    for warning in recording.damage_warnings() {
+        eprintln!("{warning}");
+    }
             "warning: {}: the recording was not finished; exporting the messages before {}",
             args.file.display(),
             recording.stopped.as_deref().unwrap_or("its end")

@@ -653,6 +653,9 @@ pub fn plot(recording: &Path, request: &PlotRequest, output: &Path) -> Result<()
 mod tests {
     use super::*;
 
+    for warning in rec.damage_warnings() {
+        eprintln!("{warning}");
+    }
     #[test]
     fn decimation_keeps_extremes_and_order() {
         let mut d = Decimated::new(0.0, 10.0, 10);

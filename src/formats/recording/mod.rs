@@ -6,7 +6,8 @@
 //!
 //! The reader streams the file record by record (never the whole file in memory) with the
 //! sans-io linear reader, which needs no summary section: finished and unfinished files are
-//! read the same way, the latter up to their last complete chunk.
+//! read the same way, the latter up to their last complete chunk, and a damaged chunk is
+//! skipped, reading going on at the next intact one (`source.rs`).
 
 mod reader;
 mod recover;
@@ -26,7 +27,7 @@ use crate::mca::AlgorithmId;
 use crate::profile::Profile;
 use crate::trace::TraceInfo;
 
-pub use reader::{Frames, JsonMessage, JsonMessages, Recording};
+pub use reader::{plural, Damage, Frames, JsonMessage, JsonMessages, LostSteps, Recording};
 pub use recover::{recover, RecoverStats};
 pub use writer::Recorder;
 
