@@ -128,11 +128,54 @@ impl Recorder {
         let wr = |error| RecordingError::Write {
             path: shown(path),
             error,
+    /// [`Recorder::create`] for a session whose trace is the file `trace` (`meta.trace_csv`
+    /// is not read): the trace is compressed and hashed in one pass through a scratch file
+    /// beside the recording and attached from it, so that a trace of any length is attached
+    /// without being held in memory (a 10 h trace at 100 Hz is 340 MB of text).
+    pub fn create_with_trace_file(
+        path: &Path,
+        meta: &RecordingMeta,
+        trace: &Path,
+    ) -> Result<Recorder, RecordingError> {
+        let mut zst_name = path.as_os_str().to_owned();
+        zst_name.push(".trace.zst");
+        let zst_path = PathBuf::from(zst_name);
+        let made = compress_and_hash(trace, &zst_path)
+            .map_err(|error| RecordingError::Io {
+                path: trace.display().to_string(),
+                action: "compress the trace for the recording",
+                error,
+            })
+            .and_then(|sha| {
+                let start_ns = SystemTime::now()
+                    .duration_since(UNIX_EPOCH)
+                    .map_or(1, |d| d.as_nanos().min(u128::from(u64::MAX / 2)) as u64);
+                let mut metadata = session_metadata(meta, start_ns);
+                metadata.insert("trace_sha256".into(), sha);
+                Self::create_from(path, meta, start_ns, metadata, Some(&zst_path))
+            });
+        // The compressed copy is a scratch file whatever happened.
+        let _ = std::fs::remove_file(&zst_path);
+        made
+    }
+
         };
         let options = WriteOptions::new()
             .compression(Some(Compression::Zstd))
             .chunk_size(Some(CHUNK_SIZE))
             // Worker threads would compete with the solvers for the two cores.
+    ) -> Result<Recorder, RecordingError> {
+        Self::create_from(path, meta, start_ns, metadata, None)
+    }
+
+    /// Creates the file and writes the metadata and attachments: the trace from
+    /// `meta.trace_csv`, or, given `trace_zst`, streamed from that compressed file.
+    fn create_from(
+        path: &Path,
+        meta: &RecordingMeta,
+        start_ns: u64,
+        metadata: BTreeMap<String, String>,
+        trace_zst: Option<&Path>,
             .compression_threads(0)
             .compression_level(
                 std::env::var("HEXCUE_ZSTD_LEVEL")
@@ -162,22 +205,25 @@ impl Recorder {
                 metadata,
             })
             .map_err(wr)?;
-        let trace = zstd::bulk::compress(meta.trace_csv.as_bytes(), ZSTD_LEVEL as i32).map_err(
-            |error| RecordingError::Io {
-                path: shown(path),
-                action: "compress the trace attachment",
-                error,
-            },
-        )?;
+        let trace = match trace_zst {
+            Some(_) => Vec::new(),
+            None => zstd::bulk::compress(meta.trace_csv.as_bytes(), ZSTD_LEVEL as i32).map_err(
+                |error| RecordingError::Io {
+                    path: shown(path),
+                    action: "compress the trace attachment",
+                    error,
+                },
+            )?,
+        };
         // The profile and the sidecar stay text: a few KB, readable with any MCAP tool.
-        let mut attachments = vec![
-            (
-                PROFILE_ATTACHMENT,
-                "application/toml",
-                meta.profile_toml.as_bytes(),
-            ),
-            (TRACE_ZSTD_ATTACHMENT, ZSTD_MEDIA_TYPE, &trace[..]),
-        ];
+        let mut attachments = vec![(
+            PROFILE_ATTACHMENT,
+            "application/toml",
+            meta.profile_toml.as_bytes(),
+        )];
+        if trace_zst.is_none() {
+            attachments.push((TRACE_ZSTD_ATTACHMENT, ZSTD_MEDIA_TYPE, &trace[..]));
+        }
         if let Some(sidecar) = &meta.trace_sidecar {
             attachments.push((SIDECAR_ATTACHMENT, "application/json", sidecar.as_bytes()));
         }
@@ -224,6 +270,9 @@ impl Recorder {
             recorder.channel_id(channel)?;
         }
         // The rigs are drawn from the attached profile, so that a recovered copy gets the
+        if let Some(zst) = trace_zst {
+            recorder.attach_file(zst)?;
+        }
         // same scene as the original.
         if let Ok(profile) = parse_profile(&meta.profile_toml, PROFILE_ATTACHMENT) {
             for kind in Kind::SCENE_SCHEMAS {
@@ -463,11 +512,10 @@ impl Recorder {
             action,
             error,
         };
-        let mut file =
-            File::open(zst_path).map_err(|e| failed("open the compressed input log", e))?;
+        let mut file = File::open(zst_path).map_err(|e| failed("open the compressed trace", e))?;
         let len = file
             .metadata()
-            .map_err(|e| failed("read the compressed input log", e))?
+            .map_err(|e| failed("read the compressed trace", e))?
             .len();
         let ns = self
             .start_ns
@@ -489,7 +537,7 @@ impl Recorder {
         loop {
             let n = file
                 .read(&mut chunk)
-                .map_err(|e| failed("read the compressed input log", e))?;
+                .map_err(|e| failed("read the compressed trace", e))?;
             if n == 0 {
                 break;
             }

@@ -24,7 +24,7 @@ pub(super) fn parse_measured(
     target_rate_hz: f64,
 ) -> Result<(Trace, f64), TraceError> {
     let open = || Ok(text.as_bytes());
-    let plan = scan(&open, source_name, name, target_rate_hz)?;
+    let plan = scan(&open, source_name, name, target_rate_hz, MAX_TRACE_SAMPLES)?;
     let mut grid = GridSamples::new(open()?, &plan)?;
     let mut samples = Vec::with_capacity(plan.len);
     while let Some(s) = grid.next_sample()? {
@@ -135,6 +135,9 @@ pub(super) struct TraceRows<R> {
     /// Time and line of the previous row.
     pub(super) prev: Option<(f64, usize)>,
     pub(super) rows: usize,
+    /// Most rows read: [`MAX_TRACE_SAMPLES`] where the trace is held in memory, none where it
+    /// is streamed.
+    pub(super) max_rows: usize,
 }
 
 impl<R: BufRead> TraceRows<R> {
@@ -155,6 +158,7 @@ impl<R: BufRead> TraceRows<R> {
             header_line,
             prev: None,
             rows: 0,
+            max_rows: MAX_TRACE_SAMPLES,
         })
     }
 
@@ -167,13 +171,18 @@ impl<R: BufRead> TraceRows<R> {
         let Some((line_no, line)) = self.lines.next_line()? else {
             return Ok(None);
         };
-        if self.rows >= MAX_TRACE_SAMPLES {
+        if self.rows >= self.max_rows {
             return Err(ctx.at(
                 line_no,
                 1,
                 None,
                 TraceErrorKind::TooManySamples,
-                format!("more than {MAX_TRACE_SAMPLES} rows; expected a shorter trace"),
+                format!(
+                    "more than {} rows, the most a trace held in memory may have (11 h at \
+                     100 Hz; `compare` and `tune` hold their traces); expected a shorter trace, \
+                     or `hexcue play`, which streams a trace of any length",
+                    self.max_rows
+                ),
             ));
         }
         let layout = &self.layout;
@@ -224,6 +233,9 @@ pub struct TracePlan {
     pub notices: Vec<String>,
     /// The sidecar, when one was found and read.
     pub info: Option<TraceInfo>,
+    /// Most samples on the grid and rows in the file: [`MAX_TRACE_SAMPLES`] for a trace held
+    /// in memory, `usize::MAX` for one streamed.
+    pub(super) max_samples: usize,
 }
 
 /// First pass: every row checked, and the statistics the grid needs. Memory is a map of the
@@ -233,6 +245,7 @@ pub(super) fn scan<R: BufRead>(
     source_name: &str,
     name: &str,
     target_rate_hz: f64,
+    max_samples: usize,
 ) -> Result<TracePlan, TraceError> {
     let ctx = Ctx { source_name };
     if !(target_rate_hz.is_finite() && target_rate_hz > 0.0 && target_rate_hz <= MAX_TARGET_RATE_HZ)
@@ -245,6 +258,7 @@ pub(super) fn scan<R: BufRead>(
         ));
     }
     let mut rows = TraceRows::new(open()?, source_name)?;
+    rows.max_rows = max_samples;
     let mut steps: std::collections::BTreeMap<u64, usize> = std::collections::BTreeMap::new();
     let (mut min_step, mut max_step) = (f64::INFINITY, 0.0f64);
     let (mut first, mut last) = (None::<f64>, 0.0);
@@ -320,7 +334,7 @@ pub(super) fn scan<R: BufRead>(
     }
     let duration_s = last - t0;
     let last_k = (duration_s * target_rate_hz + GRID_TOLERANCE_STEPS).floor();
-    if last_k + 1.0 > MAX_TRACE_SAMPLES as f64 {
+    if last_k + 1.0 > max_samples as f64 {
         let e = ResampleError::TooManySamples {
             duration_s,
             rate_hz: target_rate_hz,
@@ -364,6 +378,7 @@ pub(super) fn scan<R: BufRead>(
         measured_rate_hz: 1.0 / median_step,
         notices,
         info: None,
+        max_samples,
     })
 }
 
@@ -387,7 +402,10 @@ pub struct GridSamples<R> {
 impl<R: BufRead> GridSamples<R> {
     pub fn new(reader: R, plan: &TracePlan) -> Result<Self, TraceError> {
         Ok(GridSamples {
-            rows: TraceRows::new(reader, &plan.source_name)?,
+            rows: TraceRows {
+                max_rows: plan.max_samples,
+                ..TraceRows::new(reader, &plan.source_name)?
+            },
             rate_hz: plan.rate_hz,
             len: plan.len,
             rows_total: plan.rows,
@@ -512,21 +530,10 @@ pub fn scan_trace_file(path: &Path, target_rate_hz: f64) -> Result<TracePlan, Tr
     let name = path
         .file_stem()
         .map_or_else(|| "trace".to_string(), |s| s.to_string_lossy().into_owned());
-    let size = std::fs::metadata(path)
-        .map_err(|error| TraceError::Io {
-            source_name: source_name.clone(),
-            error,
-        })?
-        .len();
-    if size > MAX_TRACE_BYTES {
-        return Err(TraceError::File {
-            source_name,
-            kind: TraceErrorKind::TooLarge,
-            message: format!("larger than {MAX_TRACE_BYTES} bytes; expected a trace CSV"),
-        });
-    }
+    // No cap on the file's size or length: nothing here grows with it (docs/design.md §9).
+    // A file that is not a trace is refused by its first lines.
     let open = || open_file(path, &source_name);
-    let mut plan = scan(&open, &source_name, &name, target_rate_hz)?;
+    let mut plan = scan(&open, &source_name, &name, target_rate_hz, usize::MAX)?;
     let mut trace = Trace {
         name: name.clone(),
         rate_hz: target_rate_hz,
