@@ -10,7 +10,9 @@ use crate::app::common::check_folder_outputs;
 use crate::cli::ExportArgs;
 use crate::export::{chosen, columns, export_fields, export_one, topic_file, Column, Written};
 use crate::formats::recording::Recording;
-use crate::outputs::{check_not_input, check_output_of, check_writable_dir, Input};
+use crate::outputs::{
+    check_not_input, check_output_dir, check_output_of, create_output_dir, Input,
+};
 
 pub fn run(args: &ExportArgs) -> Result<()> {
     let recording_input = [Input::new(&args.file, "recording")];
@@ -94,10 +96,8 @@ fn export_topics(
     let paths: Vec<PathBuf> = files.iter().map(|(_, p)| p.clone()).collect();
     let recording_input = [Input::new(&args.file, "recording")];
     check_folder_outputs(&dir, &paths, "-o", &recording_input, args.force)?;
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("{}: -o: cannot create the folder", dir.display()))?;
-    check_writable_dir(&dir)
-        .with_context(|| format!("{}: -o: cannot be written", dir.display()))?;
+    check_output_dir(&dir, "-o")?;
+    create_output_dir(&dir, "-o")?;
     files
         .iter()
         .map(|(topic, path)| export_one(recording, topic, &all[topic], Some(path)))
