@@ -15,7 +15,7 @@ pub fn run(args: &OmctArgs) -> Result<()> {
     use crate::omct::{frequency_subset, run_all};
 
     let profile = match &args.profile {
-        Some(path) => load_profile(path)?.0,
+        Some(path) => crate::app::common::load_profile_warned(path)?.0,
         None => default_profile(),
     };
     let algorithms = parse_algorithms(&args.algorithms)?;

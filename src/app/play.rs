@@ -11,7 +11,7 @@ use crate::app::common::{
 };
 use crate::cli::{parse_algorithms, PlayArgs};
 use crate::engine::Engine;
-use crate::formats::profile::{default_profile, load_profile, DEFAULT_PROFILE_TOML};
+use crate::formats::profile::{default_profile, DEFAULT_PROFILE_TOML};
 use crate::formats::recording::{Recorder, RecordingMeta};
 use crate::formats::trace::default_trace;
 use crate::foxglove::FoxgloveServer;
@@ -46,7 +46,7 @@ pub fn run(args: &PlayArgs) -> Result<()> {
 /// The profile (with its TOML) and the algorithms of a play session.
 pub fn load_play(args: &PlayArgs) -> Result<(Profile, String, Vec<AlgorithmId>)> {
     let (mut profile, profile_toml) = match &args.profile {
-        Some(path) => load_profile(path)?,
+        Some(path) => crate::app::common::load_profile_warned(path)?,
         None => (default_profile(), DEFAULT_PROFILE_TOML.to_string()),
     };
     let algorithms = parse_algorithms(&args.algorithms)?;

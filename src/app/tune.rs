@@ -159,7 +159,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         })?;
     let (profile, text, source) = match &args.profile {
         Some(path) => {
-            let (p, t) = crate::formats::profile::load_profile(path)?;
+            let (p, t) = crate::app::common::load_profile_warned(path)?;
             (p, t, path.display().to_string())
         }
         None => (
