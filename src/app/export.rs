@@ -27,14 +27,15 @@ pub fn run(args: &ExportArgs) -> Result<()> {
         }
     }
     let recording = Recording::open(&args.file)?;
-    if !recording.finished {
-        eprintln!(
     for warning in recording.damage_warnings() {
         eprintln!("{warning}");
     }
-            "warning: {}: the recording was not finished; exporting the messages before {}",
+    if !recording.finished {
+        eprintln!(
+            "warning: {}: the recording was not finished (its data end {}); exporting the \
+             messages before that",
             args.file.display(),
-            recording.stopped.as_deref().unwrap_or("its end")
+            recording.stopped.as_deref().unwrap_or("early")
         );
     }
     let all = columns(&recording)?;
@@ -59,7 +60,12 @@ pub fn run(args: &ExportArgs) -> Result<()> {
         vec![export_fields(&recording, &pairs, path.as_deref())?]
     };
     for w in written.iter().filter(|w| w.path != "stdout") {
-        eprintln!("wrote {} ({} rows, {} columns)", w.path, w.rows, w.columns);
+        eprintln!(
+            "wrote {} ({}, {})",
+            w.path,
+            crate::vocab::plural(w.rows as u64, "row"),
+            crate::vocab::plural(w.columns as u64, "column")
+        );
     }
     Ok(())
 }

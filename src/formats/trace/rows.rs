@@ -321,7 +321,9 @@ pub(super) fn scan<R: BufRead>(
                         Some(&time_header),
                         TraceErrorKind::Gap,
                         format!(
-                            "gap of {gap} s before this row (line {pl} is at {pt} s, the median step is {median_step} s); expected no step longer than {MAX_GAP_FACTOR}× the median"
+                            "gap of {} s before this row (line {pl} is at {pt} s, the median step is {} s); expected no step longer than {MAX_GAP_FACTOR}× the median",
+                            seconds(gap),
+                            seconds(median_step),
                         ),
                     ));
                 }
@@ -376,9 +378,9 @@ pub(super) fn scan<R: BufRead>(
         t0,
         on_grid,
         measured_rate_hz: 1.0 / median_step,
+        max_samples,
         notices,
         info: None,
-        max_samples,
     })
 }
 
@@ -671,4 +673,33 @@ pub(super) fn parse_row(
         angular_velocity_radps: Vector3::new(values[4], values[5], values[6]),
         attitude_rad: Vector3::new(values[7], values[8], values[9]),
     })
+}
+
+/// A duration computed from the trace's times, to six significant digits with no trailing
+/// zeros: a difference of two times read from text is `0.009999999999999787`, not `0.01`.
+fn seconds(s: f64) -> String {
+    if !s.is_finite() || s == 0.0 {
+        return format!("{s}");
+    }
+    let decimals = (5 - s.abs().log10().floor() as i32).clamp(0, 12) as usize;
+    let text = format!("{s:.decimals$}");
+    if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        text
+    }
+}
+
+#[cfg(test)]
+mod seconds_tests {
+    use super::seconds;
+
+    #[test]
+    fn durations_read_as_written() {
+        assert_eq!(seconds(0.009999999999999787), "0.01");
+        assert_eq!(seconds(2.5000000000001), "2.5");
+        assert_eq!(seconds(120.0), "120");
+        assert_eq!(seconds(0.0012345678), "0.00123457");
+        assert_eq!(seconds(12345.678), "12345.7");
+    }
 }
