@@ -29,10 +29,22 @@ const CHUNK_SIZE: u64 = 512 * 1024;
 /// Longest stretch of data, in wall time and in trace time, that a crash may lose.
 const FLUSH_INTERVAL: Duration = Duration::from_secs(1);
 const FLUSH_INTERVAL_S: f64 = 1.0;
-/// The Foxglove 3D topics (`/ALG/tf`, `/ALG/scene`) are written every this many steps (10 Hz
-/// at 100 Hz): they draw `/ALG/platform`, which keeps every step, and at every step they were
-/// a third of the file (docs/recordings.md, "Size").
-pub(super) const SCENE_EVERY_STEPS: u64 = 10;
+/// The Foxglove 3D topics (`/ALG/tf`, `/ALG/scene`) are written at this rate or faster: a
+/// film's rate, so that the 3D panel plays the platforms back smoothly. They draw
+/// `/ALG/platform`, which keeps every step, and at every step they were a third of the file
+/// (docs/recordings.md, "Size").
+pub(super) const SCENE_MIN_HZ: f64 = 30.0;
+
+/// Every how many steps the 3D topics are written at `rate_hz`: as few as keep them at
+/// [`SCENE_MIN_HZ`] or faster (every 3rd step, 33 Hz, at 100 Hz; every step at 30 Hz or
+/// less).
+pub(super) fn scene_every_steps(rate_hz: f64) -> u64 {
+    if rate_hz.is_finite() && rate_hz > SCENE_MIN_HZ {
+        ((rate_hz / SCENE_MIN_HZ).floor() as u64).max(1)
+    } else {
+        1
+    }
+}
 /// zstd level of the chunks and of the trace attachment (docs/recordings.md, "Size per
 /// minute"): 20 % smaller than level 1 for 0.2 s more of a 60 s flight's writing; levels
 /// 10–15 are no smaller, 16 and above (btopt) 17 % smaller again but 7× slower, which would
@@ -103,6 +115,8 @@ pub struct Recorder {
     /// Builds Foxglove's 3D topics (`/ALG/tf`, `/ALG/scene`, `/events`); `None` when the
     /// attached profile does not load, so that the rigs' geometry is unknown.
     scene: Option<SceneBuilder>,
+    /// Every how many steps the 3D topics are written ([`scene_every_steps`]).
+    scene_every: u64,
 }
 
 impl Recorder {
@@ -114,20 +128,6 @@ impl Recorder {
         Self::create_with(path, meta, start_ns, session_metadata(meta, start_ns))
     }
 
-    pub(super) fn create_with(
-        path: &Path,
-        meta: &RecordingMeta,
-        start_ns: u64,
-        metadata: BTreeMap<String, String>,
-    ) -> Result<Recorder, RecordingError> {
-        let file = File::create(path).map_err(|error| RecordingError::Io {
-            path: shown(path),
-            action: "create the recording",
-            error,
-        })?;
-        let wr = |error| RecordingError::Write {
-            path: shown(path),
-            error,
     /// [`Recorder::create`] for a session whose trace is the file `trace` (`meta.trace_csv`
     /// is not read): the trace is compressed and hashed in one pass through a scratch file
     /// beside the recording and attached from it, so that a trace of any length is attached
@@ -159,11 +159,11 @@ impl Recorder {
         made
     }
 
-        };
-        let options = WriteOptions::new()
-            .compression(Some(Compression::Zstd))
-            .chunk_size(Some(CHUNK_SIZE))
-            // Worker threads would compete with the solvers for the two cores.
+    pub(super) fn create_with(
+        path: &Path,
+        meta: &RecordingMeta,
+        start_ns: u64,
+        metadata: BTreeMap<String, String>,
     ) -> Result<Recorder, RecordingError> {
         Self::create_from(path, meta, start_ns, metadata, None)
     }
@@ -176,6 +176,20 @@ impl Recorder {
         start_ns: u64,
         metadata: BTreeMap<String, String>,
         trace_zst: Option<&Path>,
+    ) -> Result<Recorder, RecordingError> {
+        let file = File::create(path).map_err(|error| RecordingError::Io {
+            path: shown(path),
+            action: "create the recording",
+            error,
+        })?;
+        let wr = |error| RecordingError::Write {
+            path: shown(path),
+            error,
+        };
+        let options = WriteOptions::new()
+            .compression(Some(Compression::Zstd))
+            .chunk_size(Some(CHUNK_SIZE))
+            // Worker threads would compete with the solvers for the two cores.
             .compression_threads(0)
             .compression_level(
                 std::env::var("HEXCUE_ZSTD_LEVEL")
@@ -254,7 +268,11 @@ impl Recorder {
             buf: Vec::with_capacity(1024),
             metadata: metadata_kept,
             scene: None,
+            scene_every: scene_every_steps(meta.rate_hz),
         };
+        if let Some(zst) = trace_zst {
+            recorder.attach_file(zst)?;
+        }
         // Schemas first, then channels, JSON before Foxglove's: the order recordings have
         // always had.
         let session = channels::session(&meta.algorithms);
@@ -270,9 +288,6 @@ impl Recorder {
             recorder.channel_id(channel)?;
         }
         // The rigs are drawn from the attached profile, so that a recovered copy gets the
-        if let Some(zst) = trace_zst {
-            recorder.attach_file(zst)?;
-        }
         // same scene as the original.
         if let Ok(profile) = parse_profile(&meta.profile_toml, PROFILE_ATTACHMENT) {
             for kind in Kind::SCENE_SCHEMAS {
@@ -388,7 +403,7 @@ impl Recorder {
             self.write_json(channel, log_time, &message)?;
         }
         if let Some(mut scene) = self.scene.take() {
-            let draw = self.steps.is_multiple_of(SCENE_EVERY_STEPS);
+            let draw = self.steps.is_multiple_of(self.scene_every);
             let step = scene.step(frame, log_time);
             let written = self.write_scene(step.by_channel(draw), log_time);
             self.scene = Some(scene);
