@@ -364,3 +364,38 @@ fn a_recording_of_the_landing_takes_at_most_5_mb_a_minute_with_every_topic() {
         );
     }
 }
+
+/// Issue 38, item 5: the README's RAE table of the horizontal stall is what
+/// `hexcue play --headless` gives (the stall and the three algorithms are the defaults).
+#[test]
+fn the_readmes_stall_rae_is_what_play_gives() {
+    let out = hexcue(&["play", "--headless"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let table = stdout(&out);
+    // "smpc   fx   m/s²   AAD NAAD AAS RAE …": RAE is the fourth number.
+    let rae = |alg: &str, ch: &str| -> String {
+        table
+            .lines()
+            .find(|l| {
+                let w: Vec<&str> = l.split_whitespace().collect();
+                w.len() > 6 && w[0] == alg && w[1] == ch
+            })
+            .map(|l| l.split_whitespace().nth(6).unwrap().to_string())
+            .unwrap_or_else(|| panic!("no {alg} {ch} row in\n{table}"))
+    };
+    let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
+    for (row, ch) in [("| surge, f̂x |", "fx"), ("| sway, f̂y |", "fy")] {
+        let line = readme
+            .lines()
+            .find(|l| l.starts_with(row))
+            .unwrap_or_else(|| panic!("no `{row}` row in the README"));
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        let shown = [cells[2], cells[3], cells[4]];
+        let run = [rae("smpc", ch), rae("mpc", ch), rae("cwf", ch)];
+        assert_eq!(
+            shown.map(str::to_string),
+            run,
+            "README's {ch} RAE (S-MPC, MPC, CWF) against play --headless"
+        );
+    }
+}
