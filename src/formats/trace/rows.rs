@@ -336,7 +336,12 @@ pub(super) fn scan<R: BufRead>(
     }
     let duration_s = last - t0;
     let last_k = (duration_s * target_rate_hz + GRID_TOLERANCE_STEPS).floor();
-    if last_k + 1.0 > max_samples as f64 {
+    // Streamed, a trace may be as long as it likes, but not a few rows stretched over a huge
+    // span: beyond the in-memory limit, a grid of more than MAX_UPSAMPLING samples a row is
+    // refused (two rows a million seconds apart would be 10^8 interpolated samples).
+    let sparse =
+        last_k + 1.0 > MAX_TRACE_SAMPLES as f64 && last_k + 1.0 > MAX_UPSAMPLING * n as f64;
+    if last_k + 1.0 > max_samples as f64 || sparse {
         let e = ResampleError::TooManySamples {
             duration_s,
             rate_hz: target_rate_hz,
@@ -524,6 +529,10 @@ impl<R: BufRead + std::io::Seek> GridSamples<R> {
         Ok(())
     }
 }
+
+/// Most grid samples a row of a streamed trace may become once the grid is beyond the
+/// in-memory limit ([`MAX_TRACE_SAMPLES`]): a 1 Hz log resampled to 100 Hz is 100.
+const MAX_UPSAMPLING: f64 = 1000.0;
 
 /// Checks a trace file row by row without holding it, and reads its sidecar: the plan to
 /// stream it with [`open_grid`]. Memory does not grow with the file's length.
