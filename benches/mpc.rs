@@ -1,4 +1,4 @@
-//! One MPC step (one QP) on the full-flight profile, against DESIGN §9 (median ≤ 200 µs,
+//! One MPC step (one QP) on the full-flight profile, against docs/design.md §9 (median ≤ 200 µs,
 //! goal 50 µs). A plain timing loop (`harness = false`) so that the benchmark needs no extra
 //! dependency: `cargo bench --bench mpc`. The statuses say which solver solved each QP
 //! (`solved`: the active set; `solved_clarabel`: the fallback).

@@ -1,4 +1,4 @@
-//! The pipeline against DESIGN §9: the CWF step (≤ 20 µs), the MPC and S-MPC steps as the
+//! The pipeline against docs/design.md §9: the CWF step (≤ 20 µs), the MPC and S-MPC steps as the
 //! engine times them, a single-algorithm CWF run (≥ 1,000× real time) and a headless run of
 //! every algorithm with recording on a 60 s trace (≥ 25× real time). A plain timing loop (`harness = false`): `cargo bench --bench pipeline`.
 

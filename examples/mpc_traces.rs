@@ -1,6 +1,6 @@
 //! Runs the MPC (without and with COTC) and the CWF on flight traces, closed loop and with
 //! no limiter, and prints the leg margins, solver outcomes, step times and the RAE of the
-//! perceived specific force against the aircraft's (DESIGN §6). A check of the raw MPC, not
+//! perceived specific force against the aircraft's (docs/design.md §6). A check of the raw MPC, not
 //! the engine's metrics: `cargo run --release --example mpc_traces -- ../shared/traces/*.csv`.
 
 use std::time::Instant;

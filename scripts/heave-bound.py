@@ -8,7 +8,7 @@ acceleration a_z(t) be anything within the profile's heave excursion, velocity a
 acceleration limits, *knowing the whole flight in advance* (no causal algorithm can), and
 minimises the same error the score counts: the mean over the flight of the soft dead zone
 0.1·min(u, 1) + max(u − 1, 0), u = |f̂z_ref − f̂z_platform| / threshold, with f̂z the otolith
-model's output (DESIGN §4) for Δf_z. That error is piecewise linear and convex in a_z, so the
+model's output (docs/design.md §4) for Δf_z. That error is piecewise linear and convex in a_z, so the
 optimum is a linear programme (scipy's HiGHS), solved on a 10 Hz grid (the error of "no cue" on
 that grid equals the 100 Hz one to three decimals on the shipped traces).
 

@@ -1,6 +1,6 @@
 //! The engine: steps aircraft samples from a [`SampleSource`] through the aircraft reference
 //! model and every algorithm, each followed by the workspace limiter and judged by the same
-//! perception model (DESIGN §4–5). It produces one [`Frame`] per step: what the recorder
+//! perception model (docs/design.md §4–5). It produces one [`Frame`] per step: what the recorder
 //! writes, the console shows and a live session sends to the platform. It holds only the
 //! samples its algorithms may preview, never the whole flight.
 

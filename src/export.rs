@@ -83,7 +83,7 @@ pub struct Column {
     key: String,
 }
 
-/// Labels of an array's elements, with the unit, for the fields hexcue records (DESIGN §7:
+/// Labels of an array's elements, with the unit, for the fields hexcue records (docs/design.md §7:
 /// x, y, z or x, y, z, roll, pitch, yaw order; legs 1 to 6). `kind` is the topic's last part.
 fn element_labels(kind: &str, key: &str, n: usize) -> Option<Vec<String>> {
     let xyz = |unit: &str| ["x", "y", "z"].map(|a| format!("{a}_{unit}")).to_vec();

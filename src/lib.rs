@@ -4,7 +4,7 @@
 //! `omct`) does no I/O; `formats`, `sources`, `sinks`, `live`, `foxglove`, `plot` and `tui`
 //! adapt it to files, sockets, the terminal and Foxglove. `cli` (the arguments) and `app`
 //! (one file per command) are the binary's edge, private to the crate and reached through
-//! [`run_cli`]; nothing in the library imports them. Frames and units: DESIGN.md §1 and
+//! [`run_cli`]; nothing in the library imports them. Frames and units: docs/design.md §1 and
 //! `docs/design.md`.
 
 pub mod actuators;

@@ -138,6 +138,35 @@ fn resolved(path: &Path) -> PathBuf {
     }
 }
 
+/// Refuses an output folder a command fills with files before any work, by the rule every
+/// output follows: hexcue creates the output itself (a file, or this folder) but never the
+/// folders above it, so a mistyped path is refused rather than created. The folder may exist
+/// (and must then be writable), or its parent must.
+pub fn check_output_dir(dir: &Path, option: &str) -> Result<()> {
+    let shown = dir.display();
+    if dir.exists() {
+        if !dir.is_dir() {
+            bail!("{shown}: {option}: is a file; expected a folder");
+        }
+        return check_writable_dir(dir)
+            .with_context(|| format!("{shown}: {option}: cannot be written"));
+    }
+    let parent = match dir.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    check_writable_dir(parent).with_context(|| format!("{shown}: {option}: cannot be created"))
+}
+
+/// Creates the output folder [`check_output_dir`] accepted (its last part only).
+pub fn create_output_dir(dir: &Path, option: &str) -> Result<()> {
+    if dir.is_dir() {
+        return Ok(());
+    }
+    std::fs::create_dir(dir)
+        .with_context(|| format!("{}: {option}: cannot create the folder", dir.display()))
+}
+
 /// A folder exists and a file can be created in it (tried, then removed).
 pub fn check_writable_dir(dir: &Path) -> Result<()> {
     if !dir.is_dir() {

@@ -1,4 +1,4 @@
-//! A simulator profile: geometry, limits, models and algorithm tuning (DESIGN §3).
+//! A simulator profile: geometry, limits, models and algorithm tuning (docs/design.md §3).
 //!
 //! Values are stored in the units their key names (`_m`, `_deg`, `_dps`, …) so that the TOML
 //! reads as the engineer wrote it; accessors convert to SI.
@@ -15,6 +15,12 @@ use crate::model::platform::Platform;
 use crate::model::stewart::{Geometry, Stewart, SYMMETRIC_KEYS};
 use crate::model::vestibular::VestibularParams;
 pub use crate::safety::SafetySettings;
+
+/// Largest condition number of the legs' Jacobian at neutral (rotations scaled by the
+/// platform radius) before [`Profile::warnings`] says the legs barely act along some
+/// direction: twice the full-flight profile's 2.9 (the compact one's is 1.8). The nearly
+/// flat hexapod of issue 38 (neutral height 0.1 m under 2.3 / 1.8 m radii) has 21.
+pub const MAX_NEUTRAL_CONDITION: f64 = 6.0;
 
 // Each section's type lives with what it tunes; these names stay for the code that reached
 // them here before they moved.
@@ -173,6 +179,88 @@ impl Profile {
 
     pub fn cotc_params(&self) -> MpcParams {
         self.smpc.cotc.apply(&self.mpc)
+    }
+
+    /// Settings that validate but that the platform cannot honour, each naming its key and
+    /// what the legs allow: an excursion limit beyond the farthest the legs reach along its
+    /// axis in both directions (the others at neutral), and legs that barely act along some
+    /// direction at the neutral pose (an ill-conditioned Jacobian: a nearly flat hexapod).
+    pub fn warnings(&self) -> Vec<ProfileError> {
+        use crate::model::reach::{neutral_conditioning, reach};
+        let stewart = Stewart::new(&self.geometry);
+        let mut out = Vec::new();
+        let names = ["surge", "sway", "heave", "roll", "pitch", "yaw"];
+        let l = &self.limits;
+        let asked = [
+            l.surge.excursion_m,
+            l.sway.excursion_m,
+            l.heave.excursion_m,
+            l.roll.excursion_deg.to_radians(),
+            l.pitch.excursion_deg.to_radians(),
+            l.yaw.excursion_deg.to_radians(),
+        ];
+        for (dof, (&name, &limit)) in names.iter().zip(&asked).enumerate() {
+            let (plus, minus) = reach(&stewart, dof, limit);
+            let farthest = plus.max(minus);
+            // A small excess is rounding in the profile's figures, not a mistake.
+            if farthest < limit * (1.0 - 1e-3) {
+                let (key, shown) = if dof < 3 {
+                    (
+                        format!("limits.{name}.excursion_m"),
+                        format!("{limit} m is beyond what the legs reach along {name}: at most {plus:.3} m one way and {minus:.3} m the other"),
+                    )
+                } else {
+                    (
+                        format!("limits.{name}.excursion_deg"),
+                        format!(
+                            "{}° is beyond what the legs reach in {name}: at most {:.1}° one way and {:.1}° the other",
+                            [l.roll.excursion_deg, l.pitch.excursion_deg, l.yaw.excursion_deg][dof - 3],
+                            plus.to_degrees(),
+                            minus.to_degrees()
+                        ),
+                    )
+                };
+                out.push(ProfileError {
+                    key,
+                    reason: format!(
+                        "{shown}, with the other axes at neutral; the limit never acts (the \
+                         legs' end stops do)"
+                    ),
+                });
+            }
+        }
+        let (condition, weakest) = neutral_conditioning(&stewart);
+        if condition > MAX_NEUTRAL_CONDITION {
+            let key = if self.geometry.by_joints() {
+                "geometry.base_joints_m"
+            } else {
+                "geometry.neutral_height_m"
+            };
+            out.push(ProfileError {
+                key: key.to_string(),
+                reason: format!(
+                    "at the neutral pose the legs barely act in {}: the condition number of \
+                     the legs' Jacobian there is {condition:.1} (expected at most \
+                     {MAX_NEUTRAL_CONDITION:.0}; the shipped profiles have 1.8 and 2.9), so a \
+                     small leg error is a large platform error along it; a nearly flat \
+                     hexapod is the usual cause: {}",
+                    {
+                        let words: Vec<&str> = weakest.iter().map(|&d| names[d]).collect();
+                        match words.split_last() {
+                            Some((last, [])) => last.to_string(),
+                            Some((last, rest)) => format!("{} and {last}", rest.join(", ")),
+                            None => "some direction".to_string(),
+                        }
+                    },
+                    if self.geometry.by_joints() {
+                        "put the base joints further below the platform joints"
+                    } else {
+                        "raise `geometry.neutral_height_m`"
+                    }
+                ),
+            });
+        }
+        out
     }
 
     /// Every check that TOML's types cannot express. The first problem found is reported.

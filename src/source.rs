@@ -1,4 +1,4 @@
-//! Where the engine's aircraft samples come from (DESIGN §10–11): a trace held in memory, a
+//! Where the engine's aircraft samples come from (docs/design.md §10–11): a trace held in memory, a
 //! trace file streamed row by row (`sources::trace_file`), or a live simulator whose latest
 //! sample is held (`sources::live`). The engine asks for one sample at a time and keeps only
 //! the look-ahead window its algorithms may preview, so memory follows that window and the

@@ -1,4 +1,4 @@
-//! A flight trace: the aircraft's motion at the pilot's head, sampled uniformly (DESIGN §2).
+//! A flight trace: the aircraft's motion at the pilot's head, sampled uniformly (docs/design.md §2).
 
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};

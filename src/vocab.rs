@@ -4,6 +4,15 @@
 //! store, unchanged), and the error of a parameter value that cannot be (each profile section
 //! validates itself where it is defined, next to what it tunes).
 
+/// `1 thing` or `n things`, for counts in messages ("on 1 trace", "on 3 traces").
+pub fn plural(n: u64, thing: &str) -> String {
+    if n == 1 {
+        format!("1 {thing}")
+    } else {
+        format!("{n} {thing}s")
+    }
+}
+
 /// A profile value that cannot describe a real simulator.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("`{key}`: {reason}")]

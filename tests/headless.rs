@@ -41,7 +41,7 @@ fn check_summary(json: &serde_json::Value, trace: &str, algorithms: &[&str]) {
     }
 }
 
-/// Every topic of DESIGN §7, read with the mcap crate directly, independently of hexcue's
+/// Every topic of docs/design.md §7, read with the mcap crate directly, independently of hexcue's
 /// reader, and the number of messages on hexcue's own (JSON) topics. Foxglove's 3D topics
 /// (docs/foxglove.md) are protobuf with Foxglove's well-known schemas.
 fn recorded_topics(path: &std::path::Path) -> (BTreeSet<String>, usize) {
@@ -196,7 +196,7 @@ fn unknown_algorithm_is_refused_with_the_known_ones() {
     assert!(err.contains("warp") && err.contains("cwf"), "{err}");
 }
 
-/// DESIGN §9 and the MPC issue: on every shipped trace the MPC and the S-MPC keep every leg
+/// docs/design.md §9 and the MPC issue: on every shipped trace the MPC and the S-MPC keep every leg
 /// in its stroke and the limiter acts in fewer than 1 % of steps; on the horizontal stall the
 /// paper's ordering S-MPC ≤ MPC < CWF holds on surge and sway. Runs the debug binary
 /// (hexcue at opt-level 1, dependencies optimised): about a millisecond an MPC step.
@@ -212,7 +212,7 @@ fn mpcs_stay_in_stroke_with_a_quiet_limiter_and_earn_the_ordering_on_the_stall()
         let json = read_json(&summary);
         check_summary(&json, &name, &["smpc", "mpc", "cwf"]);
         if name == "horizontal-stall" {
-            // DESIGN §9: the paper's ordering on its stall, surge and sway, RAE and NAAD
+            // docs/design.md §9: the paper's ordering on its stall, surge and sway, RAE and NAAD
             // (≤ with the 0.5 % tolerance `hexcue compare` uses for equal numbers).
             for ch in ["fx", "fy"] {
                 for m in ["rae", "naad"] {
@@ -348,4 +348,63 @@ fn a_recording_of_the_landing_takes_at_most_5_mb_a_minute_with_every_topic() {
     }
     let stats = summary.stats.unwrap();
     assert_eq!(indexed as u64, stats.message_count, "every message indexed");
+
+    // Issue 38 item 12: each platform's 3D transforms at 30 Hz or more, evenly spaced, so
+    // that Foxglove's 3D panel plays the platforms back smoothly.
+    let mut tf_times: std::collections::BTreeMap<String, Vec<u64>> = Default::default();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        if m.channel.topic.ends_with("/tf") {
+            tf_times
+                .entry(m.channel.topic.clone())
+                .or_default()
+                .push(m.log_time);
+        }
+    }
+    for alg in ["smpc", "mpc", "cwf"] {
+        let times = &tf_times[&format!("/{alg}/tf")];
+        let span_s = (times[times.len() - 1] - times[0]) as f64 * 1e-9;
+        let rate_hz = (times.len() - 1) as f64 / span_s;
+        let widest_s = times.windows(2).map(|w| w[1] - w[0]).max().unwrap() as f64 * 1e-9;
+        assert!(rate_hz >= 30.0, "/{alg}/tf at {rate_hz:.1} Hz");
+        assert!(
+            widest_s <= 1.0 / 30.0 + 1e-6,
+            "/{alg}/tf: a gap of {widest_s} s"
+        );
+    }
+}
+
+/// Issue 38, item 5: the README's RAE table of the horizontal stall is what
+/// `hexcue play --headless` gives (the stall and the three algorithms are the defaults).
+#[test]
+fn the_readmes_stall_rae_is_what_play_gives() {
+    let out = hexcue(&["play", "--headless"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let table = stdout(&out);
+    // "smpc   fx   m/s²   AAD NAAD AAS RAE …": RAE is the fourth number.
+    let rae = |alg: &str, ch: &str| -> String {
+        table
+            .lines()
+            .find(|l| {
+                let w: Vec<&str> = l.split_whitespace().collect();
+                w.len() > 6 && w[0] == alg && w[1] == ch
+            })
+            .map(|l| l.split_whitespace().nth(6).unwrap().to_string())
+            .unwrap_or_else(|| panic!("no {alg} {ch} row in\n{table}"))
+    };
+    let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
+    for (row, ch) in [("| surge, f̂x |", "fx"), ("| sway, f̂y |", "fy")] {
+        let line = readme
+            .lines()
+            .find(|l| l.starts_with(row))
+            .unwrap_or_else(|| panic!("no `{row}` row in the README"));
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        let shown = [cells[2], cells[3], cells[4]];
+        let run = [rae("smpc", ch), rae("mpc", ch), rae("cwf", ch)];
+        assert_eq!(
+            shown.map(str::to_string),
+            run,
+            "README's {ch} RAE (S-MPC, MPC, CWF) against play --headless"
+        );
+    }
 }

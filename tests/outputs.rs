@@ -262,3 +262,89 @@ fn the_table_shows_degrees_per_second_and_percent_where_the_json_keeps_si() {
         "{table}"
     );
 }
+
+/// One rule for every output (issue 38): hexcue creates the output itself, never a folder
+/// above it, so a mistyped folder is refused by every command, before any work, and nothing
+/// is created.
+#[test]
+fn a_missing_output_folder_is_refused_by_every_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let mcap = dir.path().join("run.mcap");
+    let out = play(&["--record".as_ref(), mcap.as_os_str()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let missing = dir.path().join("mistyped");
+    let file = |name: &str| missing.join(name).into_os_string();
+    let (toml, recovered, svg, md, json) = (
+        file("x.toml"),
+        file("x.mcap"),
+        file("x.svg"),
+        file("x.md"),
+        file("x.json"),
+    );
+    let (csv_dir, omct_dir) = (file("csv"), file("omct"));
+    let landing = repo().join("recordings/traces/landing.csv");
+    let runs: Vec<Vec<&OsStr>> = vec![
+        vec![
+            "play".as_ref(),
+            "--headless".as_ref(),
+            "--algorithms".as_ref(),
+            "cwf".as_ref(),
+            "--summary".as_ref(),
+            &json,
+        ],
+        vec![
+            "tune".as_ref(),
+            "--algorithm".as_ref(),
+            "cwf".as_ref(),
+            "--traces".as_ref(),
+            landing.as_os_str(),
+            "--out".as_ref(),
+            &toml,
+        ],
+        vec!["recover".as_ref(), mcap.as_os_str(), &recovered],
+        vec!["plot".as_ref(), mcap.as_os_str(), "-o".as_ref(), &svg],
+        vec!["export".as_ref(), mcap.as_os_str(), "-o".as_ref(), &csv_dir],
+        vec![
+            "omct".as_ref(),
+            "--algorithms".as_ref(),
+            "cwf".as_ref(),
+            "--tests".as_ref(),
+            "surge".as_ref(),
+            "--frequencies".as_ref(),
+            "2".as_ref(),
+            "--out".as_ref(),
+            &omct_dir,
+        ],
+        vec![
+            "compare".as_ref(),
+            "--algorithms".as_ref(),
+            "cwf".as_ref(),
+            "--out".as_ref(),
+            &md,
+        ],
+    ];
+    for args in runs {
+        let out = hexcue(&args);
+        let err = stderr(&out);
+        let command = args[0].to_string_lossy();
+        assert!(
+            !out.status.success(),
+            "{command} accepted a missing folder:\n{err}"
+        );
+        assert!(
+            err.contains("mistyped") && err.contains("does not exist"),
+            "{command}: the refusal does not name the missing folder:\n{err}"
+        );
+        assert!(!missing.exists(), "{command} created the mistyped folder");
+    }
+    // An output folder of its own is still created when its parent exists.
+    let csv = dir.path().join("csv");
+    let out = hexcue(&[
+        "export".as_ref(),
+        mcap.as_os_str(),
+        "-o".as_ref(),
+        csv.as_os_str(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(csv.join("aircraft.csv").exists() || std::fs::read_dir(&csv).unwrap().count() > 0);
+}

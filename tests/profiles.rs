@@ -8,7 +8,7 @@ use std::path::Path;
 
 use common::{hexcue, read_json, repo, shipped_traces, stderr};
 
-/// The limiter's share of the steps allowed on a shipped trace (DESIGN §9: under 1 % for
+/// The limiter's share of the steps allowed on a shipped trace (docs/design.md §9: under 1 % for
 /// the MPCs; the shipped tuning holds the CWF to it too).
 const LIMITER_MAX: f64 = 0.01;
 
@@ -96,7 +96,7 @@ fn every_shipped_profile_works_for_every_algorithm_on_every_shipped_trace() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
-/// DESIGN §9 on the whole flight library, not only the shipped five: the MPCs keep the limiter
+/// docs/design.md §9 on the whole flight library, not only the shipped five: the MPCs keep the limiter
 /// under 1 % of the steps and no algorithm's leg leaves its stroke. The rough taxi's turn put
 /// the free MPC's plan on the leg bound the limiter keeps; the linearised legs then put each
 /// command a few nanometres past it and the platform stayed at the corner for the rest of the

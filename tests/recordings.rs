@@ -434,3 +434,131 @@ fn recordings_the_fuzzer_found_are_refused_by_name() {
         assert_refused(&recover(&file, &out), &file, &["damaged MCAP"]);
     }
 }
+
+/// A finished recording of the landing (6,000 steps, CWF), made once per test binary.
+fn landing_recording() -> &'static Path {
+    static PATH: OnceLock<PathBuf> = OnceLock::new();
+    PATH.get_or_init(|| {
+        let path = scratch().join("landing.mcap");
+        let out = play_recorded(
+            &repo().join("recordings/traces/landing.csv"),
+            "cwf",
+            &path,
+            None,
+        );
+        assert!(out.status.success(), "{}", stderr(&out));
+        path
+    })
+}
+
+/// The numbers after `words` in `text`'s first line that has them: "steps 2900–2999" gives
+/// (2900, 2999).
+fn range_after(text: &str, words: &str) -> (u64, u64) {
+    let at = text
+        .find(words)
+        .unwrap_or_else(|| panic!("no `{words}` in:\n{text}"));
+    let rest = &text[at + words.len()..];
+    let digits: Vec<u64> = rest
+        .split(|c: char| !c.is_ascii_digit())
+        .filter(|w| !w.is_empty())
+        .take(2)
+        .map(|w| w.parse().unwrap())
+        .collect();
+    (digits[0], digits[1])
+}
+
+/// 2 kB of noise over the middle of a finished recording: `recover` skips the damaged
+/// chunk, keeps every intact one after it, names the steps, times and topics lost and exits
+/// non-zero; `review`, `export` and `plot` read the rest with the same warning.
+#[test]
+fn a_recording_damaged_in_its_middle_keeps_its_intact_chunks() {
+    let bytes = std::fs::read(landing_recording()).unwrap();
+    let full_steps = 6000;
+    let whole = review(landing_recording());
+    assert!(whole.status.success(), "{}", stderr(&whole));
+    assert_eq!(table_steps(&whole), full_steps);
+
+    let mut damaged = bytes.clone();
+    let middle = damaged.len() / 2;
+    damaged[middle..middle + 2048].copy_from_slice(&noise(7, 2048));
+    let path = scratch().join("landing-damaged.mcap");
+    std::fs::write(&path, &damaged).unwrap();
+
+    let fixed = scratch().join("landing-damaged-recovered.mcap");
+    let out = recover(&path, &fixed);
+    let err = stderr(&out);
+    assert!(
+        !out.status.success(),
+        "damage was not reported as a loss:\n{err}"
+    );
+    assert!(
+        !err.contains("not finished"),
+        "a finished file damaged afterwards called unfinished:\n{err}"
+    );
+    assert!(
+        err.contains("damaged") && err.contains("landing-damaged.mcap"),
+        "{err}"
+    );
+    // What was lost: the steps and their times, and that every topic lost them.
+    let (first, last) = range_after(&err, "skipped steps ");
+    assert!(
+        first > 0 && last >= first && last < full_steps as u64,
+        "{err}"
+    );
+    let lost = last - first + 1;
+    assert!(
+        err.contains(&format!("({lost} steps)")) || err.contains("(1 step)"),
+        "{err}"
+    );
+    assert!(err.contains("t = ") && err.contains("every topic"), "{err}");
+    assert!(
+        err.contains(&format!("{lost} steps lost")) || lost == 1,
+        "{err}"
+    );
+
+    // The copy holds every step but the lost ones, and is itself intact.
+    let again = review(&fixed);
+    assert!(again.status.success(), "{}", stderr(&again));
+    assert!(!stderr(&again).contains("damaged"), "{}", stderr(&again));
+    let kept = table_steps(&again);
+    assert!(
+        kept * 10 >= full_steps * 9,
+        "kept {kept} of {full_steps} steps"
+    );
+    assert_eq!(kept as u64 + lost, full_steps as u64, "{err}");
+
+    // The damaged file itself reads to its end, with a warning that names the loss.
+    let direct = review(&path);
+    let warn = stderr(&direct);
+    assert!(direct.status.success(), "{warn}");
+    assert_eq!(table_steps(&direct), kept);
+    assert!(
+        warn.contains("warning") && warn.contains("skipped steps"),
+        "{warn}"
+    );
+    assert!(!warn.contains("not finished"), "{warn}");
+
+    let csv = scratch().join("landing-damaged-aircraft.csv");
+    let out = hexcue(&[
+        "export".as_ref(),
+        path.as_os_str(),
+        "--topic".as_ref(),
+        "/aircraft".as_ref(),
+        "-o".as_ref(),
+        csv.as_os_str(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("skipped steps"), "{}", stderr(&out));
+    let rows = std::fs::read_to_string(&csv).unwrap().lines().count() - 1;
+    assert!(rows * 10 >= full_steps * 9, "exported {rows} rows");
+
+    let svg = scratch().join("landing-damaged.svg");
+    let out = hexcue(&[
+        "plot".as_ref(),
+        path.as_os_str(),
+        "-o".as_ref(),
+        svg.as_os_str(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("skipped steps"), "{}", stderr(&out));
+}

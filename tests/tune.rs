@@ -93,6 +93,12 @@ fn a_short_cwf_tune_lowers_the_score_and_writes_a_valid_profile() {
     let out = dir.path().join("tuned.toml");
     let run = hexcue(&tune_args(&trace, &out, "30", "7"));
     assert!(run.status.success(), "{}", stderr(&run));
+    // One trace is "1 trace" (issue 38, item 13).
+    let err = stderr(&run);
+    assert!(
+        err.contains("on 1 trace,") && !err.contains("1 traces"),
+        "{err}"
+    );
     let (before, after) = mean_scores(&stdout(&run));
     assert!(after < before, "{before} -> {after}");
     // The tuned profile: the base's comments kept, the command in its header, and it loads

@@ -306,6 +306,16 @@ pub fn check_session_outputs(
     Ok(())
 }
 
+/// A profile file loaded as every command loads one: validated, and with a warning for each
+/// setting the platform cannot honour ([`crate::profile::Profile::warnings`]).
+pub fn load_profile_warned(path: &Path) -> Result<(crate::profile::Profile, String)> {
+    let (profile, text) = crate::formats::profile::load_profile(path)?;
+    for w in profile.warnings() {
+        eprintln!("warning: {}: {w}", path.display());
+    }
+    Ok((profile, text))
+}
+
 /// The files a command reads, as [`check_output_of`] takes them.
 pub fn inputs<'a>(named: &[(Option<&'a Path>, &'a str)]) -> Vec<Input<'a>> {
     named

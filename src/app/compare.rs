@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use crate::app::common::{inputs, print_stdout, progress_bar, progress_line, stop_flag};
 use crate::cli::{parse_algorithms, CompareArgs};
 use crate::engine::Engine;
-use crate::formats::profile::{default_profile, load_profile};
+use crate::formats::profile::default_profile;
 use crate::formats::trace::load_trace;
 use crate::outputs::check_output_of;
 use crate::session::{FrameSink, Runner, SinkFailure};
@@ -17,7 +17,7 @@ use crate::sinks::recorder::ProgressSink;
 /// Runs every algorithm on every trace of the folder and writes the report.
 pub fn run(args: &CompareArgs) -> Result<()> {
     let (mut profile, _) = match &args.profile {
-        Some(path) => load_profile(path)?,
+        Some(path) => crate::app::common::load_profile_warned(path)?,
         None => (default_profile(), String::new()),
     };
     // Offline, the report must not depend on what else the machine is doing: the solvers'

@@ -10,7 +10,9 @@ use crate::app::common::check_folder_outputs;
 use crate::cli::ExportArgs;
 use crate::export::{chosen, columns, export_fields, export_one, topic_file, Column, Written};
 use crate::formats::recording::Recording;
-use crate::outputs::{check_not_input, check_output_of, check_writable_dir, Input};
+use crate::outputs::{
+    check_not_input, check_output_dir, check_output_of, create_output_dir, Input,
+};
 
 pub fn run(args: &ExportArgs) -> Result<()> {
     let recording_input = [Input::new(&args.file, "recording")];
@@ -25,11 +27,15 @@ pub fn run(args: &ExportArgs) -> Result<()> {
         }
     }
     let recording = Recording::open(&args.file)?;
+    for warning in recording.damage_warnings() {
+        eprintln!("{warning}");
+    }
     if !recording.finished {
         eprintln!(
-            "warning: {}: the recording was not finished; exporting the messages before {}",
+            "warning: {}: the recording was not finished (its data end {}); exporting the \
+             messages before that",
             args.file.display(),
-            recording.stopped.as_deref().unwrap_or("its end")
+            recording.stopped.as_deref().unwrap_or("early")
         );
     }
     let all = columns(&recording)?;
@@ -54,7 +60,12 @@ pub fn run(args: &ExportArgs) -> Result<()> {
         vec![export_fields(&recording, &pairs, path.as_deref())?]
     };
     for w in written.iter().filter(|w| w.path != "stdout") {
-        eprintln!("wrote {} ({} rows, {} columns)", w.path, w.rows, w.columns);
+        eprintln!(
+            "wrote {} ({}, {})",
+            w.path,
+            crate::vocab::plural(w.rows as u64, "row"),
+            crate::vocab::plural(w.columns as u64, "column")
+        );
     }
     Ok(())
 }
@@ -91,10 +102,8 @@ fn export_topics(
     let paths: Vec<PathBuf> = files.iter().map(|(_, p)| p.clone()).collect();
     let recording_input = [Input::new(&args.file, "recording")];
     check_folder_outputs(&dir, &paths, "-o", &recording_input, args.force)?;
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("{}: -o: cannot create the folder", dir.display()))?;
-    check_writable_dir(&dir)
-        .with_context(|| format!("{}: -o: cannot be written", dir.display()))?;
+    check_output_dir(&dir, "-o")?;
+    create_output_dir(&dir, "-o")?;
     files
         .iter()
         .map(|(topic, path)| export_one(recording, topic, &all[topic], Some(path)))

@@ -10,7 +10,7 @@ use anyhow::{bail, Context, Result};
 use crate::app::common::{check_session_outputs, headless_or_console, inputs, stop_flag};
 use crate::app::play::start_foxglove;
 use crate::cli::{parse_algorithms, LiveArgs};
-use crate::formats::profile::{default_profile, load_profile, DEFAULT_PROFILE_TOML};
+use crate::formats::profile::{default_profile, DEFAULT_PROFILE_TOML};
 use crate::mca::AlgorithmId;
 use crate::profile::Profile;
 use crate::summary::Summary;
@@ -68,7 +68,7 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
         }
     }
     let (profile, profile_toml) = match &args.profile {
-        Some(path) => load_profile(path)?,
+        Some(path) => crate::app::common::load_profile_warned(path)?,
         None => (default_profile(), DEFAULT_PROFILE_TOML.to_string()),
     };
     let profile = live_profile(&profile);

@@ -7,24 +7,21 @@ use anyhow::{Context, Result};
 
 use crate::app::common::{check_folder_outputs, inputs, progress_bar};
 use crate::cli::{parse_algorithms, parse_tests, OmctArgs};
-use crate::formats::profile::{default_profile, load_profile};
-use crate::outputs::check_writable_dir;
+use crate::formats::profile::default_profile;
+use crate::outputs::{check_output_dir, create_output_dir};
 
 pub fn run(args: &OmctArgs) -> Result<()> {
     use crate::formats::omct::OmctReport;
     use crate::omct::{frequency_subset, run_all};
 
     let profile = match &args.profile {
-        Some(path) => load_profile(path)?.0,
+        Some(path) => crate::app::common::load_profile_warned(path)?.0,
         None => default_profile(),
     };
     let algorithms = parse_algorithms(&args.algorithms)?;
     let tests = parse_tests(&args.tests)?;
     let frequencies = frequency_subset(args.frequencies as usize);
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create the output directory", args.out.display()))?;
-    check_writable_dir(&args.out)
-        .with_context(|| format!("{}: --out: cannot be written", args.out.display()))?;
+    check_output_dir(&args.out, "--out")?;
     let outputs: Vec<PathBuf> = ["omct.md".to_string(), "omct.json".to_string()]
         .into_iter()
         .chain(tests.iter().map(|t| format!("{}.{}", t.key(), args.format)))
@@ -32,6 +29,7 @@ pub fn run(args: &OmctArgs) -> Result<()> {
         .collect();
     let profile_input = inputs(&[(args.profile.as_deref(), "--profile")]);
     check_folder_outputs(&args.out, &outputs, "--out", &profile_input, args.force)?;
+    create_output_dir(&args.out, "--out")?;
 
     let total = algorithms.len() * tests.len() * frequencies.len();
     let bar = progress_bar(

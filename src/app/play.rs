@@ -4,14 +4,14 @@
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 use crate::app::common::{
     check_session_outputs, headless_or_console, inputs, progress_bar, stop_flag,
 };
 use crate::cli::{parse_algorithms, PlayArgs};
 use crate::engine::Engine;
-use crate::formats::profile::{default_profile, load_profile, DEFAULT_PROFILE_TOML};
+use crate::formats::profile::{default_profile, DEFAULT_PROFILE_TOML};
 use crate::formats::recording::{Recorder, RecordingMeta};
 use crate::formats::trace::default_trace;
 use crate::foxglove::FoxgloveServer;
@@ -46,7 +46,7 @@ pub fn run(args: &PlayArgs) -> Result<()> {
 /// The profile (with its TOML) and the algorithms of a play session.
 pub fn load_play(args: &PlayArgs) -> Result<(Profile, String, Vec<AlgorithmId>)> {
     let (mut profile, profile_toml) = match &args.profile {
-        Some(path) => load_profile(path)?,
+        Some(path) => crate::app::common::load_profile_warned(path)?,
         None => (default_profile(), DEFAULT_PROFILE_TOML.to_string()),
     };
     let algorithms = parse_algorithms(&args.algorithms)?;
@@ -94,8 +94,8 @@ pub fn open_play_source(args: &PlayArgs, rate_hz: f64) -> Result<PlaySource> {
     })
 }
 
-/// What a play recording attaches, all but the trace's text (read only while a recording
-/// starts, then dropped: [`trace_csv`]).
+/// What a play recording attaches, all but the trace (attached from its file:
+/// [`create_recorder`]).
 fn recording_meta(
     profile: &Profile,
     profile_toml: String,
@@ -112,13 +112,22 @@ fn recording_meta(
     )
 }
 
-/// The trace's text as read, for a recording's attachment.
-fn trace_csv(trace: Option<&std::path::Path>) -> Result<String> {
-    Ok(match trace {
-        Some(t) => std::fs::read_to_string(t)
-            .with_context(|| format!("{}: cannot read the trace", t.display()))?,
-        None => crate::formats::trace::DEFAULT_TRACE_CSV.to_string(),
-    })
+/// A recorder for a play session: the trace file attached as read, streamed from the file
+/// (a trace of hours need not fit in memory), or the embedded trace's text.
+fn create_recorder(
+    path: &std::path::Path,
+    meta: &mut RecordingMeta,
+    trace: Option<&std::path::Path>,
+) -> Result<Recorder, crate::formats::recording::RecordingError> {
+    match trace {
+        Some(t) => Recorder::create_with_trace_file(path, meta, t),
+        None => {
+            meta.trace_csv = crate::formats::trace::DEFAULT_TRACE_CSV.to_string();
+            let recorder = Recorder::create(path, meta);
+            meta.trace_csv = String::new();
+            recorder
+        }
+    }
 }
 
 pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
@@ -131,9 +140,11 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
     let recorder = match &args.record {
         Some(path) => {
             let mut meta = recording_meta(&profile, profile_toml, &play, &algorithms);
-            // The attachment is the trace's text as read; it is held only while written.
-            meta.trace_csv = trace_csv(args.trace.as_deref())?;
-            Some(McapSink::headless(Recorder::create(path, &meta)?))
+            Some(McapSink::headless(create_recorder(
+                path,
+                &mut meta,
+                args.trace.as_deref(),
+            )?))
         }
         None => None,
     };
@@ -202,10 +213,7 @@ pub fn run_console(args: &PlayArgs) -> Result<()> {
         cfg.sinks.push(Box::new(server));
     }
     let factory: tui::SinkFactory = Box::new(move |request: &tui::RecordingRequest| {
-        // The trace's text is read for the attachment only while a recording starts.
-        meta.trace_csv = trace_csv(trace_path.as_deref())?;
-        let recorder = Recorder::create(&request.path, &meta);
-        meta.trace_csv = String::new();
+        let recorder = create_recorder(&request.path, &mut meta, trace_path.as_deref());
         Ok(Box::new(McapSink::console(recorder?)) as Box<dyn FrameSink>)
     });
     let outcome = tui::run_live(cfg, factory)?;

@@ -43,6 +43,9 @@ pub fn run(args: &ReviewArgs) -> Result<()> {
 /// fast as it can with `None`) while computing the summary.
 pub fn review_served(path: &Path, addr: SocketAddr, speed: Option<f64>) -> Result<Summary> {
     let recording = Recording::open(path)?;
+    for warning in recording.damage_warnings() {
+        eprintln!("{warning}");
+    }
     let profile = recording
         .profile
         .as_ref()
@@ -55,6 +58,9 @@ pub fn review_served(path: &Path, addr: SocketAddr, speed: Option<f64>) -> Resul
 
 pub fn review_summary(path: &Path) -> Result<Summary> {
     let recording = Recording::open(path)?;
+    for warning in recording.damage_warnings() {
+        eprintln!("{warning}");
+    }
     if !recording.finished {
         // Where and why reading stopped tells a file cut by a crash (ends mid-record) from
         // one damaged in place (garbage after good chunks).
@@ -132,6 +138,12 @@ pub fn run_console(args: &ReviewArgs) -> Result<()> {
     info.review_of = Some(path.display().to_string());
     if !recording.finished {
         info.description = Some("unfinished recording (cut short): showing what it holds".into());
+    }
+    if let Some(lost) = recording.lost_steps() {
+        let lost = lost.map_or("steps".to_string(), |n| {
+            crate::formats::recording::plural(n, "step")
+        });
+        info.description = Some(format!("damaged recording: {lost} lost, showing the rest"));
     }
     let source = Box::new(RecordedFrames::new(frames, profile.rate_hz));
     let mut sinks: Vec<Box<dyn FrameSink>> = Vec::new();

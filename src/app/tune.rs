@@ -20,6 +20,7 @@ use crate::tune::{
     keys, tunable_keys, tune, validate::PER_FLIGHT_TOLERANCE, Evaluator, GenerationRecord,
     Progress, Validated, LIMITER_TOLERANCE,
 };
+use crate::vocab::plural;
 
 /// Traces from folders (their *.csv, sorted) and files, checked before any work.
 pub fn load_traces(paths: &[PathBuf], rate_hz: f64) -> Result<Vec<Arc<Trace>>> {
@@ -72,9 +73,9 @@ impl Progress for Bar {
         // A line per generation says how far the search is and whether what it fits holds on
         // the flights it does not see: above the bar on a terminal, on stderr elsewhere.
         let line = format!(
-            "generation {}: {} candidates, training best {}{}{}",
+            "generation {}: {}, training best {}{}{}",
             r.generation,
-            r.evaluations,
+            plural(r.evaluations as u64, "candidate"),
             r.training
                 .map_or("none yet".to_string(), |b| format!("{b:.4}")),
             match (r.training, r.training_ranked) {
@@ -159,7 +160,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         })?;
     let (profile, text, source) = match &args.profile {
         Some(path) => {
-            let (p, t) = crate::formats::profile::load_profile(path)?;
+            let (p, t) = crate::app::common::load_profile_warned(path)?;
             (p, t, path.display().to_string())
         }
         None => (
@@ -243,14 +244,17 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         stop: stop.clone(),
     };
     eprintln!(
-        "tuning {} ({} keys) on {} traces{}, budget {budget} candidates, seed {}",
+        "tuning {} ({}) on {}{}, budget {}, seed {}",
         algorithm.label(),
-        keys.len(),
-        evaluator.traces.len(),
-        validator.as_ref().map_or(String::new(), |v| format!(
-            ", validated on {} others",
-            v.traces.len()
-        )),
+        plural(keys.len() as u64, "key"),
+        plural(evaluator.traces.len() as u64, "trace"),
+        validator
+            .as_ref()
+            .map_or(String::new(), |v| match v.traces.len() {
+                1 => ", validated on 1 other".to_string(),
+                n => format!(", validated on {n} others"),
+            }),
+        plural(budget as u64, "candidate"),
         args.seed
     );
     let bar = progress_bar(
@@ -321,10 +325,10 @@ pub fn run(args: &TuneArgs) -> Result<()> {
 
     let mut out = String::new();
     out.push_str(&format!(
-        "{} tuned in {:.1} s: {} candidates{}; wrote {shown}\n\n",
+        "{} tuned in {:.1} s: {}{}; wrote {shown}\n\n",
         algorithm.label(),
         wall,
-        result.evaluations,
+        plural(result.evaluations as u64, "candidate"),
         if result.interrupted {
             " (interrupted: the best found so far)"
         } else {
@@ -380,11 +384,15 @@ pub fn run(args: &TuneArgs) -> Result<()> {
             Some(_) => "(the tuned profile: the best validation mean of the candidates not \
                         worse than the base on any validation trace)\n\n"
                 .to_string(),
-            None => format!(
-                "(base kept: none of the {} candidates validated beat it on every validation \
-                 trace)\n\n",
-                val.validated.len()
-            ),
+            None => match val.validated.len() {
+                1 => "(base kept: the one candidate validated did not beat it on every \
+                      validation trace)\n\n"
+                    .to_string(),
+                n => format!(
+                    "(base kept: none of the {n} candidates validated beat it on every \
+                     validation trace)\n\n"
+                ),
+            },
         });
     }
     out.push_str(&format!("{:<40} {:>10} {:>10}\n", "key", "base", "tuned"));

@@ -4,7 +4,7 @@
 //!
 //! Frames (`docs/foxglove.md`):
 //! - `world`: Foxglove's usual z-up frame (x forward, y left, z up), origin on the floor.
-//! - `ALG/base`: DESIGN §1's simulator inertial frame (x forward, y right, z down, origin at
+//! - `ALG/base`: docs/design.md §1's simulator inertial frame (x forward, y right, z down, origin at
 //!   the platform's neutral pose), fixed to the floor. world → `ALG/base` is a half turn about
 //!   x (y and z flip) and a lift by the neutral height; the rigs stand side by side along y.
 //! - `ALG/platform`: the moving platform, placed by the commanded pose (after the limiter).

@@ -1,4 +1,4 @@
-//! Profiles as TOML files (DESIGN §3). The default profile is embedded in the binary.
+//! Profiles as TOML files (docs/design.md §3). The default profile is embedded in the binary.
 
 use std::path::Path;
 
@@ -405,5 +405,57 @@ mod tests {
         let p = parse_profile(&without, "x.toml").unwrap();
         assert_eq!(p.score, crate::score::ScoreWeights::default());
         assert_eq!(default_profile().score, p.score);
+    }
+
+    /// Issue 38: a limit the legs can never reach, and a nearly flat hexapod, are warned
+    /// about with the key and the value the legs allow; the shipped profiles are not.
+    #[test]
+    fn impossible_platform_settings_are_warned_about() {
+        let far = parse_profile(
+            &with("excursion_m = 1.7        #", "excursion_m = 5.0        #"),
+            "far.toml",
+        )
+        .unwrap();
+        let w = far.warnings();
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert_eq!(w[0].key, "limits.surge.excursion_m");
+        // The reach in the message is the bisection's, within a millimetre.
+        let stewart = crate::model::stewart::Stewart::new(&far.geometry);
+        let (plus, minus) = crate::model::reach::reach(&stewart, 0, 5.0);
+        assert!(plus < 5.0 && minus < 5.0);
+        assert!(
+            w[0].reason.contains(&format!("{plus:.3} m")),
+            "{}",
+            w[0].reason
+        );
+        assert!(w[0].reason.contains("5 m"), "{}", w[0].reason);
+
+        let flat_text = with("neutral_height_m = 3.0", "neutral_height_m = 0.1")
+            .replacen("leg_min_m = 2.5", "leg_min_m = 1.0", 1)
+            .replacen("leg_max_m = 4.5", "leg_max_m = 2.0", 1)
+            .replacen("excursion_m = 0.8", "excursion_m = 0.05", 1);
+        let flat = parse_profile(&flat_text, "flat.toml").unwrap();
+        let w = flat.warnings();
+        let cond = w
+            .iter()
+            .find(|w| w.key == "geometry.neutral_height_m")
+            .unwrap_or_else(|| panic!("no conditioning warning: {w:?}"));
+        assert!(
+            cond.reason.contains("roll and pitch") && cond.reason.contains("20.9"),
+            "{}",
+            cond.reason
+        );
+
+        for (name, text) in [
+            ("full-flight", DEFAULT_PROFILE_TOML),
+            (
+                "full-flight-tuned",
+                include_str!("../../profiles/full-flight-tuned.toml"),
+            ),
+            ("compact", include_str!("../../profiles/compact.toml")),
+        ] {
+            let p = parse_profile(text, name).unwrap();
+            assert!(p.warnings().is_empty(), "{name}: {:?}", p.warnings());
+        }
     }
 }

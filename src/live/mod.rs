@@ -1,4 +1,4 @@
-//! `hexcue live`: hexcue between a running simulator and a motion platform (DESIGN §10).
+//! `hexcue live`: hexcue between a running simulator and a motion platform (docs/design.md §10).
 //!
 //! One thread keeps the clock, at real-time priority where the OS allows it
 //! ([`realtime`]). Each period it steps once: the latest input sample (held between

@@ -1,4 +1,4 @@
-//! The stepping thread at real-time priority (DESIGN §10): `SCHED_FIFO` for the thread that
+//! The stepping thread at real-time priority (docs/design.md §10): `SCHED_FIFO` for the thread that
 //! keeps the clock, and the process's memory locked so that a page fault cannot stall a
 //! step. Both as far as the OS allows; what it refused, and why, is said rather than fatal:
 //! a session on a laptop without the privilege still runs, with the warning in the events

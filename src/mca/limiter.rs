@@ -1,4 +1,4 @@
-//! The workspace limiter that ends every algorithm (DESIGN §5, safety).
+//! The workspace limiter that ends every algorithm (docs/design.md §5, safety).
 //!
 //! A command that respects every limit passes through untouched. Otherwise the limiter takes
 //! over: it clamps the pose into the DoF excursions, scales it toward neutral until every leg

@@ -1,4 +1,4 @@
-//! Motion cueing algorithms (DESIGN §5): a common trait, the classical washout filter and the
+//! Motion cueing algorithms (docs/design.md §5): a common trait, the classical washout filter and the
 //! workspace limiter that ends every algorithm.
 
 pub mod limiter;
@@ -126,7 +126,7 @@ pub struct SolverReport {
     pub solve_time_us: f64,
 }
 
-/// The state an algorithm exposes to the console and the recording (DESIGN §5).
+/// The state an algorithm exposes to the console and the recording (docs/design.md §5).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct AlgorithmState {
     pub mode: Mode,

@@ -1,4 +1,4 @@
-//! The switchable MPC (DESIGN §5): an MPC with terminal conditions (COTC) while it is solved,
+//! The switchable MPC (docs/design.md §5): an MPC with terminal conditions (COTC) while it is solved,
 //! an MPC without them otherwise, a supervisor that switches with hysteresis, a mixer that
 //! blends the switch, and an adaptive weight regulator on the washout weights.
 //!

@@ -1,4 +1,4 @@
-//! The S-MPC's switching logic (DESIGN §5), free of any solver so that it can be driven by
+//! The S-MPC's switching logic (docs/design.md §5), free of any solver so that it can be driven by
 //! scripted sequences in tests: the supervisory controller, the switch mixer and the adaptive
 //! weight regulator.
 

@@ -1,4 +1,4 @@
-//! The classical washout filter (Reid & Nahon structure, DESIGN §5).
+//! The classical washout filter (Reid & Nahon structure, docs/design.md §5).
 //!
 //! Scale → translational high-pass and double integration (x, y, z) → tilt coordination
 //! (low-pass, asin, tilt-rate limit) → rotational high-pass and integration (roll, pitch,

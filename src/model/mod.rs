@@ -2,5 +2,6 @@
 
 pub mod lti;
 pub mod platform;
+pub mod reach;
 pub mod stewart;
 pub mod vestibular;

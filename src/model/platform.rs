@@ -35,7 +35,7 @@ pub struct RotationLimits {
     pub acceleration_dps2: f64,
 }
 
-/// Per-DoF limits of the platform (DESIGN §3 table).
+/// Per-DoF limits of the platform (docs/design.md §3 table).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Limits {

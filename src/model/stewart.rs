@@ -1,4 +1,4 @@
-//! Stewart-platform kinematics in the simulator inertial frame (DESIGN §1: origin at the
+//! Stewart-platform kinematics in the simulator inertial frame (docs/design.md §1: origin at the
 //! platform's neutral pose, x forward, y right, z down).
 //!
 //! Poses are `Vector6` in the order x, y, z (m), roll φ, pitch θ, yaw ψ (rad, Z-Y-X Euler).
@@ -18,7 +18,7 @@ use crate::G_MPS2;
 /// - **joint coordinates**: the six base joints and the six platform joints as measured on a
 ///   real hexapod, which is never perfectly symmetric. Leg i runs from `base_joints_m[i]` to
 ///   `platform_joints_m[i]`. Both are in the geometry frame: the simulator inertial frame at
-///   the neutral pose (x forward, y right, z down, DESIGN §1), whose origin is the platform
+///   the neutral pose (x forward, y right, z down, docs/design.md §1), whose origin is the platform
 ///   frame's; the platform joints are fixed in the platform frame, which coincides with it at
 ///   neutral. The base joints therefore have z > 0 (below the platform).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -492,7 +492,7 @@ mod tests {
     #[test]
     fn joints_are_symmetric_and_the_combined_corner_needs_a_long_leg() {
         let s = Stewart::new(&full_flight());
-        // Per-axis extremes fit, the combined x = y = 1.7 m does not (DESIGN §3).
+        // Per-axis extremes fit, the combined x = y = 1.7 m does not (docs/design.md §3).
         for axis in 0..6 {
             let mut p = Vector6::zeros();
             p[axis] = [

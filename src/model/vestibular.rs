@@ -204,7 +204,7 @@ pub mod output {
 /// and pitch angles β (2).
 ///
 /// Gravity comes from the total tilt (tilt plus rotational channel), linearised: pitching
-/// nose-up by θ adds +g·θ to f_x, rolling by φ adds −g·φ to f_y (DESIGN §1). A rotational cue
+/// nose-up by θ adds +g·θ to f_x, rolling by φ adds −g·φ to f_y (docs/design.md §1). A rotational cue
 /// that tilts the cabin is therefore perceived as a (false) specific force cue.
 pub fn integrated_model(params: &VestibularParams) -> StateSpace {
     let oto = params.otolith();

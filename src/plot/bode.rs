@@ -6,7 +6,7 @@ use std::path::Path;
 use anyhow::Result;
 use plotters::prelude::*;
 
-use super::{algorithm_color, font, legend_row, padded, Area, DrawResult};
+use super::{algorithm_color, font, legend_row, padded, tick, Area, DrawResult};
 use crate::omct::{frequencies_radps, OmctCurve, OmctTest};
 
 /// Lowest gain drawn (dB): below it a cue is far under any perception threshold, and a
@@ -122,6 +122,7 @@ pub fn draw<DB: DrawingBackend>(
         .bold_line_style(RGBColor(205, 205, 205))
         .x_desc("ω (rad/s)")
         .y_desc(curves.first().map(|c| gain_unit(c)).unwrap_or_default())
+        .y_label_formatter(&tick)
         .label_style(font(13.0))
         .axis_desc_style(font(14.0))
         .draw()?;
@@ -154,6 +155,7 @@ pub fn draw<DB: DrawingBackend>(
         .bold_line_style(RGBColor(205, 205, 205))
         .x_desc("ω (rad/s)")
         .y_desc("phase (°)")
+        .y_label_formatter(&tick)
         .label_style(font(13.0))
         .axis_desc_style(font(14.0))
         .draw()?;

@@ -110,6 +110,21 @@ pub fn font(size: f64) -> TextStyle<'static> {
     (FONT, size).into_font().color(&BLACK)
 }
 
+/// An axis label as plotters writes it (1 to 5 decimals, no scientific notation), but never
+/// `-0.0`: a tick at zero computed as −1e−17 is zero.
+pub fn tick(v: &f64) -> String {
+    let text = plotters::data::float::FloatPrettyPrinter {
+        allow_scientific: false,
+        min_decimal: 1,
+        max_decimal: 5,
+    }
+    .print(*v);
+    match text.strip_prefix('-') {
+        Some(digits) if digits.chars().all(|c| c == '0' || c == '.') => digits.to_string(),
+        _ => text,
+    }
+}
+
 /// A range that shows `lo..hi` with a margin, never empty.
 pub fn padded(lo: f64, hi: f64) -> (f64, f64) {
     if !lo.is_finite() || !hi.is_finite() || lo > hi {
@@ -157,6 +172,15 @@ pub fn legend_row<DB: DrawingBackend>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ticks_never_read_minus_zero() {
+        assert_eq!(tick(&-1e-17), "0.0");
+        assert_eq!(tick(&-0.0), "0.0");
+        assert_eq!(tick(&-0.5), "-0.5");
+        assert_eq!(tick(&2.0), "2.0");
+        assert_eq!(tick(&-0.000001), "0.0");
+    }
 
     #[test]
     fn the_bundled_font_registers() {

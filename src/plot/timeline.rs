@@ -18,7 +18,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use plotters::prelude::*;
 
-use super::{algorithm_color, font, legend_row, padded, Area, DrawResult, REFERENCE_COLOR};
+use super::{algorithm_color, font, legend_row, padded, tick, Area, DrawResult, REFERENCE_COLOR};
 use crate::formats::recording::Recording;
 use crate::mca::{AlgorithmId, Mode};
 use crate::model::stewart::Stewart;
@@ -548,9 +548,23 @@ pub fn draw<DB: DrawingBackend>(root: &Area<DB>, tl: &Timeline) -> DrawResult<DB
         entries.push(("end stop / limit".to_string(), RED.stroke_width(1)));
     }
     if let Some(a) = tl.shaded_by {
-        for (i, (_, name, _)) in SHADED.iter().enumerate() {
-            if tl.bands.iter().any(|b| b.mode == i) {
-                entries.push((format!("{} {name}", a.label()), band_style(i)));
+        match tl.bands.as_slice() {
+            // One mode throughout: a tint over the whole figure would only wash it out;
+            // the legend says it in words.
+            [only] => entries.push((
+                format!(
+                    "{} {} throughout (no switch)",
+                    a.label(),
+                    SHADED[only.mode].1
+                ),
+                WHITE.stroke_width(0),
+            )),
+            _ => {
+                for (i, (_, name, _)) in SHADED.iter().enumerate() {
+                    if tl.bands.iter().any(|b| b.mode == i) {
+                        entries.push((format!("{} {name}", a.label()), band_style(i)));
+                    }
+                }
             }
         }
     }
@@ -605,10 +619,12 @@ fn draw_panel<DB: DrawingBackend>(
         .bold_line_style(RGBColor(205, 205, 205))
         .x_desc("t (s)")
         .y_desc(panel.unit())
+        .x_label_formatter(&tick)
+        .y_label_formatter(&tick)
         .label_style(font(13.0))
         .axis_desc_style(font(14.0))
         .draw()?;
-    for band in &tl.bands {
+    for band in tl.bands.iter().filter(|_| tl.bands.len() > 1) {
         chart.draw_series(std::iter::once(Rectangle::new(
             [(band.from_s, y0), (band.to_s, y1)],
             band_style(band.mode),
@@ -637,6 +653,9 @@ pub fn plot(recording: &Path, request: &PlotRequest, output: &Path) -> Result<()
     // Checked first, so that a wrong extension costs no reading.
     super::Format::of(output)?;
     let rec = Recording::open(recording)?;
+    for warning in rec.damage_warnings() {
+        eprintln!("{warning}");
+    }
     if !rec.finished {
         eprintln!(
             "warning: {}: the recording was not finished (cut short); plotting what it holds",
@@ -740,6 +759,34 @@ mod tests {
             assert!(svg.contains(word), "{word} missing");
         }
         assert!(!svg.contains("end stop"), "no legs panel, no end stop");
+
+        // Never switching: no tint over the figure, the mode said in the legend.
+        let mut modes = ModeColumns {
+            counts: vec![[0; 4]; 200],
+        };
+        for k in 0..1000 {
+            modes.push(0.0, 10.0, k as f64 * 0.01, Mode::Cotc);
+        }
+        let tl = Timeline {
+            bands: modes.bands(0.0, 10.0),
+            ..tl
+        };
+        assert_eq!(tl.bands.len(), 1, "{:?}", tl.bands);
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, figure_size(800, 1)).into_drawing_area();
+            draw(&root, &tl).unwrap();
+            root.present().unwrap();
+        }
+        assert!(svg.contains("throughout"), "no word for the one mode");
+        let fill = {
+            let RGBColor(r, g, b) = SHADED[0].2;
+            format!("#{r:02X}{g:02X}{b:02X}")
+        };
+        assert!(
+            !svg.to_uppercase().contains(&fill),
+            "the figure is tinted with {fill}"
+        );
     }
 
     #[test]

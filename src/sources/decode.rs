@@ -6,7 +6,7 @@ use crate::trace::AircraftSample;
 /// What one datagram said.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Decoded {
-    /// A sample in hexcue's units and frame (DESIGN §1); its `t_s` is the simulator's time,
+    /// A sample in hexcue's units and frame (docs/design.md §1); its `t_s` is the simulator's time,
     /// when it sends one (else NaN). `paused` when the simulator says it is paused.
     Sample {
         sample: AircraftSample,

@@ -1,7 +1,7 @@
-//! Sources of aircraft samples (DESIGN §11), adapters around the core's
+//! Sources of aircraft samples (docs/design.md §11), adapters around the core's
 //! [`crate::source::SampleSource`]: a trace file streamed row by row, and live simulators
 //! over UDP (JSBSim, FlightGear, X-Plane), each converting its units and signs to hexcue's
-//! at the edge (DESIGN §1).
+//! at the edge (docs/design.md §1).
 
 pub mod decode;
 pub mod flightgear;

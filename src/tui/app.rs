@@ -42,16 +42,26 @@ impl App {
             };
         }
         if let Some(typed) = &mut self.goto {
+            self.goto_refused = None;
             match key.code {
-                KeyCode::Char(c @ ('0'..='9' | '.')) if typed.len() < 12 => typed.push(c),
+                // A sign is kept, to be refused with a word: dropping it would go to +5 s
+                // for a typed -5.
+                KeyCode::Char(c @ ('0'..='9' | '.' | '-')) if typed.len() < 12 => typed.push(c),
                 KeyCode::Backspace => {
                     typed.pop();
                 }
-                KeyCode::Enter => {
-                    let t = typed.parse::<f64>().ok().filter(|t| t.is_finite());
-                    self.goto = None;
-                    return t.map(Command::SeekTo);
-                }
+                KeyCode::Enter if typed.is_empty() => self.goto = None,
+                KeyCode::Enter => match typed.parse::<f64>() {
+                    Ok(t) if t.is_finite() && t >= 0.0 => {
+                        self.goto = None;
+                        return Some(Command::SeekTo(t));
+                    }
+                    // The prompt stays open with what was typed, and says why.
+                    Ok(t) if t < 0.0 => {
+                        self.goto_refused = Some("before the start: expected 0 s or later")
+                    }
+                    _ => self.goto_refused = Some("not a time: expected seconds, e.g. 12.5"),
+                },
                 KeyCode::Esc => self.goto = None,
                 _ => {}
             }
@@ -59,7 +69,9 @@ impl App {
         }
         let paused = self.snapshot.paused;
         match key.code {
-            KeyCode::Char('q') | KeyCode::Char('Q') => self.quit_with("key"),
+            // Esc closes what is open (the help, the prompt) and otherwise ends the session,
+            // as in `hexcue live`.
+            KeyCode::Char('q') | KeyCode::Char('Q') | KeyCode::Esc => self.quit_with("key"),
             KeyCode::Char(' ') => Some(Command::TogglePause),
             KeyCode::Char('.') => Some(Command::Step),
             KeyCode::Right if paused => Some(Command::Step),

@@ -86,11 +86,38 @@ fn fmt_mm(m: f64) -> String {
 
 /// Titles of the leg gauges, longest first: the first that fits is shown.
 const LEGS_TITLES: [&str; 4] = [
-    "legs: ±% of stroke, | peak 10 s, mm to stop",
-    "legs ±% stroke |peak mm left",
-    "legs ±% |peak mm left",
+    "legs: ±% of stroke, | peak 10 s, mm to stop ahead",
+    "legs ±% stroke |peak mm ahead",
+    "legs ±% |peak mm ahead",
     "legs ±% mm",
 ];
+
+/// Below this leg speed (m/s) a leg is taken as still, and its way is its side of neutral.
+const STILL_MPS: f64 = 1e-4;
+
+/// The margin each gauge shows (m): to the end stop the leg is moving towards (its side of
+/// neutral when still), so that a leg extending from +13 % shows the room left extending,
+/// not the distance back to the retracted stop; but the nearer stop's margin whenever that
+/// one is low, so that a warning mark always sits beside the figure that earned it.
+fn shown_margins(app: &App, lane: &LaneFrame, nearer: &[f64; 6]) -> [f64; 6] {
+    let s = &app.legs.stewart;
+    std::array::from_fn(|i| {
+        let (l, v) = (lane.legs.length_m[i], lane.legs.velocity_mps[i]);
+        if !l.is_finite() || nearer[i] < app.legs.warn_m {
+            return nearer[i];
+        }
+        let extending = if v.abs() > STILL_MPS {
+            v > 0.0
+        } else {
+            l >= s.neutral_lengths_m[i]
+        };
+        if extending {
+            s.leg_max_m - l
+        } else {
+            l - s.leg_min_m
+        }
+    })
+}
 
 /// Each leg's largest |usage| over the chart window, the current step included.
 fn leg_peaks(app: &App, lane_idx: usize, window: &[WindowRow], now: &[f64; 6]) -> [f64; 6] {
@@ -121,7 +148,8 @@ pub fn leg_lines(
     let Some(lane) = lane else {
         return vec![Line::styled("legs -", th.dim())];
     };
-    let margins: [f64; 6] = std::array::from_fn(|i| lane.legs.margin_m[i]);
+    let nearer: [f64; 6] = std::array::from_fn(|i| lane.legs.margin_m[i]);
+    let ahead = shown_margins(app, lane, &nearer);
     let signed: [f64; 6] = app.legs.stewart.signed_usage(&lane.legs.length_m).into();
     let title = || {
         let text = LEGS_TITLES
@@ -138,7 +166,7 @@ pub fn leg_lines(
                     // "1 ████░░|░░░  +34%  312!!"
                     let bar_w = w.saturating_sub(2 + 6 + 5 + 2).min(MAX_BAR_W);
                     let [full, before, mark, after] = bar(signed[i].abs(), peaks[i], bar_w);
-                    let (sym, style) = leg_state(app, margins[i]);
+                    let (sym, style) = leg_state(app, nearer[i]);
                     Line::from(vec![
                         Span::styled(format!("{} ", i + 1), th.dim()),
                         Span::styled(full, style),
@@ -146,7 +174,7 @@ pub fn leg_lines(
                         Span::styled(mark, th.text()),
                         Span::styled(after, th.dim()),
                         Span::styled(format!(" {:>5}", fmt_signed_pct(signed[i])), th.text()),
-                        Span::styled(format!(" {:>4}", fmt_mm(margins[i])), th.dim()),
+                        Span::styled(format!(" {:>4}", fmt_mm(ahead[i])), th.dim()),
                         Span::styled(sym, style),
                     ])
                 }))
@@ -157,13 +185,13 @@ pub fn leg_lines(
                 let mut spans = Vec::new();
                 for i in [2 * row, 2 * row + 1] {
                     // Two legs a line, without bars: "1 +34% 312!!"
-                    let (sym, style) = leg_state(app, margins[i]);
+                    let (sym, style) = leg_state(app, nearer[i]);
                     spans.push(Span::styled(format!("{}", i + 1), th.dim()));
                     spans.push(Span::styled(
                         format!("{:>5}", fmt_signed_pct(signed[i])),
                         th.text(),
                     ));
-                    spans.push(Span::styled(format!("{:>4}", fmt_mm(margins[i])), th.dim()));
+                    spans.push(Span::styled(format!("{:>4}", fmt_mm(ahead[i])), th.dim()));
                     spans.push(Span::styled(sym.to_string(), style));
                     spans.push(Span::raw(" "));
                 }
@@ -177,11 +205,11 @@ pub fn leg_lines(
                 .enumerate()
                 .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
                 .unwrap_or((0, f64::NAN));
-            let (sym, style) = leg_state(app, margins[i]);
+            let (sym, style) = leg_state(app, nearer[i]);
             vec![Line::from(vec![
                 Span::styled("leg max ", th.dim()),
                 Span::styled(
-                    format!("{} #{} {}mm", fmt_signed_pct(u), i + 1, fmt_mm(margins[i])),
+                    format!("{} #{} {}mm", fmt_signed_pct(u), i + 1, fmt_mm(ahead[i])),
                     th.text(),
                 ),
                 Span::styled(sym.trim().to_string(), style),

@@ -19,7 +19,10 @@ pub const KEYS: &[(&str, &str)] = &[
     ("tab 1..6", "channel fx fy Δfz wx wy wz"),
     ("p", "pose panel on / off (in place of the legs if no room)"),
     ("r", "record on / off (a new file each time)"),
-    ("q Ctrl-C", "quit (recording finished)"),
+    (
+        "q Esc Ctrl-C",
+        "quit (recording finished); Esc first closes a prompt",
+    ),
     (
         "?",
         "this help, paused while open: ? next page, other keys close",
@@ -49,7 +52,7 @@ pub const LEGEND: &[(&str, &str)] = &[
     ("•ref ⣿sim", "perceived in the aircraft / on the simulator"),
     (
         "10 s",
-        "charts show the last 10 s; one y scale a channel, all columns",
+        "charts: the last 10 s; one y scale a channel, all columns",
     ),
     ("Δfz", "fz's change from 1 g (0 in level flight); m/s², °/s"),
     ("⇄n", "controller switches (S-MPC) since the start"),
@@ -113,7 +116,10 @@ pub const LEGEND: &[(&str, &str)] = &[
         "legs ±%",
         "stroke used, neutral to end stop: + extending, - retracting",
     ),
-    ("| mm", "| peak over 10 s; mm left to the nearer end stop"),
+    (
+        "| mm",
+        "| peak over 10 s; mm to the end stop the leg moves to",
+    ),
     ("! !!", "a leg's margin low / critical (at the limiter's)"),
     (
         "leg 1..6",
@@ -182,7 +188,8 @@ pub fn render_help(app: &App, f: &mut ratatui::Frame, area: Rect) {
         (page, pages, body)
     };
     let h = (body.len() as u16 + 2).min(area.height);
-    let w = 78.min(area.width);
+    // Two cells wider than the longest line with its border, so that no line touches it.
+    let w = 80.min(area.width);
     let [popup] = Layout::vertical([Constraint::Length(h)])
         .flex(Flex::Center)
         .areas(area);

@@ -259,6 +259,7 @@ fn leg_gauges_show_direction_peak_and_margin() {
     let last = s.last.as_mut().unwrap();
     let legs = &mut last.lanes[2].legs;
     legs.length_m[2] = stewart.neutral_lengths_m[2] - 0.3;
+    legs.velocity_mps[2] = -0.1;
     legs.length_m[0] = stewart.neutral_lengths_m[0] + 0.01;
     legs.margin_m = stewart.margins(&legs.length_m);
     s.window[0].legs_m[2][0] = (stewart.leg_max_m - 0.2) as f32;
@@ -288,6 +289,23 @@ fn leg_gauges_show_direction_peak_and_margin() {
         leg(5).contains("+99%") && leg(5).contains(" 10!!"),
         "{}",
         leg(5)
+    );
+
+    // Issue 38, item 10: the same leg on its way back out shows the room ahead of it, to the
+    // extended stop, not the distance behind it to the retracted one.
+    let last = s.last.as_mut().unwrap();
+    last.lanes[2].legs.velocity_mps[2] = 0.1;
+    app.snapshot = Arc::new(s.clone());
+    let text = screen(&draw(&app, 120, 40));
+    let l3 = rows(&text)
+        .iter()
+        .filter_map(|r| cells(r).get(5).cloned())
+        .find(|c| c.starts_with("3 ") && c.contains('%'))
+        .unwrap();
+    let ahead = ((stewart.leg_max_m - (stewart.neutral_lengths_m[2] - 0.3)) * 1000.0).round();
+    assert!(
+        l3.contains(&format!("-{pct}%")) && l3.contains(&format!(" {ahead}")),
+        "{l3}"
     );
 }
 
@@ -410,4 +428,77 @@ fn the_columns_show_what_the_verdict_decides_by() {
     // A column of one metrics row keeps them too.
     let short = screen(&draw(&app, 80, 16));
     assert!(short.contains("felt 0.1"), "{short}");
+}
+
+/// Issue 38, item 11: the help box stays inside its border at 120×40 and at 80×24, on every
+/// page: each of its rows starts and ends with the border, and no line reaches it.
+#[test]
+fn the_help_box_keeps_inside_its_border() {
+    let live = false;
+    {
+        for (w, h) in [(120u16, 40u16), (80, 24)] {
+            let (mut app, _) = dressed_snapshot();
+            app.help = true;
+            app.help_page = 0;
+            for _ in 0..6 {
+                let t = draw(&app, w, h);
+                let buf = t.backend().buffer().clone();
+                let symbol = |x: u16, y: u16| buf[(x, y)].symbol().to_string();
+                // The box's corners: its top row holds the title.
+                let row_text =
+                    |y: u16| -> String { (0..w).map(|x| symbol(x, y)).collect::<String>() };
+                let top = (0..h)
+                    .find(|&y| row_text(y).contains("keys and symbols"))
+                    .expect("the help's top border");
+                let title_x = (0..w)
+                    .find(|&x| symbol(x, top) == "k" && row_text(top).contains("keys"))
+                    .unwrap();
+                let left = (0..title_x).rev().find(|&x| symbol(x, top) == "┌").unwrap();
+                let right = (left..w).find(|&x| symbol(x, top) == "┐").unwrap();
+                let bottom = (top..h)
+                    .find(|&y| symbol(left, y) == "└")
+                    .expect("the help's bottom border");
+                for y in top + 1..bottom {
+                    assert_eq!(symbol(left, y), "│", "{w}×{h} live {live}, row {y}");
+                    assert_eq!(symbol(right, y), "│", "{w}×{h} live {live}, row {y}");
+                }
+                // Every line of the help fits: none reaches the right border.
+                for y in top + 1..bottom {
+                    assert!(
+                        symbol(right - 1, y).trim().is_empty(),
+                        "{w}×{h} live {live}: row {y} runs into the border:\n{}",
+                        screen(&t)
+                    );
+                }
+                let text = screen(&t);
+                if !text.contains("? next page") {
+                    break;
+                }
+                app.help_page += 1;
+            }
+        }
+    }
+}
+
+/// `g` then `-5`: refused with a word, the prompt kept, no seek (issue 38, item 11); Esc
+/// with nothing open quits, as in a live session.
+#[test]
+fn a_negative_time_is_refused_and_esc_quits() {
+    let (mut app, _) = dressed_snapshot();
+    let key = |c| KeyEvent::new(c, KeyModifiers::NONE);
+    app.on_key(key(KeyCode::Char('g')));
+    for c in "-5".chars() {
+        assert_eq!(app.on_key(key(KeyCode::Char(c))), None);
+    }
+    assert_eq!(app.on_key(key(KeyCode::Enter)), None);
+    assert_eq!(app.goto.as_deref(), Some("-5"));
+    let text = screen(&draw(&app, 80, 24));
+    assert!(
+        text.contains("go to t = -5") && text.contains("before the start"),
+        "{text}"
+    );
+    // Esc closes the prompt first, then quits.
+    assert_eq!(app.on_key(key(KeyCode::Esc)), None);
+    assert!(app.goto.is_none() && !app.should_quit());
+    assert_eq!(app.on_key(key(KeyCode::Esc)), Some(Command::Quit));
 }

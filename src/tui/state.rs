@@ -84,6 +84,8 @@ pub struct App {
     pub(super) help_paused_playback: bool,
     /// The go-to-time prompt (`g`), with what has been typed.
     pub goto: Option<String>,
+    /// Why the time typed at the prompt was not gone to (shown until the next key).
+    pub goto_refused: Option<&'static str>,
     pub theme: Theme,
     pub legs: LegScale,
     /// Each DoF's excursion limit (m, rad; x, y, z, roll, pitch, yaw), for the pose panel.
@@ -106,6 +108,7 @@ impl App {
             help_page: 0,
             help_paused_playback: false,
             goto: None,
+            goto_refused: None,
             theme,
             legs: LegScale::of(profile),
             pose_limits: profile.limits.si().excursion.into(),

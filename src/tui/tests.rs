@@ -1054,7 +1054,7 @@ fn labels_fit_at_80_columns_and_say_what_they_mean() {
     let lines: Vec<&str> = text.lines().collect();
     // Every column shows its chart's unit whole, and the gauges have a title.
     assert_eq!(text.matches(" m/s²").count(), 3, "{text}");
-    assert_eq!(text.matches("legs ±% |peak mm left").count(), 3, "{text}");
+    assert_eq!(text.matches("legs ±% |peak mm ahead").count(), 3, "{text}");
     assert!(!text.contains("MPC MPC"), "{text}");
     assert!(!text.contains("idle"), "{text}");
     // The step time stays, without its label where the column gives the room to the

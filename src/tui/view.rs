@@ -354,11 +354,15 @@ fn footer_line(app: &App, now: Instant, width: usize) -> Line<'static> {
     }
     let th = &app.theme;
     if let Some(typed) = &app.goto {
-        return Line::from(vec![
+        let mut spans = vec![
             Span::styled("go to t = ", th.key()),
             Span::styled(format!("{typed}▏s"), th.text().add_modifier(Modifier::BOLD)),
-            Span::styled("   Enter go  Esc cancel", th.dim()),
-        ]);
+        ];
+        if let Some(why) = app.goto_refused {
+            spans.push(Span::styled(format!("  {why}"), th.warn()));
+        }
+        spans.push(Span::styled("   Enter go  Esc cancel", th.dim()));
+        return Line::from(spans);
     }
     if let Some(n) = app.notice(now) {
         // The notice whole before the reminder of the help: a saved file's path is in it.

@@ -69,7 +69,7 @@ pub const CWF_KEYS: &[TunableKey] = &[
     key("cwf.rotational_hp_zeta", &[], 0.5, 1.5, LIN),
 ];
 
-/// The MPC's cost weights (DESIGN §5: Q, S, R and washout), surge and sway tuned as one
+/// The MPC's cost weights (docs/design.md §5: Q, S, R and washout), surge and sway tuned as one
 /// and the rotations as one, so that a budget of 50 candidates can move them all; then the
 /// false-cue terms of #11 (docs/mpc.md, "False cues"): the `decay` reference's time
 /// constants, the false-cue slacks' price and the margin from which they are priced. The

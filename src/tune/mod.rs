@@ -32,7 +32,7 @@ pub use keys::{tunable_keys, TunableKey};
 pub use validate::{GenerationRecord, Validated};
 
 /// Share of a trace's steps at which the limiter may act in a kept candidate beyond the base's
-/// own share: 0.1 % (5 steps of a 50 s trace at 100 Hz), a tenth of DESIGN §9's 1 % target for
+/// own share: 0.1 % (5 steps of a 50 s trace at 100 Hz), a tenth of docs/design.md §9's 1 % target for
 /// the MPCs. Rare single-step touches at a leg's margin are tolerated; a candidate that leans
 /// on the limiter is not.
 pub const LIMITER_TOLERANCE: f64 = 0.001;

@@ -1,4 +1,4 @@
-//! Recordings: one MCAP file a session (DESIGN §7, `docs/recordings.md`).
+//! Recordings: one MCAP file a session (docs/design.md §7, `docs/recordings.md`).
 //!
 //! The writer puts the metadata and the attachments (profile, trace) first, before any chunk,
 //! so that a file cut short by a crash still carries them; it closes a chunk and flushes at
@@ -6,7 +6,8 @@
 //!
 //! The reader streams the file record by record (never the whole file in memory) with the
 //! sans-io linear reader, which needs no summary section: finished and unfinished files are
-//! read the same way, the latter up to their last complete chunk.
+//! read the same way, the latter up to their last complete chunk, and a damaged chunk is
+//! skipped, reading going on at the next intact one (`source.rs`).
 
 mod reader;
 mod recover;
@@ -26,7 +27,7 @@ use crate::mca::AlgorithmId;
 use crate::profile::Profile;
 use crate::trace::TraceInfo;
 
-pub use reader::{Frames, JsonMessage, JsonMessages, Recording};
+pub use reader::{plural, Damage, Frames, JsonMessage, JsonMessages, LostSteps, Recording};
 pub use recover::{recover, RecoverStats};
 pub use writer::Recorder;
 
@@ -201,7 +202,7 @@ mod tests {
     use std::path::PathBuf;
 
     use super::source::check_attachment_body;
-    use super::writer::SCENE_EVERY_STEPS;
+    use super::writer::scene_every_steps;
     use crate::channels::json::resolution;
     use crate::mca::{AlgorithmState, Mode, SolverReport};
     use crate::model::vestibular::Perceived;
@@ -366,13 +367,13 @@ mod tests {
         let (trace, frames, bytes, stats) = recorded();
         assert_eq!(stats.steps, 3000);
         // hexcue's six topics a step, Foxglove's two (`/cwf/tf`, `/cwf/scene`) every
-        // SCENE_EVERY_STEPS steps, and an `/events` message each time the limiter starts or
+        // scene_every_steps(100 Hz) steps, and an `/events` message each time the limiter starts or
         // stops acting.
         let edges = frames
             .windows(2)
             .filter(|w| w[0].lanes[0].limiter_active != w[1].lanes[0].limiter_active)
             .count() as u64;
-        let drawn = 2 * 3000 / SCENE_EVERY_STEPS;
+        let drawn = 2 * 3000u64.div_ceil(scene_every_steps(100.0));
         assert_eq!(stats.messages, 3000 * 6 + drawn + edges);
         assert_eq!(stats.bytes, bytes.len() as u64);
         assert!((stats.duration_s - 29.99).abs() < 1e-9);

@@ -1,14 +1,14 @@
 //! The reader: a recording's metadata and attachments, its frames and its JSON messages,
 //! streamed record by record.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 use mcap::records::Record;
 use mcap::McapError;
 use serde::Deserialize;
 
-use super::source::{RecordSource, SourceError};
+use super::source::{Item, RecordSource, Skip, SourceError};
 use super::{
     sha256_hex, shown, RecordingError, RecordingMeta, METADATA_NAME, PROFILE_ATTACHMENT,
     SIDECAR_ATTACHMENT, TRACE_ATTACHMENT, TRACE_ZSTD_ATTACHMENT,
@@ -64,6 +64,86 @@ fn unzstd(data: &[u8]) -> std::io::Result<Vec<u8>> {
     Ok(out)
 }
 
+/// A stretch of intact data between skipped bytes.
+#[derive(Default)]
+struct Segment {
+    channels: BTreeSet<u16>,
+    /// The first and last step: its index (when the message has one) and log time (ns).
+    first: Option<(Option<u64>, u64)>,
+    last: Option<(Option<u64>, u64)>,
+}
+
+/// The step of an `/aircraft` message: its index, when written, and its log time.
+fn step_of(aircraft: &[u8], log_time: Option<u64>) -> Option<(Option<u64>, u64)> {
+    let log_time = log_time?;
+    let k = serde_json::from_slice::<AircraftMsg>(aircraft)
+        .ok()
+        .and_then(|m| m.k);
+    Some((k, log_time))
+}
+
+/// Steps a damaged stretch held.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LostSteps {
+    /// Index of the first step lost, when the recording numbers its steps.
+    pub first_k: Option<u64>,
+    /// How many; `None` when the damage runs to the end of the file.
+    pub count: Option<u64>,
+    /// Trace time of the first and the last step lost (s).
+    pub from_t_s: f64,
+    pub to_t_s: Option<f64>,
+}
+
+/// Bytes of a recording that could not be read, and what they held.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Damage {
+    pub from_byte: u64,
+    pub to_byte: u64,
+    /// What was wrong where reading stopped.
+    pub error: String,
+    /// `None` when the damage is past the data (in the summary section): no message lost.
+    pub steps: Option<LostSteps>,
+    /// Topics that were recorded on both sides of the damage, whose messages in it are lost.
+    pub topics: Vec<String>,
+    /// Whether `topics` are all the topics the file's intact parts carry.
+    pub every_topic: bool,
+}
+
+impl Damage {
+    /// One line for the user.
+    pub fn describe(&self) -> String {
+        let bytes = format!(
+            "bytes {}–{} are damaged ({})",
+            self.from_byte, self.to_byte, self.error
+        );
+        let Some(steps) = &self.steps else {
+            return format!("{bytes}, after the messages: no message is lost");
+        };
+        let which = match (steps.first_k, steps.count) {
+            (Some(k), Some(n)) => format!("steps {k}–{} ({})", k + n - 1, plural(n, "step")),
+            (None, Some(n)) => plural(n, "step"),
+            (Some(k), None) => format!("every step from {k} on"),
+            (None, None) => "every step after it".to_string(),
+        };
+        let time = match steps.to_t_s {
+            Some(to) => format!("t = {:.2}–{:.2} s", steps.from_t_s, to),
+            None => format!("t ≥ {:.2} s", steps.from_t_s),
+        };
+        let topics = if self.every_topic {
+            format!("every topic ({})", self.topics.len())
+        } else {
+            format!(
+                "{}: {}",
+                plural(self.topics.len() as u64, "topic"),
+                self.topics.join(", ")
+            )
+        };
+        format!("{bytes}: skipped {which}, {time}, on {topics}")
+    }
+}
+
+pub use crate::vocab::plural;
+
 /// A recording opened for review: what it says about itself and where its frames are.
 #[derive(Debug)]
 pub struct Recording {
@@ -91,6 +171,12 @@ pub struct Recording {
     pub finished: bool,
     /// Why reading stopped before a proper end, for an unfinished file.
     pub stopped: Option<String>,
+    /// Stretches of a damaged file that could not be read and were skipped, with what they
+    /// held; empty for an intact file.
+    pub damage: Vec<Damage>,
+    /// JSON channels by id, from anywhere in the file (its summary repeats them), so that
+    /// the chunks after a damaged first one still read.
+    json_channels: BTreeMap<u16, String>,
     /// Steps found (`/aircraft` messages); an unfinished file's last may be incomplete and
     /// is then left out of [`Recording::frames`].
     pub steps: u64,
@@ -112,7 +198,19 @@ impl Recording {
         let mut topics: BTreeMap<u16, String> = BTreeMap::new();
         let mut aircraft_ids = Vec::new();
         let (mut steps, mut messages, mut last_log_time) = (0u64, 0u64, None);
-        let mut stopped = None;
+        let mut json_channels: BTreeMap<u16, String> = BTreeMap::new();
+        // The summary's message counts per channel, when it was read: they tell how many
+        // steps a damage that runs to the end of the data took.
+        let mut statistics: Option<BTreeMap<u16, u64>> = None;
+        let mut skip_in_summary: Vec<bool> = Vec::new();
+        // Stretches of intact data between skipped bytes: the topics each carried and its first
+        // and last step, to say what a skip lost.
+        let mut segments = vec![Segment::default()];
+        let mut skips: Vec<Skip> = Vec::new();
+        let mut data_ended = false;
+        let mut last_aircraft: Vec<u8> = Vec::new();
+        let mut first_after_skip = false;
+        let mut segment_last_time = None;
         loop {
             match source.next_record() {
                 None => break,
@@ -123,16 +221,25 @@ impl Recording {
                         error,
                     })
                 }
-                Some(Err(SourceError::Mcap(error))) => {
-                    if matches!(error, McapError::BadMagic)
-                        || source.bytes < mcap::MAGIC.len() as u64
+                Some(Err(SourceError::Mcap(_))) => return Err(RecordingError::NotMcap { path: p }),
+                Some(Ok(Item::Skipped(skip))) => {
+                    if source.bytes < mcap::MAGIC.len() as u64
+                        && skip.from_byte <= 8
+                        && messages == 0
                     {
                         return Err(RecordingError::NotMcap { path: p });
                     }
-                    stopped = Some(error);
-                    break;
+                    if let Some(seg) = segments.last_mut() {
+                        seg.last = step_of(&last_aircraft, segment_last_time.take());
+                    }
+                    skips.push(skip);
+                    skip_in_summary.push(data_ended);
+                    segments.push(Segment::default());
+                    first_after_skip = true;
                 }
-                Some(Ok(record)) => match record {
+                Some(Ok(Item::Record(record))) => match record {
+                    Record::DataEnd(_) => data_ended = true,
+                    Record::Statistics(s) => statistics = Some(s.channel_message_counts),
                     Record::Metadata(m) if m.name == METADATA_NAME => metadata = Some(m.metadata),
                     Record::Attachment { header, data, .. } => {
                         // The last trace wins under either name (a live session attaches a
@@ -146,7 +253,7 @@ impl Recording {
                         attachments.insert(header.name, data.into_owned());
                     }
                     Record::Channel(c) => {
-                        if c.topic == AIRCRAFT_TOPIC {
+                        if c.topic == AIRCRAFT_TOPIC && !aircraft_ids.contains(&c.id) {
                             aircraft_ids.push(c.id);
                         }
                         if c.message_encoding != "json"
@@ -163,39 +270,64 @@ impl Recording {
                                 expected: "json".into(),
                             });
                         }
+                        if c.message_encoding == "json" {
+                            json_channels.insert(c.id, c.topic.clone());
+                        }
                         topics.insert(c.id, c.topic);
                     }
-                    Record::Message { header, .. } => {
+                    Record::Message { header, data } => {
                         messages += 1;
+                        if let Some(seg) = segments.last_mut() {
+                            seg.channels.insert(header.channel_id);
+                        }
                         if aircraft_ids.contains(&header.channel_id) {
                             steps += 1;
                             last_log_time = Some(header.log_time);
+                            segment_last_time = last_log_time;
+                            last_aircraft.clear();
+                            last_aircraft.extend_from_slice(&data);
+                            if first_after_skip {
+                                first_after_skip = false;
+                                if let Some(seg) = segments.last_mut() {
+                                    seg.first = step_of(&last_aircraft, last_log_time);
+                                }
+                            }
                         }
                     }
                     _ => {}
                 },
             }
         }
-        let finished = stopped.is_none();
-        let stopped_error = stopped;
-        let stopped = stopped_error
+        if let Some(seg) = segments.last_mut() {
+            seg.last = step_of(&last_aircraft, segment_last_time);
+        }
+        // A file closed properly ends with the magic: then any skip is damage done to it
+        // afterwards, not a session cut short.
+        let closed = source.ended || source.tail_is_magic();
+        let cut = match skips.last() {
+            Some(last) if !last.resumed && !closed => skips.pop(),
+            _ => None,
+        };
+        let finished = cut.is_none();
+        let stopped = cut
             .as_ref()
-            .map(|e| format!("after {} bytes: {e}", source.bytes));
+            .map(|c| format!("after {} bytes: {}", c.from_byte, c.error));
         if !topics.values().any(|t| t == REFERENCE_TOPIC) {
-            if let (Some(reason), 0) = (stopped_error, messages) {
+            let first_skip = cut.or_else(|| skips.into_iter().next());
+            if let (Some(skip), 0) = (first_skip, messages) {
                 // A file that ends early and one with garbage where its records should be
                 // are different faults for the user: say which.
-                return Err(if matches!(reason, McapError::UnexpectedEof) {
+                return Err(if matches!(skip.error, McapError::UnexpectedEof) {
                     RecordingError::Truncated {
                         path: p,
                         bytes: source.bytes,
-                        reason: reason.to_string(),
+                        reason: skip.error.to_string(),
                     }
                 } else {
                     RecordingError::Damaged {
                         path: p,
-                        bytes: source.bytes,
-                        error: reason,
+                        bytes: skip.from_byte,
+                        error: skip.error,
                     }
                 });
             }
@@ -311,6 +443,98 @@ impl Recording {
                 "the recording was not finished; read up to its last complete chunk ({reason})"
             ));
         }
+        let time_of = |log_time: u64| log_time.saturating_sub(start_unix_ns) as f64 * 1e-9;
+        let topic_names = |ids: &mut dyn Iterator<Item = &u16>| -> Vec<String> {
+            let mut names: Vec<String> = ids.filter_map(|id| topics.get(id).cloned()).collect();
+            names.sort();
+            names.dedup();
+            names
+        };
+        let recorded_topics = {
+            let mut all: BTreeSet<u16> = BTreeSet::new();
+            for seg in &segments {
+                all.extend(seg.channels.iter().copied());
+            }
+            topic_names(&mut all.iter()).len()
+        };
+        let mut damage = Vec::new();
+        for (i, skip) in skips.into_iter().enumerate() {
+            let (before, after) = (&segments[i], segments.get(i + 1));
+            let in_summary = skip_in_summary.get(i).copied().unwrap_or(false);
+            let resumed_steps = after.and_then(|a| a.first).filter(|_| skip.resumed);
+            let lost = if in_summary {
+                None
+            } else {
+                // The step after the last one kept, up to the one before the first kept.
+                let (first_k, from_t_s) = match before.last {
+                    Some((k, t)) => (k.map(|k| k + 1), time_of(t) + 1.0 / rate_hz),
+                    None => (Some(0), 0.0),
+                };
+                match resumed_steps {
+                    Some((k_after, t_after)) => {
+                        let to_t_s = time_of(t_after) - 1.0 / rate_hz;
+                        let count = match (first_k, k_after) {
+                            (Some(a), Some(b)) => b.saturating_sub(a),
+                            _ => ((to_t_s - from_t_s) * rate_hz).round().max(-1.0) as u64 + 1,
+                        };
+                        (count > 0).then_some(LostSteps {
+                            first_k,
+                            count: Some(count),
+                            from_t_s,
+                            to_t_s: Some(to_t_s),
+                        })
+                    }
+                    None => Some(LostSteps {
+                        first_k,
+                        count: None,
+                        from_t_s,
+                        to_t_s: None,
+                    }),
+                }
+            };
+            let topics_lost = match (&lost, after) {
+                (None, _) => Vec::new(),
+                (Some(_), Some(a)) if resumed_steps.is_some() => {
+                    topic_names(&mut before.channels.intersection(&a.channels))
+                }
+                (Some(_), _) => topic_names(&mut before.channels.iter()),
+            };
+            damage.push(Damage {
+                from_byte: skip.from_byte,
+                to_byte: skip.to_byte,
+                error: skip.error.to_string(),
+                steps: lost,
+                every_topic: topics_lost.len() == recorded_topics,
+                topics: topics_lost,
+            });
+        }
+        // A damage running to the end of the data took the steps the summary counts beyond
+        // those found and those the other damaged parts took.
+        let written_steps: Option<u64> = statistics
+            .as_ref()
+            .map(|counts| aircraft_ids.iter().filter_map(|id| counts.get(id)).sum());
+        if let Some(written) = written_steps {
+            let known: u64 = damage
+                .iter()
+                .filter_map(|d| d.steps.as_ref().and_then(|s| s.count))
+                .sum();
+            let open_ended: Vec<usize> = damage
+                .iter()
+                .enumerate()
+                .filter(|(_, d)| d.steps.as_ref().is_some_and(|s| s.count.is_none()))
+                .map(|(i, _)| i)
+                .collect();
+            if let [only] = open_ended[..] {
+                let count = written.saturating_sub(steps + known);
+                if let Some(lost) = damage[only].steps.as_mut() {
+                    lost.count = Some(count);
+                    lost.to_t_s = Some(lost.from_t_s + (count.max(1) - 1) as f64 / rate_hz);
+                }
+            }
+        }
+        for d in &damage {
+            notices.push(d.describe());
+        }
         let last_t_s =
             last_log_time.map_or(0.0, |t: u64| t.saturating_sub(start_unix_ns) as f64 * 1e-9);
         Ok(Recording {
@@ -328,6 +552,8 @@ impl Recording {
             algorithms,
             finished,
             stopped,
+            damage,
+            json_channels,
             steps,
             messages,
             last_t_s,
@@ -338,12 +564,20 @@ impl Recording {
     /// The recorded frames, in order, read from the file as they are needed. For an
     /// unfinished file the iterator ends quietly at the last complete step.
     pub fn frames(&self) -> Result<Frames, RecordingError> {
+        let channels = self
+            .json_channels
+            .iter()
+            .filter_map(|(id, topic)| {
+                role_of(topic, &self.algorithms).map(|role| (*id, (role, topic.clone())))
+            })
+            .collect();
         Ok(Frames {
             path: shown(&self.path),
             source: RecordSource::open(&self.path)?,
             algorithms: self.algorithms.clone(),
             finished: self.finished,
-            channels: BTreeMap::new(),
+            lenient: false,
+            channels,
             pending: None,
             next_k: 0,
             done: false,
@@ -356,9 +590,33 @@ impl Recording {
         Ok(JsonMessages {
             path: shown(&self.path),
             source: RecordSource::open(&self.path)?,
-            finished: self.finished,
-            channels: BTreeMap::new(),
+            channels: self.json_channels.clone(),
             done: false,
+        })
+    }
+
+    /// Steps lost to damage: `None` when none was, `Some(None)` when the damage runs to the
+    /// end of the file and their number is unknown.
+    pub fn lost_steps(&self) -> Option<Option<u64>> {
+        let lost: Vec<&LostSteps> = self
+            .damage
+            .iter()
+            .filter_map(|d| d.steps.as_ref())
+            .collect();
+        if lost.is_empty() {
+            return None;
+        }
+        Some(lost.iter().map(|l| l.count).sum())
+    }
+
+    /// One warning per damaged part, for the commands that read what is left.
+    pub fn damage_warnings(&self) -> impl Iterator<Item = String> + '_ {
+        self.damage.iter().map(move |d| {
+            format!(
+                "warning: {}: {}; reading the rest",
+                self.path.display(),
+                d.describe()
+            )
         })
     }
 
@@ -441,7 +699,6 @@ pub struct JsonMessage {
 pub struct JsonMessages {
     path: String,
     source: RecordSource,
-    finished: bool,
     channels: BTreeMap<u16, String>,
     done: bool,
 }
@@ -453,16 +710,16 @@ impl Iterator for JsonMessages {
         while !self.done {
             match self.source.next_record() {
                 None => self.done = true,
-                // Where an unfinished file's data end, as `Recording::open` found.
-                Some(Err(_)) if !self.finished => self.done = true,
                 Some(Err(e)) => {
                     self.done = true;
                     return Some(Err(self.source.error(&self.path, e)));
                 }
-                Some(Ok(Record::Channel(c))) if c.message_encoding == "json" => {
+                // What was skipped is in `Recording::damage`, as `Recording::open` found.
+                Some(Ok(Item::Skipped(_))) => {}
+                Some(Ok(Item::Record(Record::Channel(c)))) if c.message_encoding == "json" => {
                     self.channels.insert(c.id, c.topic);
                 }
-                Some(Ok(Record::Message { header, data })) => {
+                Some(Ok(Item::Record(Record::Message { header, data }))) => {
                     if let Some(topic) = self.channels.get(&header.channel_id) {
                         return Some(Ok(JsonMessage {
                             topic: topic.clone(),
@@ -484,6 +741,9 @@ pub struct Frames {
     source: RecordSource,
     algorithms: Vec<AlgorithmId>,
     finished: bool,
+    /// After skipped bytes: the steps either side of them may have lost some messages, and
+    /// are then left out rather than taken for a fault.
+    lenient: bool,
     channels: BTreeMap<u16, (Role, String)>,
     pending: Option<PendingStep>,
     next_k: usize,
@@ -649,7 +909,7 @@ impl Frames {
         self.done = true;
         let step = self.pending.take()?;
         match self.assemble(step) {
-            Err(RecordingError::IncompleteStep { .. }) if !self.finished => None,
+            Err(RecordingError::IncompleteStep { .. }) if !self.finished || self.lenient => None,
             other => Some(other),
         }
     }
@@ -665,13 +925,27 @@ impl Iterator for Frames {
         loop {
             let record = match self.source.next_record() {
                 None => return self.last(),
-                Some(Err(e)) if self.finished => {
+                Some(Err(e)) => {
                     self.done = true;
                     return Some(Err(self.source.error(&self.path, e)));
                 }
-                // Where an unfinished file's data ends, as `Recording::open` found.
-                Some(Err(_)) => return self.last(),
-                Some(Ok(record)) => record,
+                // Skipped bytes (damage, or where an unfinished file's data end), as
+                // `Recording::open` found: the step they cut is left out.
+                Some(Ok(Item::Skipped(_))) => {
+                    self.lenient = true;
+                    if let Some(step) = self.pending.take() {
+                        match self.assemble(step) {
+                            Err(RecordingError::IncompleteStep { .. }) => {}
+                            Ok(frame) => return Some(Ok(frame)),
+                            Err(e) => {
+                                self.done = true;
+                                return Some(Err(e));
+                            }
+                        }
+                    }
+                    continue;
+                }
+                Some(Ok(Item::Record(record))) => record,
             };
             match record {
                 Record::Channel(c) => {
@@ -703,8 +977,10 @@ impl Iterator for Frames {
                     }
                     if let Some(step) = ready {
                         let frame = self.assemble(step);
-                        if frame.is_err() {
-                            self.done = true;
+                        match frame {
+                            Err(RecordingError::IncompleteStep { .. }) if self.lenient => continue,
+                            Err(_) => self.done = true,
+                            Ok(_) => self.lenient = false,
                         }
                         return Some(frame);
                     }

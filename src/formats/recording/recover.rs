@@ -1,4 +1,4 @@
-//! Recovery: a finished copy of what an unfinished recording holds.
+//! Recovery: a finished copy of what an unfinished or damaged recording holds.
 
 use std::path::Path;
 
@@ -11,11 +11,16 @@ pub struct RecoverStats {
     pub input_finished: bool,
     /// Why the input's data ended early, when it did.
     pub input_stopped: Option<String>,
+    /// Stretches of the input that were damaged and skipped, with what they held.
+    pub damage: Vec<super::Damage>,
+    /// Steps of the input found intact (written unless a step was torn at a skip).
+    pub input_steps: u64,
     pub output: RecordingStats,
 }
 
-/// Writes a finished copy of what a (possibly unfinished) recording holds: metadata,
-/// attachments and every complete step, with the original log times.
+/// Writes a finished copy of what a (possibly unfinished or damaged) recording holds:
+/// metadata, attachments and every complete step, with the original log times; the steps in
+/// damaged chunks are skipped and listed in [`RecoverStats::damage`].
 pub fn recover(input: &Path, output: &Path) -> Result<RecoverStats, RecordingError> {
     let same = match (input.canonicalize(), output.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
@@ -48,6 +53,8 @@ pub fn recover(input: &Path, output: &Path) -> Result<RecoverStats, RecordingErr
     Ok(RecoverStats {
         input_finished: recording.finished,
         input_stopped: recording.stopped.clone(),
+        damage: recording.damage.clone(),
+        input_steps: recording.steps,
         output: recorder.finish()?,
     })
 }

@@ -72,8 +72,10 @@ fn the_platform_transform_follows_the_recorded_pose() {
             .iter()
             .map(|(t, p)| (*t, p))
             .collect();
-        // Drawn every 10th step (the recorder's SCENE_EVERY_STEPS), from the first.
-        assert_eq!(tfs.len(), frames.len().div_ceil(10));
+        // Drawn every 3rd step at 100 Hz (33 Hz, the recorder's scene_every_steps), from the
+        // first.
+        assert_eq!(super::writer::scene_every_steps(100.0), 3);
+        assert_eq!(tfs.len(), frames.len().div_ceil(3));
         let mut moved = 0.0f64;
         for (t_tf, tf) in tfs {
             let platform = platforms
@@ -203,9 +205,10 @@ fn the_scene_draws_plates_and_six_legs_for_each_algorithm() {
     assert_eq!(ids, ["base", "platform", "legs"]);
     let legs = &last.entities[2];
     assert_eq!(legs.frame_id, "mpc/base");
-    // Drawn every 10th step: the last scene is that of step 10 × (count − 1).
-    let k = 10 * (scenes.len() - 1);
-    assert!(k < frames.len() && frames.len() - k <= 10);
+    // Drawn every n-th step (3 at 100 Hz): the last scene is that of step n × (count − 1).
+    let every = super::writer::scene_every_steps(100.0) as usize;
+    let k = every * (scenes.len() - 1);
+    assert!(k < frames.len() && frames.len() - k <= every);
     let lane = frames[k].lane(AlgorithmId::Mpc).unwrap();
     for (i, line) in legs.lines.iter().enumerate() {
         let [a, b] = [&line.points[0], &line.points[1]];

@@ -29,10 +29,22 @@ const CHUNK_SIZE: u64 = 512 * 1024;
 /// Longest stretch of data, in wall time and in trace time, that a crash may lose.
 const FLUSH_INTERVAL: Duration = Duration::from_secs(1);
 const FLUSH_INTERVAL_S: f64 = 1.0;
-/// The Foxglove 3D topics (`/ALG/tf`, `/ALG/scene`) are written every this many steps (10 Hz
-/// at 100 Hz): they draw `/ALG/platform`, which keeps every step, and at every step they were
-/// a third of the file (docs/recordings.md, "Size").
-pub(super) const SCENE_EVERY_STEPS: u64 = 10;
+/// The Foxglove 3D topics (`/ALG/tf`, `/ALG/scene`) are written at this rate or faster: a
+/// film's rate, so that the 3D panel plays the platforms back smoothly. They draw
+/// `/ALG/platform`, which keeps every step, and at every step they were a third of the file
+/// (docs/recordings.md, "Size").
+pub(super) const SCENE_MIN_HZ: f64 = 30.0;
+
+/// Every how many steps the 3D topics are written at `rate_hz`: as few as keep them at
+/// [`SCENE_MIN_HZ`] or faster (every 3rd step, 33 Hz, at 100 Hz; every step at 30 Hz or
+/// less).
+pub(super) fn scene_every_steps(rate_hz: f64) -> u64 {
+    if rate_hz.is_finite() && rate_hz > SCENE_MIN_HZ {
+        ((rate_hz / SCENE_MIN_HZ).floor() as u64).max(1)
+    } else {
+        1
+    }
+}
 /// zstd level of the chunks and of the trace attachment (docs/recordings.md, "Size per
 /// minute"): 20 % smaller than level 1 for 0.2 s more of a 60 s flight's writing; levels
 /// 10–15 are no smaller, 16 and above (btopt) 17 % smaller again but 7× slower, which would
@@ -103,6 +115,8 @@ pub struct Recorder {
     /// Builds Foxglove's 3D topics (`/ALG/tf`, `/ALG/scene`, `/events`); `None` when the
     /// attached profile does not load, so that the rigs' geometry is unknown.
     scene: Option<SceneBuilder>,
+    /// Every how many steps the 3D topics are written ([`scene_every_steps`]).
+    scene_every: u64,
 }
 
 impl Recorder {
@@ -114,11 +128,54 @@ impl Recorder {
         Self::create_with(path, meta, start_ns, session_metadata(meta, start_ns))
     }
 
+    /// [`Recorder::create`] for a session whose trace is the file `trace` (`meta.trace_csv`
+    /// is not read): the trace is compressed and hashed in one pass through a scratch file
+    /// beside the recording and attached from it, so that a trace of any length is attached
+    /// without being held in memory (a 10 h trace at 100 Hz is 340 MB of text).
+    pub fn create_with_trace_file(
+        path: &Path,
+        meta: &RecordingMeta,
+        trace: &Path,
+    ) -> Result<Recorder, RecordingError> {
+        let mut zst_name = path.as_os_str().to_owned();
+        zst_name.push(".trace.zst");
+        let zst_path = PathBuf::from(zst_name);
+        let made = compress_and_hash(trace, &zst_path)
+            .map_err(|error| RecordingError::Io {
+                path: trace.display().to_string(),
+                action: "compress the trace for the recording",
+                error,
+            })
+            .and_then(|sha| {
+                let start_ns = SystemTime::now()
+                    .duration_since(UNIX_EPOCH)
+                    .map_or(1, |d| d.as_nanos().min(u128::from(u64::MAX / 2)) as u64);
+                let mut metadata = session_metadata(meta, start_ns);
+                metadata.insert("trace_sha256".into(), sha);
+                Self::create_from(path, meta, start_ns, metadata, Some(&zst_path))
+            });
+        // The compressed copy is a scratch file whatever happened.
+        let _ = std::fs::remove_file(&zst_path);
+        made
+    }
+
     pub(super) fn create_with(
         path: &Path,
         meta: &RecordingMeta,
         start_ns: u64,
         metadata: BTreeMap<String, String>,
+    ) -> Result<Recorder, RecordingError> {
+        Self::create_from(path, meta, start_ns, metadata, None)
+    }
+
+    /// Creates the file and writes the metadata and attachments: the trace from
+    /// `meta.trace_csv`, or, given `trace_zst`, streamed from that compressed file.
+    fn create_from(
+        path: &Path,
+        meta: &RecordingMeta,
+        start_ns: u64,
+        metadata: BTreeMap<String, String>,
+        trace_zst: Option<&Path>,
     ) -> Result<Recorder, RecordingError> {
         let file = File::create(path).map_err(|error| RecordingError::Io {
             path: shown(path),
@@ -162,22 +219,25 @@ impl Recorder {
                 metadata,
             })
             .map_err(wr)?;
-        let trace = zstd::bulk::compress(meta.trace_csv.as_bytes(), ZSTD_LEVEL as i32).map_err(
-            |error| RecordingError::Io {
-                path: shown(path),
-                action: "compress the trace attachment",
-                error,
-            },
-        )?;
+        let trace = match trace_zst {
+            Some(_) => Vec::new(),
+            None => zstd::bulk::compress(meta.trace_csv.as_bytes(), ZSTD_LEVEL as i32).map_err(
+                |error| RecordingError::Io {
+                    path: shown(path),
+                    action: "compress the trace attachment",
+                    error,
+                },
+            )?,
+        };
         // The profile and the sidecar stay text: a few KB, readable with any MCAP tool.
-        let mut attachments = vec![
-            (
-                PROFILE_ATTACHMENT,
-                "application/toml",
-                meta.profile_toml.as_bytes(),
-            ),
-            (TRACE_ZSTD_ATTACHMENT, ZSTD_MEDIA_TYPE, &trace[..]),
-        ];
+        let mut attachments = vec![(
+            PROFILE_ATTACHMENT,
+            "application/toml",
+            meta.profile_toml.as_bytes(),
+        )];
+        if trace_zst.is_none() {
+            attachments.push((TRACE_ZSTD_ATTACHMENT, ZSTD_MEDIA_TYPE, &trace[..]));
+        }
         if let Some(sidecar) = &meta.trace_sidecar {
             attachments.push((SIDECAR_ATTACHMENT, "application/json", sidecar.as_bytes()));
         }
@@ -208,7 +268,11 @@ impl Recorder {
             buf: Vec::with_capacity(1024),
             metadata: metadata_kept,
             scene: None,
+            scene_every: scene_every_steps(meta.rate_hz),
         };
+        if let Some(zst) = trace_zst {
+            recorder.attach_file(zst)?;
+        }
         // Schemas first, then channels, JSON before Foxglove's: the order recordings have
         // always had.
         let session = channels::session(&meta.algorithms);
@@ -339,7 +403,7 @@ impl Recorder {
             self.write_json(channel, log_time, &message)?;
         }
         if let Some(mut scene) = self.scene.take() {
-            let draw = self.steps.is_multiple_of(SCENE_EVERY_STEPS);
+            let draw = self.steps.is_multiple_of(self.scene_every);
             let step = scene.step(frame, log_time);
             let written = self.write_scene(step.by_channel(draw), log_time);
             self.scene = Some(scene);
@@ -463,11 +527,10 @@ impl Recorder {
             action,
             error,
         };
-        let mut file =
-            File::open(zst_path).map_err(|e| failed("open the compressed input log", e))?;
+        let mut file = File::open(zst_path).map_err(|e| failed("open the compressed trace", e))?;
         let len = file
             .metadata()
-            .map_err(|e| failed("read the compressed input log", e))?
+            .map_err(|e| failed("read the compressed trace", e))?
             .len();
         let ns = self
             .start_ns
@@ -489,7 +552,7 @@ impl Recorder {
         loop {
             let n = file
                 .read(&mut chunk)
-                .map_err(|e| failed("read the compressed input log", e))?;
+                .map_err(|e| failed("read the compressed trace", e))?;
             if n == 0 {
                 break;
             }

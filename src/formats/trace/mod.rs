@@ -1,4 +1,4 @@
-//! Flight traces as CSV (DESIGN §2), JSBSim's own CSV output, and JSON sidecars.
+//! Flight traces as CSV (docs/design.md §2), JSBSim's own CSV output, and JSON sidecars.
 //!
 //! Parsed by hand rather than with the `csv` crate: every refusal must name the line and the
 //! column as an editor shows them, a row must be checked for length before it is split, and
@@ -32,8 +32,20 @@ pub use sidecar::*;
 /// Longest line read. A CSV row of ten numbers is under 200 bytes and JSBSim's widest
 /// header a few kB; a longer line is a binary or a one-line file, refused before it is split.
 pub const MAX_LINE_BYTES: usize = 64 * 1024;
-/// Largest trace file read: 256 MiB is hours at 100 Hz; beyond it the file is not a trace.
+/// Largest trace file read into memory (`compare`, `tune`): 256 MiB is about 7.5 h at 100 Hz.
+/// `play` streams its trace and has no such limit. Raised with [`MAX_TRACE_BYTES_VAR`].
 pub const MAX_TRACE_BYTES: u64 = 256 * 1024 * 1024;
+/// The environment variable that sets another [`MAX_TRACE_BYTES`] (bytes).
+pub const MAX_TRACE_BYTES_VAR: &str = "HEXCUE_MAX_TRACE_BYTES";
+
+/// The largest trace file read into memory: [`MAX_TRACE_BYTES_VAR`] when set to a number of
+/// bytes, else [`MAX_TRACE_BYTES`].
+pub fn max_trace_bytes() -> u64 {
+    std::env::var(MAX_TRACE_BYTES_VAR)
+        .ok()
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or(MAX_TRACE_BYTES)
+}
 /// Largest sidecar read.
 const MAX_SIDECAR_BYTES: u64 = 1024 * 1024;
 /// Highest rate a trace may be resampled to (Hz).
@@ -148,7 +160,12 @@ fn open_file(path: &Path, source_name: &str) -> Result<BufReader<File>, TraceErr
 }
 
 /// Reads at most `limit` bytes of a file as UTF-8 text.
-fn read_text(path: &Path, source_name: &str, limit: u64) -> Result<String, TraceError> {
+fn read_text(
+    path: &Path,
+    source_name: &str,
+    limit: u64,
+    beyond: &str,
+) -> Result<String, TraceError> {
     let io = |error| TraceError::Io {
         source_name: source_name.to_string(),
         error,
@@ -160,7 +177,7 @@ fn read_text(path: &Path, source_name: &str, limit: u64) -> Result<String, Trace
         return Err(TraceError::File {
             source_name: source_name.to_string(),
             kind: TraceErrorKind::TooLarge,
-            message: format!("larger than {limit} bytes; expected a trace CSV"),
+            message: format!("larger than {limit} bytes{beyond}"),
         });
     }
     String::from_utf8(bytes).map_err(|e| {
@@ -190,7 +207,12 @@ fn read_text(path: &Path, source_name: &str, limit: u64) -> Result<String, Trace
 /// is a notice, not an error: the data are what matter.
 pub fn load_trace(path: &Path, target_rate_hz: f64) -> Result<LoadedTrace, TraceError> {
     let source_name = path.display().to_string();
-    let text = read_text(path, &source_name, MAX_TRACE_BYTES)?;
+    let limit = max_trace_bytes();
+    let beyond = format!(
+        ", the most read into memory (`compare` and `tune` hold their traces; `play` streams a \
+         trace of any size); set {MAX_TRACE_BYTES_VAR} to a larger number of bytes to allow it"
+    );
+    let text = read_text(path, &source_name, limit, &beyond)?;
     let name = path
         .file_stem()
         .map_or_else(|| "trace".to_string(), |s| s.to_string_lossy().into_owned());

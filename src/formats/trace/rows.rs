@@ -24,7 +24,7 @@ pub(super) fn parse_measured(
     target_rate_hz: f64,
 ) -> Result<(Trace, f64), TraceError> {
     let open = || Ok(text.as_bytes());
-    let plan = scan(&open, source_name, name, target_rate_hz)?;
+    let plan = scan(&open, source_name, name, target_rate_hz, MAX_TRACE_SAMPLES)?;
     let mut grid = GridSamples::new(open()?, &plan)?;
     let mut samples = Vec::with_capacity(plan.len);
     while let Some(s) = grid.next_sample()? {
@@ -135,6 +135,9 @@ pub(super) struct TraceRows<R> {
     /// Time and line of the previous row.
     pub(super) prev: Option<(f64, usize)>,
     pub(super) rows: usize,
+    /// Most rows read: [`MAX_TRACE_SAMPLES`] where the trace is held in memory, none where it
+    /// is streamed.
+    pub(super) max_rows: usize,
 }
 
 impl<R: BufRead> TraceRows<R> {
@@ -155,6 +158,7 @@ impl<R: BufRead> TraceRows<R> {
             header_line,
             prev: None,
             rows: 0,
+            max_rows: MAX_TRACE_SAMPLES,
         })
     }
 
@@ -167,13 +171,18 @@ impl<R: BufRead> TraceRows<R> {
         let Some((line_no, line)) = self.lines.next_line()? else {
             return Ok(None);
         };
-        if self.rows >= MAX_TRACE_SAMPLES {
+        if self.rows >= self.max_rows {
             return Err(ctx.at(
                 line_no,
                 1,
                 None,
                 TraceErrorKind::TooManySamples,
-                format!("more than {MAX_TRACE_SAMPLES} rows; expected a shorter trace"),
+                format!(
+                    "more than {} rows, the most a trace held in memory may have (11 h at \
+                     100 Hz; `compare` and `tune` hold their traces); expected a shorter trace, \
+                     or `hexcue play`, which streams a trace of any length",
+                    self.max_rows
+                ),
             ));
         }
         let layout = &self.layout;
@@ -224,6 +233,9 @@ pub struct TracePlan {
     pub notices: Vec<String>,
     /// The sidecar, when one was found and read.
     pub info: Option<TraceInfo>,
+    /// Most samples on the grid and rows in the file: [`MAX_TRACE_SAMPLES`] for a trace held
+    /// in memory, `usize::MAX` for one streamed.
+    pub(super) max_samples: usize,
 }
 
 /// First pass: every row checked, and the statistics the grid needs. Memory is a map of the
@@ -233,6 +245,7 @@ pub(super) fn scan<R: BufRead>(
     source_name: &str,
     name: &str,
     target_rate_hz: f64,
+    max_samples: usize,
 ) -> Result<TracePlan, TraceError> {
     let ctx = Ctx { source_name };
     if !(target_rate_hz.is_finite() && target_rate_hz > 0.0 && target_rate_hz <= MAX_TARGET_RATE_HZ)
@@ -245,6 +258,7 @@ pub(super) fn scan<R: BufRead>(
         ));
     }
     let mut rows = TraceRows::new(open()?, source_name)?;
+    rows.max_rows = max_samples;
     let mut steps: std::collections::BTreeMap<u64, usize> = std::collections::BTreeMap::new();
     let (mut min_step, mut max_step) = (f64::INFINITY, 0.0f64);
     let (mut first, mut last) = (None::<f64>, 0.0);
@@ -307,7 +321,9 @@ pub(super) fn scan<R: BufRead>(
                         Some(&time_header),
                         TraceErrorKind::Gap,
                         format!(
-                            "gap of {gap} s before this row (line {pl} is at {pt} s, the median step is {median_step} s); expected no step longer than {MAX_GAP_FACTOR}× the median"
+                            "gap of {} s before this row (line {pl} is at {pt} s, the median step is {} s); expected no step longer than {MAX_GAP_FACTOR}× the median",
+                            seconds(gap),
+                            seconds(median_step),
                         ),
                     ));
                 }
@@ -320,7 +336,12 @@ pub(super) fn scan<R: BufRead>(
     }
     let duration_s = last - t0;
     let last_k = (duration_s * target_rate_hz + GRID_TOLERANCE_STEPS).floor();
-    if last_k + 1.0 > MAX_TRACE_SAMPLES as f64 {
+    // Streamed, a trace may be as long as it likes, but not a few rows stretched over a huge
+    // span: beyond the in-memory limit, a grid of more than MAX_UPSAMPLING samples a row is
+    // refused (two rows a million seconds apart would be 10^8 interpolated samples).
+    let sparse =
+        last_k + 1.0 > MAX_TRACE_SAMPLES as f64 && last_k + 1.0 > MAX_UPSAMPLING * n as f64;
+    if last_k + 1.0 > max_samples as f64 || sparse {
         let e = ResampleError::TooManySamples {
             duration_s,
             rate_hz: target_rate_hz,
@@ -362,6 +383,7 @@ pub(super) fn scan<R: BufRead>(
         t0,
         on_grid,
         measured_rate_hz: 1.0 / median_step,
+        max_samples,
         notices,
         info: None,
     })
@@ -387,7 +409,10 @@ pub struct GridSamples<R> {
 impl<R: BufRead> GridSamples<R> {
     pub fn new(reader: R, plan: &TracePlan) -> Result<Self, TraceError> {
         Ok(GridSamples {
-            rows: TraceRows::new(reader, &plan.source_name)?,
+            rows: TraceRows {
+                max_rows: plan.max_samples,
+                ..TraceRows::new(reader, &plan.source_name)?
+            },
             rate_hz: plan.rate_hz,
             len: plan.len,
             rows_total: plan.rows,
@@ -505,6 +530,10 @@ impl<R: BufRead + std::io::Seek> GridSamples<R> {
     }
 }
 
+/// Most grid samples a row of a streamed trace may become once the grid is beyond the
+/// in-memory limit ([`MAX_TRACE_SAMPLES`]): a 1 Hz log resampled to 100 Hz is 100.
+const MAX_UPSAMPLING: f64 = 1000.0;
+
 /// Checks a trace file row by row without holding it, and reads its sidecar: the plan to
 /// stream it with [`open_grid`]. Memory does not grow with the file's length.
 pub fn scan_trace_file(path: &Path, target_rate_hz: f64) -> Result<TracePlan, TraceError> {
@@ -512,21 +541,10 @@ pub fn scan_trace_file(path: &Path, target_rate_hz: f64) -> Result<TracePlan, Tr
     let name = path
         .file_stem()
         .map_or_else(|| "trace".to_string(), |s| s.to_string_lossy().into_owned());
-    let size = std::fs::metadata(path)
-        .map_err(|error| TraceError::Io {
-            source_name: source_name.clone(),
-            error,
-        })?
-        .len();
-    if size > MAX_TRACE_BYTES {
-        return Err(TraceError::File {
-            source_name,
-            kind: TraceErrorKind::TooLarge,
-            message: format!("larger than {MAX_TRACE_BYTES} bytes; expected a trace CSV"),
-        });
-    }
+    // No cap on the file's size or length: nothing here grows with it (docs/design.md §9).
+    // A file that is not a trace is refused by its first lines.
     let open = || open_file(path, &source_name);
-    let mut plan = scan(&open, &source_name, &name, target_rate_hz)?;
+    let mut plan = scan(&open, &source_name, &name, target_rate_hz, usize::MAX)?;
     let mut trace = Trace {
         name: name.clone(),
         rate_hz: target_rate_hz,
@@ -664,4 +682,33 @@ pub(super) fn parse_row(
         angular_velocity_radps: Vector3::new(values[4], values[5], values[6]),
         attitude_rad: Vector3::new(values[7], values[8], values[9]),
     })
+}
+
+/// A duration computed from the trace's times, to six significant digits with no trailing
+/// zeros: a difference of two times read from text is `0.009999999999999787`, not `0.01`.
+fn seconds(s: f64) -> String {
+    if !s.is_finite() || s == 0.0 {
+        return format!("{s}");
+    }
+    let decimals = (5 - s.abs().log10().floor() as i32).clamp(0, 12) as usize;
+    let text = format!("{s:.decimals$}");
+    if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        text
+    }
+}
+
+#[cfg(test)]
+mod seconds_tests {
+    use super::seconds;
+
+    #[test]
+    fn durations_read_as_written() {
+        assert_eq!(seconds(0.009999999999999787), "0.01");
+        assert_eq!(seconds(2.5000000000001), "2.5");
+        assert_eq!(seconds(120.0), "120");
+        assert_eq!(seconds(0.0012345678), "0.00123457");
+        assert_eq!(seconds(12345.678), "12345.7");
+    }
 }

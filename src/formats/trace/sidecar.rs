@@ -8,7 +8,12 @@ pub(super) fn read_sidecar(path: &Path, trace: &mut Trace, measured_rate_hz: f64
     let sidecar = path.with_extension("json");
     if sidecar != path {
         let sidecar_name = sidecar.display().to_string();
-        match read_text(&sidecar, &sidecar_name, MAX_SIDECAR_BYTES) {
+        match read_text(
+            &sidecar,
+            &sidecar_name,
+            MAX_SIDECAR_BYTES,
+            "; expected a JSON sidecar",
+        ) {
             Err(TraceError::Io { error, .. }) if error.kind() == std::io::ErrorKind::NotFound => {}
             Err(e) => trace.notices.push(format!("sidecar ignored: {e}")),
             Ok(json) => match parse_sidecar(&json, &sidecar_name) {

@@ -1,4 +1,4 @@
-//! Model predictive motion cueing (DESIGN §5), without terminal conditions (`mpc`) and with
+//! Model predictive motion cueing (docs/design.md §5), without terminal conditions (`mpc`) and with
 //! them (COTC), as one type. The model, the QP and the choices behind them: `docs/mpc.md`.
 //!
 //! Each step: bring the prediction state to the applied platform state, predict the aircraft's
@@ -168,7 +168,7 @@ fn finite_or_zero(v: f64) -> f64 {
     }
 }
 
-/// Roll and pitch whose gravity gives Δf_y and Δf_x (DESIGN §1): φ = −asin(Δf_y/g),
+/// Roll and pitch whose gravity gives Δf_y and Δf_x (docs/design.md §1): φ = −asin(Δf_y/g),
 /// θ = asin(Δf_x/g). Beyond 1 g no tilt can: ±π/2 then makes COTC infeasible, as it should be.
 pub fn terminal_tilt(delta_f_mps2: &Vector3<f64>) -> [f64; 2] {
     let tilt = |f: f64| (finite_or_zero(f) / crate::G_MPS2).clamp(-1.0, 1.0).asin();

@@ -420,7 +420,7 @@ fn failed_solve_follows_the_plan_then_washes_out() {
     assert_eq!(mpc.state().mode, Mode::Fallback);
 }
 
-/// Diagonal surge and sway together: x = y = 1.7 m would need a 4.8 m leg (DESIGN §3), so
+/// Diagonal surge and sway together: x = y = 1.7 m would need a 4.8 m leg (docs/design.md §3), so
 /// here the leg constraints, not the per-DoF boxes, must hold the platform back.
 #[test]
 fn leg_constraints_hold_a_diagonal_excursion_within_the_margin() {
