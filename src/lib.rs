@@ -8,6 +8,7 @@
 //! `docs/design.md`.
 
 pub(crate) mod app;
+pub mod bound;
 pub mod channels;
 pub(crate) mod cli;
 pub mod compare;
