@@ -194,6 +194,10 @@ pub struct PlayArgs {
     /// of holding the current sample as a live simulator must. Overrides `[mpc] reference`.
     #[arg(long)]
     pub preview: bool,
+    /// With --headless: compute the yardstick (docs/bound.md) and show each algorithm's error
+    /// above the bound (its cueable error) per channel; the summary gains a `bound` object.
+    #[arg(long, requires = "headless")]
+    pub bound: bool,
     /// Serve the session live to Foxglove over its WebSocket protocol, on ADDR (default
     /// 127.0.0.1:8765; port 0 takes a free one). With --headless the run is paced at --speed
     /// (real time by default) so that a viewer can follow. See docs/foxglove.md.

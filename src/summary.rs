@@ -31,6 +31,9 @@ pub struct Summary {
     /// A live session's real-time record (`hexcue live`); absent for a playback.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub live: Option<LiveSummary>,
+    /// The yardstick (`play --headless --bound`, docs/bound.md); absent unless asked for.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bound: Option<crate::bound::Bound>,
 }
 
 /// The input axes [`Summary::input_clipped`] counts, in the order of `cue_sample`.
@@ -344,6 +347,7 @@ impl SummaryBuilder {
                 .map(|(axis, n)| (axis.to_string(), n))
                 .collect(),
             live: None,
+            bound: None,
         }
     }
 }

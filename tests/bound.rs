@@ -98,3 +98,48 @@ fn bound_refuses_an_unknown_channel_naming_it() {
     assert!(!out.status.success());
     assert!(stderr(&out).contains("heave"), "{}", stderr(&out));
 }
+
+#[test]
+fn play_headless_bound_adds_the_bound_object_and_the_cueable_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let summary = dir.path().join("s.json");
+    let trace = repo().join("recordings/traces/landing.csv");
+    let out = hexcue(&[
+        "play",
+        "--headless",
+        "--bound",
+        "--algorithms",
+        "cwf",
+        "--trace",
+        trace.to_str().unwrap(),
+        "--summary",
+        summary.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        common::stdout(&out).contains("cueable"),
+        "{}",
+        common::stdout(&out)
+    );
+    let j = read_json(&summary);
+    let b = j["bound"].as_object().unwrap();
+    let keys: Vec<&str> = b.keys().map(|k| k.as_str()).collect();
+    assert_eq!(keys, ["achieved", "dominance", "lower"]);
+    let lower = &j["bound"]["lower"];
+    assert_eq!(lower["channel"].as_object().unwrap().len(), 6);
+    let mut achieved: Vec<&str> = j["bound"]["achieved"]
+        .as_object()
+        .unwrap()
+        .keys()
+        .map(|k| k.as_str())
+        .collect();
+    achieved.sort();
+    assert_eq!(
+        achieved,
+        ["error", "leg_violations", "limiter_fraction", "total"]
+    );
+    let cwf = j["algorithms"]["cwf"]["score_terms"]["error"]["fx"]
+        .as_f64()
+        .unwrap();
+    assert!(lower["channel"]["fx"].as_f64().unwrap() <= cwf);
+}

@@ -81,6 +81,7 @@ mod tests {
                 algorithms,
                 input_clipped: BTreeMap::new(),
                 live: None,
+                bound: None,
             },
             description: Some("a test".into()),
         }
