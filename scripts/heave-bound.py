@@ -75,7 +75,8 @@ def main():
         rows.append(np.hstack([-sign * below / tau * perceive, -eye]))
         rhs.append(-sign * below / tau * ref)
         rows.append(np.hstack([-sign / tau * perceive, -eye]))
-        rhs.append(-sign / tau * ref - (1 - below))
+        # e ≥ ±u − (1 − below): the constant sits on the right with a plus sign.
+        rhs.append(-sign / tau * ref + (1 - below))
     for m, lim in ((pos, heave["excursion_m"]), (vel, heave["velocity_mps"])):
         rows += [np.hstack([m, zero]), np.hstack([-m, zero])]
         rhs += [np.full(n, lim), np.full(n, lim)]

@@ -50,6 +50,9 @@ pub enum Command {
     /// Tune one algorithm's keys against the cueing score on a set of traces (CMA-ES) and
     /// write the tuned profile (docs/tuning.md).
     Tune(TuneArgs),
+    /// The yardstick: the best motion any platform could give on a flight (the whole future
+    /// known, within the profile's limits), against the algorithms' errors (docs/bound.md).
+    Bound(BoundArgs),
     /// Export a recording to CSV for MATLAB and spreadsheets: one file per topic, one topic,
     /// or chosen fields side by side (docs/recordings.md).
     Export(ExportArgs),
@@ -192,6 +195,10 @@ pub struct PlayArgs {
     /// of holding the current sample as a live simulator must. Overrides `[mpc] reference`.
     #[arg(long)]
     pub preview: bool,
+    /// With --headless: compute the yardstick (docs/bound.md) and show each algorithm's error
+    /// above the bound (its cueable error) per channel; the summary gains a `bound` object.
+    #[arg(long, requires = "headless")]
+    pub bound: bool,
     /// Serve the session live to Foxglove over its WebSocket protocol, on ADDR (default
     /// 127.0.0.1:8765; port 0 takes a free one). With --headless the run is paced at --speed
     /// (real time by default) so that a viewer can follow. See docs/foxglove.md.
@@ -219,6 +226,51 @@ pub struct CompareArgs {
     /// Overwrite the --out file if it exists.
     #[arg(long)]
     pub force: bool,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct BoundArgs {
+    /// The flight trace (CSV, DESIGN §2).
+    #[arg(long, value_name = "FILE")]
+    pub trace: PathBuf,
+    /// Simulator profile (TOML). Default: the embedded profiles/full-flight.toml.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+    /// Channels whose own optimum (the channel served alone) is computed, comma-separated:
+    /// fx, fy, fz, wx, wy, wz. The joint optimum is always computed.
+    #[arg(
+        long,
+        value_name = "LIST",
+        value_delimiter = ',',
+        default_value = "fx,fy,fz,wx,wy,wz"
+    )]
+    pub channels: Vec<String>,
+    /// Algorithms whose errors are set against the bound (the CWF always runs: the
+    /// dominance test needs it).
+    #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = DEFAULT_ALGORITHMS)]
+    pub algorithms: Vec<String>,
+    /// Write the figures as JSON to this file (refused if it exists, unless --force).
+    #[arg(long, value_name = "FILE.json")]
+    pub json: Option<PathBuf>,
+    /// Overwrite the --json file if it exists.
+    #[arg(long)]
+    pub force: bool,
+}
+
+/// The channels named in a list (fx, fy, fz, wx, wy, wz), as a mask in that order.
+pub fn parse_channels(list: &[String]) -> Result<[bool; 6]> {
+    let mut mask = [false; 6];
+    for name in list {
+        let key = name.trim().to_ascii_lowercase();
+        match crate::vocab::Channel::ALL
+            .iter()
+            .position(|c| c.key() == key)
+        {
+            Some(i) => mask[i] = true,
+            None => bail!("--channels: unknown channel {name:?} (expected fx, fy, fz, wx, wy, wz)"),
+        }
+    }
+    Ok(mask)
 }
 
 #[derive(Args, Debug)]

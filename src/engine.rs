@@ -96,26 +96,42 @@ impl StepContext<'_> {
         let raw = lane.algorithm.step(&input);
         let limited = lane.limiter.apply(&raw);
         let step_time_us = started.elapsed().as_secs_f64() * 1e6;
-        let cmd = limited.command;
-        let head = head_motion(&cmd.pose, &cmd.velocity, &cmd.acceleration, self.eye_m);
-        let perceived = lane
-            .vestibular
-            .step(&head.delta_f_mps2, &head.angular_velocity_radps);
-        let length_m = self.stewart.leg_lengths(&cmd.pose);
+        let (perceived, legs) = perceive_command(
+            &limited.command,
+            self.stewart,
+            self.eye_m,
+            &mut lane.vestibular,
+        );
         LaneFrame {
             id: lane.algorithm.id(),
-            command: cmd,
+            command: limited.command,
             perceived,
-            legs: Legs {
-                length_m,
-                velocity_mps: self.stewart.leg_velocities(&cmd.pose, &cmd.velocity),
-                margin_m: self.stewart.margins(&length_m),
-            },
+            legs,
             state: lane.algorithm.state(),
             limiter_active: limited.acted,
             step_time_us,
         }
     }
+}
+
+/// What the pilot perceives of a limited command, and the legs it takes: the lane's judgement
+/// of every algorithm, shared with the yardstick's replay (`crate::bound`) so that a replayed
+/// motion is judged by exactly the same code.
+pub fn perceive_command(
+    cmd: &PlatformCommand,
+    stewart: &Stewart,
+    eye_m: &Vector3<f64>,
+    vestibular: &mut Vestibular,
+) -> (Perceived, Legs) {
+    let head = head_motion(&cmd.pose, &cmd.velocity, &cmd.acceleration, eye_m);
+    let perceived = vestibular.step(&head.delta_f_mps2, &head.angular_velocity_radps);
+    let length_m = stewart.leg_lengths(&cmd.pose);
+    let legs = Legs {
+        length_m,
+        velocity_mps: stewart.leg_velocities(&cmd.pose, &cmd.velocity),
+        margin_m: stewart.margins(&length_m),
+    };
+    (perceived, legs)
 }
 
 /// [`Engine::snapshot`]: the position, the reference's perception model and each lane's

@@ -9,6 +9,7 @@
 
 pub mod actuators;
 pub(crate) mod app;
+pub mod bound;
 pub mod channels;
 pub(crate) mod cli;
 pub mod compare;

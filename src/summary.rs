@@ -36,6 +36,9 @@ pub struct Summary {
     /// A live session's real-time record (`hexcue live`); absent for a playback.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub live: Option<LiveSummary>,
+    /// The yardstick (`play --headless --bound`, docs/bound.md); absent unless asked for.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bound: Option<crate::bound::Bound>,
 }
 
 /// The input axes [`Summary::input_clipped`] counts, in the order of `cue_sample`.
@@ -427,6 +430,7 @@ impl SummaryBuilder {
                 .map(|(c, j)| (c.key().to_string(), j))
                 .collect(),
             live: None,
+            bound: None,
         }
     }
 }

@@ -186,6 +186,82 @@ pub fn format_table(s: &Summary) -> String {
         out.push_str(&format!("live: {}\n", realtime_line(l)));
         out.push_str(&format!("live: {}\n", transitions_line(&l.transitions)));
     }
+    if let Some(b) = &s.bound {
+        out.push_str(&bound_lines(s, b));
+    }
+    out
+}
+
+/// Per algorithm and channel the error above the bound's `lower` (the cueable error), and the
+/// share of the CWF's cueable error each other algorithm removes (docs/bound.md).
+fn bound_lines(s: &Summary, b: &crate::bound::Bound) -> String {
+    let mut out = format!(
+        "\nbound: lower {:.4} (joint), achieved {:.4} (limiter {:.2} %, {} leg violations); \
+         dominance over the CWF {}{}\n",
+        b.lower.total,
+        b.achieved.total,
+        100.0 * b.achieved.limiter_fraction,
+        b.achieved.leg_violations,
+        if b.dominance.possible {
+            "possible"
+        } else {
+            "not possible"
+        },
+        if b.dominance.binding.is_empty() {
+            String::new()
+        } else {
+            format!(" (binding: {})", b.dominance.binding.join(", "))
+        }
+    );
+    out.push_str(&format!("{:<6} {:>8}", "cueable", "total"));
+    for c in Channel::ALL {
+        out.push_str(&format!(" {:>8}", c.key()));
+    }
+    out.push('\n');
+    let cueable = |name: &str| -> Option<(f64, Vec<f64>)> {
+        let alg = s.algorithms.get(name)?;
+        let total = alg.score_terms.error.values().sum::<f64>() - b.lower.total;
+        let per = Channel::ALL
+            .iter()
+            .map(|c| {
+                alg.score_terms.error.get(c.key()).copied().unwrap_or(0.0)
+                    - b.lower.channel.get(c.key()).copied().unwrap_or(0.0)
+            })
+            .collect();
+        Some((total, per))
+    };
+    for name in s.algorithms.keys() {
+        if let Some((total, per)) = cueable(name) {
+            out.push_str(&format!("{name:<6} {total:>8.4}"));
+            for v in per {
+                out.push_str(&format!(" {v:>8.4}"));
+            }
+            out.push('\n');
+        }
+    }
+    if let Some((cwf_total, cwf_per)) = cueable("cwf") {
+        for name in s.algorithms.keys().filter(|n| *n != "cwf") {
+            if let Some((total, per)) = cueable(name) {
+                let share = |c: f64, a: f64| {
+                    if c.abs() > 1e-9 {
+                        format!("{:.0} %", 100.0 * (c - a) / c)
+                    } else {
+                        "-".to_string()
+                    }
+                };
+                out.push_str(&format!(
+                    "{name} removes {} of the CWF's cueable error ({})\n",
+                    share(cwf_total, total),
+                    Channel::ALL
+                        .iter()
+                        .zip(cwf_per.iter().zip(&per))
+                        .map(|(c, (x, y))| format!("{} {}", c.key(), share(*x, *y)))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ));
+            }
+        }
+    }
     out
 }
 

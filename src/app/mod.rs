@@ -2,6 +2,7 @@
 //! does lives here. Set-ups every command shares are in `common`. Nothing in the library
 //! imports this module: it is the binary's edge, where errors become `anyhow` and messages.
 
+pub mod bound;
 pub mod common;
 pub mod compare;
 pub mod export;
@@ -41,6 +42,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Live(args) => live::run(&args),
         Command::Tune(args) => tune::run(&args),
         Command::Export(args) => export::run(&args),
+        Command::Bound(args) => bound::run(&args),
         Command::Recover {
             input,
             output,

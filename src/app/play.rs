@@ -191,7 +191,31 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
             summary.steps, len
         );
     }
+    let mut summary = summary;
+    if args.bound && !end.interrupted {
+        summary.bound = Some(bound_of(args, &profile, &summary)?);
+    }
     Ok(summary)
+}
+
+/// The yardstick of the played flight, with the CWF's errors from the run when it was in
+/// it (otherwise from a CWF run of its own).
+fn bound_of(args: &PlayArgs, profile: &Profile, summary: &Summary) -> Result<crate::bound::Bound> {
+    let trace = match &args.trace {
+        Some(path) => crate::formats::trace::load_trace(path, profile.rate_hz)?.trace,
+        None => default_trace(profile.rate_hz).trace,
+    };
+    let trace = Arc::new(trace);
+    let cwf = match crate::app::bound::channel_errors(summary, AlgorithmId::Cwf) {
+        Some(e) => e,
+        None => {
+            let run = crate::app::bound::run_algorithms(profile, &trace, &[AlgorithmId::Cwf])?;
+            crate::app::bound::channel_errors(&run, AlgorithmId::Cwf)
+                .context("the CWF did not run")?
+        }
+    };
+    let (bound, _) = crate::bound::bound(profile, &trace, &cwf, [true; 6])?;
+    Ok(bound)
 }
 
 /// Play in the console: the runner on its engine thread, a recording on `r` (or

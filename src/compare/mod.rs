@@ -83,6 +83,7 @@ mod tests {
                 input_clipped: BTreeMap::new(),
                 aircraft_jolts: BTreeMap::new(),
                 live: None,
+                bound: None,
             },
             description: Some("a test".into()),
         }

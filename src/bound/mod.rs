@@ -1,0 +1,647 @@
+//! The yardstick (DESIGN §12, docs/bound.md): for a flight and a profile, the platform motion
+//! that minimises the score's threshold-aware error with the whole future known.
+//!
+//! - `lower`: the optimum of a relaxation, per-DoF boxes and the linearised head, solved per
+//!   block of coupled DoFs and channels. Jointly (every channel weighted as the score weighs
+//!   it) and per channel alone.
+//! - `achieved`: a motion the platform can make, replayed through the lanes' own limiter,
+//!   perception model and score (`engine::perceive_command`).
+//! - dominance: the joint programme with each channel's error held at or below a given
+//!   algorithm's (the CWF's).
+
+pub mod programme;
+
+use std::collections::BTreeMap;
+
+use nalgebra::{Vector3, Vector6};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+pub use programme::{channel_dofs, input_coefficients, LegRows, Programme, Solution};
+
+use crate::engine::perceive_command;
+use crate::mca::limiter::WorkspaceLimiter;
+use crate::mca::PlatformCommand;
+use crate::model::lti::DiscreteStateSpace;
+use crate::model::platform::DofLimits;
+use crate::model::vestibular::Vestibular;
+use crate::profile::Profile;
+use crate::score::ScoreAccumulator;
+use crate::trace::Trace;
+use crate::vocab::Channel;
+use clarabel::solver::SolverStatus;
+
+/// Leg rows of the achieved programme keep this far inside the limiter's margin (m), one
+/// sequence of re-linearisations per inset: the limiter's braking look-ahead runs beyond a
+/// path that grazes the legs, and which inset the limiter cuts least varies by flight.
+pub const LEG_INSETS_M: [f64; 2] = [0.005, 0.02];
+
+/// Re-linearisations of the legs in the achieved programme.
+pub const LEG_ITERATIONS: usize = 4;
+
+/// The summary's `bound` object (issue #33's shape).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Bound {
+    pub lower: Lower,
+    pub achieved: Achieved,
+    pub dominance: Dominance,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Lower {
+    /// Each channel's own optimum (only that channel's error minimised).
+    pub channel: BTreeMap<String, f64>,
+    /// The joint optimum: the weighted sum of the channels' errors, as `score_terms.error`.
+    pub total: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Achieved {
+    pub error: BTreeMap<String, f64>,
+    pub total: f64,
+    pub limiter_fraction: f64,
+    pub leg_violations: u64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Dominance {
+    /// A motion of the relaxation exists whose error is nowhere above the CWF's and whose
+    /// total is below it.
+    pub possible: bool,
+    /// Channels whose cap is active at that programme's optimum.
+    pub binding: Vec<String>,
+}
+
+/// What else a run of the yardstick measured (the CLI's report, docs/bound.md).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct BoundDetails {
+    /// Per channel, its error at the joint optimum of the relaxation.
+    pub joint_error: BTreeMap<String, f64>,
+    /// The capped programme's total, when it was feasible.
+    pub dominance_total: Option<f64>,
+    /// How the achieved motion was found: "relaxed" (the joint optimum itself) or
+    /// "legs linearised N× at M mm inset" (the all-DoF programme with linearised legs).
+    pub achieved_from: String,
+    /// Programmes solved, variables and rows of the largest, and Clarabel's iterations.
+    pub programmes: usize,
+    pub largest_variables: usize,
+    pub largest_rows: usize,
+    /// Any programme that did not end `Solved` (what it ended as).
+    pub unsolved: Vec<String>,
+}
+
+/// Errors of the yardstick (no I/O: only inputs that cannot be bounded).
+#[derive(Debug, thiserror::Error)]
+pub enum BoundError {
+    #[error("the trace has {0} samples: the yardstick needs at least two")]
+    TooShort(usize),
+    #[error("the trace's step {trace_s} s is not the profile's {profile_s} s: resample it first")]
+    Rate { trace_s: f64, profile_s: f64 },
+    #[error("the {0} programme ended {1:?}: no bound")]
+    Unsolved(String, SolverStatus),
+}
+
+/// The flight and profile as the programmes see them.
+pub struct Setup {
+    pub dt_s: f64,
+    /// The pipeline's perceived reference per channel, one value per sample.
+    pub reference: [Vec<f64>; 6],
+    pub thresholds: [f64; 6],
+    pub below_threshold_weight: f64,
+    pub score_weights: [f64; 6],
+    pub limits: DofLimits,
+    pub eye_m: Vector3<f64>,
+    pub filters: [DiscreteStateSpace; 6],
+}
+
+/// Perception thresholds per channel, as the summary's score uses them.
+pub fn thresholds(profile: &Profile) -> [f64; 6] {
+    let v = &profile.vestibular;
+    let w = v.canal_threshold_radps();
+    [
+        v.otolith_threshold_mps2[0],
+        v.otolith_threshold_mps2[1],
+        v.otolith_threshold_mps2[2],
+        w.x,
+        w.y,
+        w.z,
+    ]
+}
+
+/// The perceived reference, exactly as the engine computes it (`Engine::step`).
+pub fn reference_channels(profile: &Profile, trace: &Trace) -> [Vec<f64>; 6] {
+    let mut vest = Vestibular::new(&profile.vestibular, profile.dt_s());
+    let mut out: [Vec<f64>; 6] = std::array::from_fn(|_| Vec::with_capacity(trace.len()));
+    for s in &trace.samples {
+        let p = vest.step(&s.delta_f_mps2(), &s.angular_velocity_radps);
+        for (c, v) in p.channels().into_iter().enumerate() {
+            out[c].push(v);
+        }
+    }
+    out
+}
+
+/// Each channel's vestibular filter (otolith or canal) at a step: the blocks of
+/// `VestibularParams::perception_model`, which the pipeline discretises the same way.
+pub fn channel_filters(profile: &Profile, dt_s: f64) -> [DiscreteStateSpace; 6] {
+    let v = &profile.vestibular;
+    std::array::from_fn(|c| {
+        if c < 3 {
+            v.otolith().discretise_zoh(dt_s)
+        } else {
+            v.canal(c - 3).discretise_zoh(dt_s)
+        }
+    })
+}
+
+/// Groups of channels whose linearised inputs share a DoF, with those DoFs: the programme
+/// separates into them. At an eye point on the vertical axis: {fx, wy} on {x, pitch},
+/// {fy, wx} on {y, roll}, {fz} on {z}, {wz} on {yaw}.
+pub fn blocks(eye_m: &Vector3<f64>) -> Vec<(Vec<usize>, Vec<usize>)> {
+    let mut groups: Vec<(Vec<usize>, Vec<usize>)> = Vec::new();
+    for c in 0..6 {
+        let dofs = channel_dofs(c, eye_m);
+        let mut merged = (vec![c], dofs);
+        groups.retain(|(cs, ds)| {
+            if ds.iter().any(|d| merged.1.contains(d)) {
+                merged.0.extend(cs);
+                merged.1.extend(ds);
+                false
+            } else {
+                true
+            }
+        });
+        merged.0.sort_unstable();
+        merged.1.sort_unstable();
+        merged.1.dedup();
+        groups.push(merged);
+    }
+    groups.sort();
+    groups
+}
+
+impl Setup {
+    pub fn new(profile: &Profile, trace: &Trace) -> Result<Self, BoundError> {
+        if trace.len() < 2 {
+            return Err(BoundError::TooShort(trace.len()));
+        }
+        let dt = profile.dt_s();
+        if (trace.dt_s() - dt).abs() > 1e-9 * dt.max(1.0) {
+            return Err(BoundError::Rate {
+                trace_s: trace.dt_s(),
+                profile_s: dt,
+            });
+        }
+        Ok(Setup {
+            dt_s: dt,
+            reference: reference_channels(profile, trace),
+            thresholds: thresholds(profile),
+            below_threshold_weight: profile.score.below_threshold_weight,
+            score_weights: profile.score.channel_weight,
+            limits: profile.limits.si(),
+            eye_m: profile.eye_point(),
+            filters: channel_filters(profile, dt),
+        })
+    }
+
+    /// The same flight on a grid `m` samples apart: the reference at every m-th sample and
+    /// the filters discretised over m samples. For the achieved motion only (its programme
+    /// need not be a bound: the motion is judged by its replay at the full rate).
+    pub fn coarse(&self, profile: &Profile, m: usize) -> Setup {
+        let m = m.max(1);
+        Setup {
+            dt_s: self.dt_s * m as f64,
+            reference: std::array::from_fn(|c| {
+                self.reference[c].iter().step_by(m).copied().collect()
+            }),
+            thresholds: self.thresholds,
+            below_threshold_weight: self.below_threshold_weight,
+            score_weights: self.score_weights,
+            limits: {
+                // Between two nodes the held acceleration carries the pose up to a·T²/8
+                // beyond the chord: the excursions are kept that much inside.
+                let t = self.dt_s * m as f64;
+                let mut l = self.limits;
+                for d in 0..6 {
+                    l.excursion[d] = (l.excursion[d] - l.acceleration[d] * t * t / 8.0).max(0.0);
+                }
+                l
+            },
+            eye_m: self.eye_m,
+            filters: channel_filters(profile, self.dt_s * m as f64),
+        }
+    }
+
+    /// A programme on the full-rate grid over `dofs`, modelling `channels`, minimising the
+    /// channels of `objective`.
+    pub fn programme(
+        &self,
+        channels: &[usize],
+        dofs: &[usize],
+        objective: &[usize],
+        caps: Option<[f64; 6]>,
+    ) -> Programme<'_> {
+        let mut weights = [0.0; 6];
+        for &c in objective {
+            weights[c] = self.score_weights[c];
+        }
+        Programme {
+            dt_s: self.dt_s,
+            reference: &self.reference,
+            thresholds: self.thresholds,
+            below_threshold_weight: self.below_threshold_weight,
+            weights,
+            score_weights: self.score_weights,
+            channels: channels.to_vec(),
+            dofs: dofs.to_vec(),
+            limits: self.limits,
+            box_scale: 1.0,
+            eye_m: self.eye_m,
+            filters: &self.filters,
+            caps,
+            legs: None,
+            pose_cost: 0.0,
+        }
+    }
+}
+
+/// The relaxation's optima: per channel alone and jointly (one solution per block).
+pub struct Relaxed {
+    pub channel: [f64; 6],
+    pub joint: Vec<Solution>,
+    /// Per channel, its error at the joint optimum.
+    pub joint_error: [f64; 6],
+    pub total: f64,
+    pub programmes: Vec<(String, Solution)>,
+}
+
+fn channel_list(cs: &[usize]) -> String {
+    cs.iter()
+        .map(|&c| Channel::ALL[c].key())
+        .collect::<Vec<_>>()
+        .join("+")
+}
+
+/// Solves the joint programme (per block) and each channel's own (those of `alone`), on
+/// rayon's pool. A channel not solved alone has `NAN` as its own optimum.
+pub fn relaxed(setup: &Setup, alone: [bool; 6]) -> Result<Relaxed, BoundError> {
+    let blocks = blocks(&setup.eye_m);
+    // Jobs: every block jointly, then each channel alone unless its block is that channel.
+    let mut jobs: Vec<(bool, Vec<usize>, Vec<usize>)> = blocks
+        .iter()
+        .map(|(cs, ds)| (true, cs.clone(), ds.clone()))
+        .collect();
+    for (c, &wanted) in alone.iter().enumerate() {
+        if wanted && !blocks.iter().any(|(cs, _)| cs == &vec![c]) {
+            jobs.push((false, vec![c], channel_dofs(c, &setup.eye_m)));
+        }
+    }
+    let solved: Vec<(bool, Vec<usize>, Solution)> = jobs
+        .par_iter()
+        .map(|(joint, cs, ds)| {
+            (
+                *joint,
+                cs.clone(),
+                setup.programme(cs, ds, cs, None).solve(),
+            )
+        })
+        .collect();
+    let mut channel = [f64::NAN; 6];
+    let mut joint_error = [0.0; 6];
+    let mut joint = Vec::new();
+    let mut programmes = Vec::new();
+    for (is_joint, cs, sol) in solved {
+        let name = channel_list(&cs);
+        if !matches!(
+            sol.status,
+            SolverStatus::Solved | SolverStatus::AlmostSolved
+        ) {
+            return Err(BoundError::Unsolved(name, sol.status));
+        }
+        if is_joint {
+            for &c in &cs {
+                joint_error[c] = sol.error[c];
+                if cs.len() == 1 && alone[c] {
+                    channel[c] = sol.error[c];
+                }
+            }
+            joint.push(sol.clone());
+        } else {
+            channel[cs[0]] = sol.error[cs[0]];
+        }
+        programmes.push((name, sol));
+    }
+    let total = joint.iter().map(|s| s.error.iter().sum::<f64>()).sum();
+    Ok(Relaxed {
+        channel,
+        joint,
+        joint_error,
+        total,
+        programmes,
+    })
+}
+
+/// The commands of a set of block solutions, combined DoF by DoF, clamped into the boxes
+/// (the interior-point answer may sit a rounding error outside them).
+pub fn commands_of(solutions: &[Solution], limits: &DofLimits) -> Vec<PlatformCommand> {
+    let n = solutions.first().map_or(0, |s| s.pose.len());
+    (0..n)
+        .map(|k| {
+            let mut cmd = PlatformCommand::default();
+            for s in solutions {
+                cmd.pose += s.pose[k];
+                cmd.velocity += s.velocity[k];
+                cmd.acceleration += s.acceleration[k];
+            }
+            for d in 0..6 {
+                cmd.pose[d] = cmd.pose[d].clamp(-limits.excursion[d], limits.excursion[d]);
+                cmd.velocity[d] = cmd.velocity[d].clamp(-limits.velocity[d], limits.velocity[d]);
+                cmd.acceleration[d] =
+                    cmd.acceleration[d].clamp(-limits.acceleration[d], limits.acceleration[d]);
+            }
+            cmd
+        })
+        .collect()
+}
+
+/// A motion replayed through the lanes' limiter, perception model and score.
+#[derive(Clone, Debug)]
+pub struct Replayed {
+    /// Weighted mean error per channel, as `score_terms.error`.
+    pub error: [f64; 6],
+    pub total: f64,
+    pub limiter_fraction: f64,
+    pub leg_violations: u64,
+    /// The full score (error, false cues, limiter, legs).
+    pub score: f64,
+    /// The commands as issued (after the limiter).
+    pub issued: Vec<PlatformCommand>,
+}
+
+/// Replays `commands` (one per sample) like an algorithm's output: the workspace limiter,
+/// the perception at the pilot's head and the score, with the engine's own code.
+pub fn replay(profile: &Profile, trace: &Trace, commands: &[PlatformCommand]) -> Replayed {
+    let dt = profile.dt_s();
+    let stewart = profile.stewart();
+    let eye = profile.eye_point();
+    let mut limiter = WorkspaceLimiter::new(
+        stewart.clone(),
+        profile.limits.si(),
+        profile.limiter.leg_margin_m,
+        dt,
+    );
+    let mut vestibular = Vestibular::new(&profile.vestibular, dt);
+    let mut reference = Vestibular::new(&profile.vestibular, dt);
+    let mut score = ScoreAccumulator::new(&profile.score, thresholds(profile));
+    let (mut limited_steps, mut violations) = (0u64, 0u64);
+    let mut issued = Vec::with_capacity(commands.len());
+    for (s, raw) in trace.samples.iter().zip(commands) {
+        let x = reference.step(&s.delta_f_mps2(), &s.angular_velocity_radps);
+        let limited = limiter.apply(raw);
+        let (perceived, legs) = perceive_command(&limited.command, &stewart, &eye, &mut vestibular);
+        let usage = stewart.usage(&legs.length_m).max();
+        score.push(&x.channels(), &perceived.channels(), limited.acted, usage);
+        limited_steps += u64::from(limited.acted);
+        violations += u64::from(legs.margin_m.min() < 0.0);
+        issued.push(limited.command);
+    }
+    let (total_score, terms) = score.finish();
+    let error: [f64; 6] = std::array::from_fn(|c| {
+        terms
+            .error
+            .get(Channel::ALL[c].key())
+            .copied()
+            .unwrap_or(0.0)
+    });
+    Replayed {
+        total: error.iter().sum(),
+        error,
+        limiter_fraction: limited_steps as f64 / commands.len().max(1) as f64,
+        leg_violations: violations,
+        score: total_score,
+        issued,
+    }
+}
+
+/// The error per channel (weighted, as the score) that the programmes' linear model gives a
+/// command sequence: what the relaxation charges that motion. Set beside the pipeline's error
+/// of the same commands it measures what the linearisation leaves out (docs/bound.md).
+pub fn linear_error(setup: &Setup, commands: &[PlatformCommand]) -> [f64; 6] {
+    let s = setup.below_threshold_weight;
+    std::array::from_fn(|c| {
+        let f = &setup.filters[c];
+        let mut state = nalgebra::DVector::zeros(f.a.nrows());
+        let mut sum = 0.0;
+        for (k, cmd) in commands.iter().enumerate() {
+            let y = (&f.c * &state)[0];
+            sum +=
+                crate::score::soft_dead_zone((y - setup.reference[c][k]) / setup.thresholds[c], s);
+            let u: f64 = (0..6)
+                .map(|d| {
+                    let w = input_coefficients(c, d, &setup.eye_m);
+                    w[0] * cmd.pose[d] + w[1] * cmd.velocity[d] + w[2] * cmd.acceleration[d]
+                })
+                .sum();
+            state = &f.a * &state + &f.b * u;
+        }
+        setup.score_weights[c] * sum / commands.len().max(1) as f64
+    })
+}
+
+/// The legs of every step linearised about a pose sequence.
+fn leg_rows(profile: &Profile, poses: &[Vector6<f64>]) -> Vec<LegRows> {
+    let stewart = profile.stewart();
+    poses
+        .iter()
+        .map(|p| LegRows {
+            pose: *p,
+            length_m: stewart.leg_lengths(p),
+            jacobian: stewart.jacobian(p),
+        })
+        .collect()
+}
+
+/// Full-rate commands from a solution on a grid `m` samples apart: within each interval the
+/// acceleration is held and pose and velocity integrated exactly.
+pub fn expand(sol: &Solution, m: usize, n: usize, dt_s: f64) -> Vec<Vec6Triple> {
+    (0..n)
+        .map(|k| {
+            let (j, r) = ((k / m).min(sol.pose.len() - 1), k % m);
+            let tau = r as f64 * dt_s;
+            let (p, v, a) = (sol.pose[j], sol.velocity[j], sol.acceleration[j]);
+            (p + v * tau + a * (0.5 * tau * tau), v + a * tau, a)
+        })
+        .collect()
+}
+
+/// Pose, velocity and acceleration of one step.
+pub type Vec6Triple = (Vector6<f64>, Vector6<f64>, Vector6<f64>);
+
+fn clamp_commands(steps: &[Vec6Triple], limits: &DofLimits) -> Vec<PlatformCommand> {
+    steps
+        .iter()
+        .map(|(p, v, a)| {
+            let mut cmd = PlatformCommand::default();
+            for d in 0..6 {
+                cmd.pose[d] = p[d].clamp(-limits.excursion[d], limits.excursion[d]);
+                cmd.velocity[d] = v[d].clamp(-limits.velocity[d], limits.velocity[d]);
+                cmd.acceleration[d] = a[d].clamp(-limits.acceleration[d], limits.acceleration[d]);
+            }
+            cmd
+        })
+        .collect()
+}
+
+/// Grid of the achieved programme (samples per decision step).
+pub const ACHIEVED_GRID: usize = 5;
+
+/// A motion the platform can make near the relaxed optimum: the joint programme over all six
+/// DoFs (the legs couple them) on a grid `ACHIEVED_GRID` samples apart, with the legs
+/// linearised about neutral and then about the previous answer's poses, `LEG_ITERATIONS`
+/// times, each leg kept one of `LEG_INSETS_M` inside the limiter's margin. Every answer is replayed
+/// at the full rate; returns them all (label, replay, programme).
+pub fn achieved_with_legs(
+    profile: &Profile,
+    trace: &Trace,
+    setup: &Setup,
+) -> Vec<(String, Replayed, Solution)> {
+    LEG_INSETS_M
+        .par_iter()
+        .flat_map_iter(|&inset| legs_sequence(profile, trace, setup, inset))
+        .collect()
+}
+
+fn legs_sequence(
+    profile: &Profile,
+    trace: &Trace,
+    setup: &Setup,
+    inset_m: f64,
+) -> Vec<(String, Replayed, Solution)> {
+    let g = &profile.geometry;
+    let margin = profile.limiter.leg_margin_m + inset_m;
+    let (lo, hi) = (g.leg_min_m + margin, g.leg_max_m - margin);
+    let all: Vec<usize> = (0..6).collect();
+    let coarse = setup.coarse(profile, ACHIEVED_GRID);
+    let nc = coarse.reference[0].len();
+    let mut poses: Vec<Vector6<f64>> = vec![Vector6::zeros(); nc];
+    let mut out = Vec::new();
+    let label = |i: usize| format!("legs linearised {i}× at {:.0} mm inset", inset_m * 1000.0);
+    for iteration in 1..=LEG_ITERATIONS {
+        let rows = leg_rows(profile, &poses);
+        let mut prog = coarse.programme(&all, &all, &all, None);
+        // A hair inside the boxes, so that rounding never makes the limiter act.
+        prog.box_scale = 1.0 - 1e-6;
+        prog.legs = Some((&rows, lo, hi));
+        let sol = prog.solve();
+        if !matches!(
+            sol.status,
+            SolverStatus::Solved | SolverStatus::AlmostSolved
+        ) {
+            out.push((label(iteration), replay(profile, trace, &[]), sol));
+            break;
+        }
+        let steps = expand(&sol, ACHIEVED_GRID, trace.len(), setup.dt_s);
+        let cmds = clamp_commands(&steps, &setup.limits);
+        let r = replay(profile, trace, &cmds);
+        poses = sol.pose.clone();
+        out.push((label(iteration), r, sol));
+    }
+    out
+}
+
+fn by_channel(values: &[f64; 6]) -> BTreeMap<String, f64> {
+    Channel::ALL
+        .iter()
+        .zip(values)
+        .filter(|(_, v)| v.is_finite())
+        .map(|(c, v)| (c.key().to_string(), *v))
+        .collect()
+}
+
+/// The whole yardstick for a flight: `lower`, `achieved` and, given the CWF's per-channel
+/// errors, the dominance test.
+pub fn bound(
+    profile: &Profile,
+    trace: &Trace,
+    cwf_error: &[f64; 6],
+    alone: [bool; 6],
+) -> Result<(Bound, BoundDetails), BoundError> {
+    let setup = Setup::new(profile, trace)?;
+    let relaxed = relaxed(&setup, alone)?;
+    let cmds = commands_of(&relaxed.joint, &setup.limits);
+    let first = replay(profile, trace, &cmds);
+    let mut programmes = relaxed.programmes.len();
+    let mut largest = relaxed
+        .programmes
+        .iter()
+        .map(|(_, s)| (s.variables, s.rows))
+        .max()
+        .unwrap_or_default();
+    let mut unsolved = Vec::new();
+    let mut candidates = vec![("relaxed".to_string(), first)];
+    if candidates[0].1.limiter_fraction > 0.0 || candidates[0].1.leg_violations > 0 {
+        for (name, r, sol) in achieved_with_legs(profile, trace, &setup) {
+            programmes += 1;
+            largest = largest.max((sol.variables, sol.rows));
+            if matches!(
+                sol.status,
+                SolverStatus::Solved | SolverStatus::AlmostSolved
+            ) {
+                candidates.push((name, r));
+            } else {
+                unsolved.push(format!("{name}: {:?}", sol.status));
+            }
+        }
+    }
+    // The best motion as the pipeline judges it (the limiter's cuts are in its error).
+    let (from, achieved) = candidates
+        .into_iter()
+        .min_by(|a, b| a.1.total.total_cmp(&b.1.total))
+        .unwrap_or_else(|| unreachable!("the relaxed candidate is always there"));
+    // Dominance: every channel held at or below the CWF's, per block.
+    let cwf_total: f64 = cwf_error.iter().sum();
+    let caps = Some(*cwf_error);
+    let capped: Vec<Solution> = blocks(&setup.eye_m)
+        .par_iter()
+        .map(|(cs, ds)| setup.programme(cs, ds, cs, caps).solve())
+        .collect();
+    programmes += capped.len();
+    let feasible = capped
+        .iter()
+        .all(|s| matches!(s.status, SolverStatus::Solved | SolverStatus::AlmostSolved));
+    let dominance_total = feasible.then(|| capped.iter().map(|s| s.objective).sum::<f64>());
+    let mut binding: Vec<usize> = capped.iter().flat_map(|s| s.binding.clone()).collect();
+    binding.sort_unstable();
+    let bound = Bound {
+        lower: Lower {
+            channel: by_channel(&relaxed.channel),
+            total: relaxed.total,
+        },
+        achieved: Achieved {
+            error: by_channel(&achieved.error),
+            total: achieved.total,
+            limiter_fraction: achieved.limiter_fraction,
+            leg_violations: achieved.leg_violations,
+        },
+        dominance: Dominance {
+            possible: dominance_total.is_some_and(|t| t < cwf_total),
+            binding: binding
+                .iter()
+                .map(|&c| Channel::ALL[c].key().to_string())
+                .collect(),
+        },
+    };
+    let details = BoundDetails {
+        joint_error: by_channel(&relaxed.joint_error),
+        dominance_total,
+        achieved_from: from,
+        programmes,
+        largest_variables: largest.0,
+        largest_rows: largest.1,
+        unsolved,
+    };
+    Ok((bound, details))
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,365 @@
+//! One linear programme of the yardstick (DESIGN §12, docs/bound.md): the platform motion of a
+//! set of DoFs that minimises the weighted threshold-aware error of a set of channels over the
+//! whole flight, the future known.
+//!
+//! Per step k and DoF d: pose p, velocity v, acceleration a (held over the step, exact double
+//! integrator). Per step and modelled channel c: the states s of its vestibular filter (the
+//! pipeline's own ZOH discretisation, perceived y_k = C s_k) and a slack e_k ≥ φ(u_k) with
+//! u_k = (y_k − x_k)/τ_c, as the four rows e ≥ ±s·u, e ≥ ±u − (1 − s). The filter's input is
+//! the head's specific-force change or angular velocity linearised about neutral:
+//!
+//! Δf_x = a_x + g·θ + r_z·θ̈ − r_y·ψ̈,  Δf_y = a_y − g·φ − r_z·φ̈ + r_x·ψ̈,
+//! Δf_z = a_z + r_y·φ̈ − r_x·θ̈,       ω = (φ̇, θ̇, ψ̇)
+//!
+//! with r the eye point (platform frame, DESIGN §1 signs: `model::stewart::head_motion`
+//! linearised). Every constraint is a per-DoF box, plus, optionally, leg rows linearised about
+//! a given pose sequence and per-channel caps on the mean error (the dominance test).
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+use nalgebra::{Matrix6, Vector3, Vector6};
+
+use crate::model::lti::DiscreteStateSpace;
+use crate::model::platform::DofLimits;
+use crate::G_MPS2;
+
+/// Pose DoFs each channel's linearised input depends on, for an eye point r.
+pub fn channel_dofs(channel: usize, eye_m: &Vector3<f64>) -> Vec<usize> {
+    let (rx, ry) = (eye_m.x != 0.0, eye_m.y != 0.0);
+    let mut d = match channel {
+        0 => vec![0, 4],
+        1 => vec![1, 3],
+        2 => vec![2],
+        c => vec![c],
+    };
+    if (channel == 0 && ry) || (channel == 1 && rx) {
+        d.push(5);
+    }
+    if channel == 2 && ry {
+        d.push(3);
+    }
+    if channel == 2 && rx {
+        d.push(4);
+    }
+    d.sort_unstable();
+    d
+}
+
+/// Coefficients of the linearised head input of `channel` on (p, v, a) of DoF `dof`.
+pub fn input_coefficients(channel: usize, dof: usize, eye_m: &Vector3<f64>) -> [f64; 3] {
+    let (rx, ry, rz) = (eye_m.x, eye_m.y, eye_m.z);
+    match (channel, dof) {
+        (0, 0) | (1, 1) | (2, 2) => [0.0, 0.0, 1.0],
+        (0, 4) => [G_MPS2, 0.0, rz],
+        (0, 5) => [0.0, 0.0, -ry],
+        (1, 3) => [-G_MPS2, 0.0, -rz],
+        (1, 5) => [0.0, 0.0, rx],
+        (2, 3) => [0.0, 0.0, ry],
+        (2, 4) => [0.0, 0.0, -rx],
+        (3, 3) | (4, 4) | (5, 5) => [0.0, 1.0, 0.0],
+        _ => [0.0; 3],
+    }
+}
+
+/// The linearised leg rows of one step: lengths l̄ and Jacobian J at a pose p̄, so that
+/// l ≈ l̄ + J·(p − p̄) must stay in [lo, hi].
+#[derive(Clone, Debug)]
+pub struct LegRows {
+    pub pose: Vector6<f64>,
+    pub length_m: Vector6<f64>,
+    pub jacobian: Matrix6<f64>,
+}
+
+/// What one programme models and minimises.
+pub struct Programme<'a> {
+    /// Step of the decision grid (s).
+    pub dt_s: f64,
+    /// The perceived reference per channel, one value per grid step.
+    pub reference: &'a [Vec<f64>; 6],
+    /// Perception thresholds τ per channel.
+    pub thresholds: [f64; 6],
+    pub below_threshold_weight: f64,
+    /// Objective weight per channel (0: modelled only if capped).
+    pub weights: [f64; 6],
+    /// The score's channel weights, with which errors and caps are measured.
+    pub score_weights: [f64; 6],
+    /// Channels modelled (their filter states and slacks are variables).
+    pub channels: Vec<usize>,
+    /// DoFs that move (the others stay at neutral).
+    pub dofs: Vec<usize>,
+    pub limits: DofLimits,
+    /// Each box shrunk by this factor (1: the profile's own limits).
+    pub box_scale: f64,
+    pub eye_m: Vector3<f64>,
+    /// The ZOH vestibular filter of each channel at `dt_s` (otolith or canal).
+    pub filters: &'a [DiscreteStateSpace; 6],
+    /// Optional cap per channel on its weighted mean error.
+    pub caps: Option<[f64; 6]>,
+    /// Optional linearised legs per grid step, and the stroke they must keep, [lo, hi] (m).
+    pub legs: Option<(&'a [LegRows], f64, f64)>,
+    /// Cost of the mean excursion Σ_d |p_d|/P_d (0: none). A small one picks, among the
+    /// motions of (nearly) equal error, one near neutral, which the legs can make.
+    pub pose_cost: f64,
+}
+
+/// The programme's answer.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    pub status: SolverStatus,
+    /// The optimum: Σ_c w_c · mean_k e_c.
+    pub objective: f64,
+    /// Weighted mean error per channel (channel weight times mean slack, as the score); 0 for
+    /// channels not modelled.
+    pub error: [f64; 6],
+    /// Pose, velocity and acceleration of every DoF per grid step (zeros for the fixed ones).
+    pub pose: Vec<Vector6<f64>>,
+    pub velocity: Vec<Vector6<f64>>,
+    pub acceleration: Vec<Vector6<f64>>,
+    /// Channels whose cap was active at the optimum (positive dual).
+    pub binding: Vec<usize>,
+    pub iterations: u32,
+    pub variables: usize,
+    pub rows: usize,
+}
+
+/// Sparse matrix rows under construction.
+#[derive(Default)]
+struct Rows {
+    i: Vec<usize>,
+    j: Vec<usize>,
+    v: Vec<f64>,
+    b: Vec<f64>,
+}
+
+impl Rows {
+    fn row(&mut self, entries: &[(usize, f64)], b: f64) {
+        let r = self.b.len();
+        for &(j, v) in entries {
+            if v != 0.0 {
+                self.i.push(r);
+                self.j.push(j);
+                self.v.push(v);
+            }
+        }
+        self.b.push(b);
+    }
+}
+
+impl Programme<'_> {
+    /// Solves the programme with Clarabel.
+    pub fn solve(&self) -> Solution {
+        let n = self.reference[0].len();
+        let nd = self.dofs.len();
+        let nstates: Vec<usize> = self
+            .channels
+            .iter()
+            .map(|&c| self.filters[c].a.nrows())
+            .collect();
+        // Per DoF: p, v, a, and with a pose cost t ≥ |p|/P.
+        let per_dof = if self.pose_cost > 0.0 { 4 } else { 3 };
+        let stride = per_dof * nd + nstates.iter().map(|s| s + 1).sum::<usize>();
+        let nvar = n * stride;
+        let dof_col = |k: usize, j: usize, what: usize| k * stride + per_dof * j + what;
+        let mut chan_off = Vec::with_capacity(self.channels.len());
+        let mut off = per_dof * nd;
+        for s in &nstates {
+            chan_off.push(off);
+            off += s + 1;
+        }
+        let state_col = |k: usize, ci: usize, r: usize| k * stride + chan_off[ci] + r;
+        let slack_col = |k: usize, ci: usize| k * stride + chan_off[ci] + nstates[ci];
+        let dt = self.dt_s;
+        let s_below = self.below_threshold_weight;
+
+        let mut eq = Rows::default();
+        let mut ineq = Rows::default();
+        let mut entries: Vec<(usize, f64)> = Vec::with_capacity(64);
+        for k in 0..n {
+            for j in 0..nd {
+                if k == 0 {
+                    eq.row(&[(dof_col(0, j, 0), 1.0)], 0.0);
+                    eq.row(&[(dof_col(0, j, 1), 1.0)], 0.0);
+                } else {
+                    // p_k = p_{k−1} + dt·v_{k−1} + dt²/2·a_{k−1}; v_k = v_{k−1} + dt·a_{k−1}.
+                    eq.row(
+                        &[
+                            (dof_col(k, j, 0), 1.0),
+                            (dof_col(k - 1, j, 0), -1.0),
+                            (dof_col(k - 1, j, 1), -dt),
+                            (dof_col(k - 1, j, 2), -0.5 * dt * dt),
+                        ],
+                        0.0,
+                    );
+                    eq.row(
+                        &[
+                            (dof_col(k, j, 1), 1.0),
+                            (dof_col(k - 1, j, 1), -1.0),
+                            (dof_col(k - 1, j, 2), -dt),
+                        ],
+                        0.0,
+                    );
+                }
+                let d = self.dofs[j];
+                let bounds = [
+                    self.limits.excursion[d],
+                    self.limits.velocity[d],
+                    self.limits.acceleration[d],
+                ];
+                for (what, bound) in bounds.iter().enumerate() {
+                    let col = dof_col(k, j, what);
+                    let b = bound * self.box_scale;
+                    ineq.row(&[(col, 1.0)], b);
+                    ineq.row(&[(col, -1.0)], b);
+                }
+                if per_dof == 4 {
+                    let scale = 1.0 / bounds[0].max(1e-9);
+                    for sign in [1.0, -1.0] {
+                        ineq.row(
+                            &[(dof_col(k, j, 0), sign * scale), (dof_col(k, j, 3), -1.0)],
+                            0.0,
+                        );
+                    }
+                }
+            }
+            for (ci, &c) in self.channels.iter().enumerate() {
+                let f = &self.filters[c];
+                let ns = nstates[ci];
+                if k == 0 {
+                    for r in 0..ns {
+                        eq.row(&[(state_col(0, ci, r), 1.0)], 0.0);
+                    }
+                } else {
+                    // s_k = A s_{k−1} + B·u_{k−1}, u linear in the DoFs at k−1.
+                    for r in 0..ns {
+                        entries.clear();
+                        entries.push((state_col(k, ci, r), 1.0));
+                        for q in 0..ns {
+                            entries.push((state_col(k - 1, ci, q), -f.a[(r, q)]));
+                        }
+                        for (j, &d) in self.dofs.iter().enumerate() {
+                            let coef = input_coefficients(c, d, &self.eye_m);
+                            for (what, cf) in coef.iter().enumerate() {
+                                entries.push((dof_col(k - 1, j, what), -f.b[(r, 0)] * cf));
+                            }
+                        }
+                        eq.row(&entries, 0.0);
+                    }
+                }
+                // e ≥ s·u, e ≥ −s·u, e ≥ u − (1 − s), e ≥ −u − (1 − s), u = (C s − x)/τ.
+                let x = self.reference[c][k];
+                let tau = self.thresholds[c];
+                for (gain, offset) in [(s_below, 0.0), (1.0, 1.0 - s_below)] {
+                    for sign in [1.0, -1.0] {
+                        entries.clear();
+                        for q in 0..ns {
+                            entries.push((state_col(k, ci, q), sign * gain * f.c[(0, q)] / tau));
+                        }
+                        entries.push((slack_col(k, ci), -1.0));
+                        ineq.row(&entries, sign * gain * x / tau + offset);
+                    }
+                }
+            }
+            if let Some((legs, lo, hi)) = self.legs {
+                let leg = &legs[k];
+                for i in 0..6 {
+                    // l̄_i + J_i·(p − p̄) ≤ hi and ≥ lo.
+                    entries.clear();
+                    let mut base = leg.length_m[i];
+                    for (j, &d) in self.dofs.iter().enumerate() {
+                        entries.push((dof_col(k, j, 0), leg.jacobian[(i, d)]));
+                        base -= leg.jacobian[(i, d)] * leg.pose[d];
+                    }
+                    ineq.row(&entries, hi - base);
+                    let neg: Vec<(usize, f64)> = entries.iter().map(|&(j, v)| (j, -v)).collect();
+                    ineq.row(&neg, base - lo);
+                }
+            }
+        }
+        let mut cap_rows = Vec::new();
+        if let Some(caps) = self.caps {
+            for (ci, &c) in self.channels.iter().enumerate() {
+                if caps[c].is_finite() {
+                    let w = self.score_weights[c] / n as f64;
+                    let cap_entries: Vec<(usize, f64)> =
+                        (0..n).map(|k| (slack_col(k, ci), w)).collect();
+                    cap_rows.push((c, ineq.b.len()));
+                    ineq.row(&cap_entries, caps[c]);
+                }
+            }
+        }
+
+        let n_eq = eq.b.len();
+        let n_rows = n_eq + ineq.b.len();
+        let mut ii = eq.i;
+        ii.extend(ineq.i.iter().map(|r| r + n_eq));
+        let mut jj = eq.j;
+        jj.extend(ineq.j);
+        let mut vv = eq.v;
+        vv.extend(ineq.v);
+        let mut b = eq.b;
+        b.extend(ineq.b);
+        let a = CscMatrix::new_from_triplets(n_rows, nvar, ii, jj, vv);
+        let p = CscMatrix::zeros((nvar, nvar));
+        let mut q = vec![0.0; nvar];
+        for (ci, &c) in self.channels.iter().enumerate() {
+            for k in 0..n {
+                q[slack_col(k, ci)] = self.weights[c] / n as f64;
+            }
+        }
+        if per_dof == 4 {
+            for k in 0..n {
+                for j in 0..nd {
+                    q[dof_col(k, j, 3)] = self.pose_cost / n as f64;
+                }
+            }
+        }
+        let cones = [
+            SupportedConeT::ZeroConeT(n_eq),
+            SupportedConeT::NonnegativeConeT(n_rows - n_eq),
+        ];
+        let settings = DefaultSettings {
+            verbose: false,
+            max_iter: 400,
+            ..DefaultSettings::default()
+        };
+        let mut solver = match DefaultSolver::new(&p, &q, &a, &b, &cones, settings) {
+            Ok(s) => s,
+            Err(_) => unreachable!("the programme's dimensions are consistent by construction"),
+        };
+        solver.solve();
+        let sol = &solver.solution;
+        let mut error = [0.0; 6];
+        for (ci, &c) in self.channels.iter().enumerate() {
+            let w = self.score_weights[c];
+            error[c] = w * (0..n).map(|k| sol.x[slack_col(k, ci)]).sum::<f64>() / n as f64;
+        }
+        let mut pose = vec![Vector6::zeros(); n];
+        let mut velocity = vec![Vector6::zeros(); n];
+        let mut acceleration = vec![Vector6::zeros(); n];
+        for k in 0..n {
+            for (j, &d) in self.dofs.iter().enumerate() {
+                pose[k][d] = sol.x[dof_col(k, j, 0)];
+                velocity[k][d] = sol.x[dof_col(k, j, 1)];
+                acceleration[k][d] = sol.x[dof_col(k, j, 2)];
+            }
+        }
+        // A cap binds when its dual is positive (relative to the objective's scale).
+        let binding = cap_rows
+            .iter()
+            .filter(|&&(_, r)| sol.z[n_eq + r] > 1e-6)
+            .map(|&(c, _)| c)
+            .collect();
+        Solution {
+            status: sol.status,
+            objective: sol.obj_val,
+            error,
+            pose,
+            velocity,
+            acceleration,
+            binding,
+            iterations: sol.iterations,
+            variables: nvar,
+            rows: n_rows,
+        }
+    }
+}

@@ -1,0 +1,195 @@
+use nalgebra::Vector3;
+
+use super::*;
+use crate::profile::tests::full_flight;
+use crate::score::soft_dead_zone;
+use crate::trace::AircraftSample;
+use crate::G_MPS2;
+
+fn trace_of(n: usize, sample: impl Fn(f64) -> (Vector3<f64>, Vector3<f64>)) -> Trace {
+    Trace {
+        name: "synthetic".into(),
+        rate_hz: 100.0,
+        samples: (0..n)
+            .map(|k| {
+                let t = k as f64 * 0.01;
+                let (df, w) = sample(t);
+                AircraftSample {
+                    t_s: t,
+                    specific_force_mps2: df + Vector3::new(0.0, 0.0, -G_MPS2),
+                    angular_velocity_radps: w,
+                    attitude_rad: Vector3::zeros(),
+                }
+            })
+            .collect(),
+        info: None,
+        notices: Vec::new(),
+    }
+}
+
+#[test]
+fn the_channel_filters_reproduce_the_pipelines_perception() {
+    // The programmes' per-channel ZOH filters, driven by the aircraft, give the reference
+    // the engine computes with the 15-state model.
+    let profile = full_flight();
+    let trace = crate::engine::tests::manoeuvre();
+    let reference = reference_channels(&profile, &trace);
+    let filters = channel_filters(&profile, profile.dt_s());
+    for (c, f) in filters.iter().enumerate() {
+        let mut s = nalgebra::DVector::zeros(f.a.nrows());
+        let mut worst: f64 = 0.0;
+        for (k, sample) in trace.samples.iter().enumerate() {
+            let y = (&f.c * &s)[0];
+            worst = worst.max((y - reference[c][k]).abs());
+            let u = if c < 3 {
+                sample.delta_f_mps2()[c]
+            } else {
+                sample.angular_velocity_radps[c - 3]
+            };
+            s = &f.a * &s + &f.b * u;
+        }
+        assert!(worst < 1e-9, "channel {c}: {worst}");
+    }
+}
+
+#[test]
+fn blocks_separate_at_an_eye_point_on_the_vertical_and_merge_off_it() {
+    let b = blocks(&Vector3::new(0.0, 0.0, -1.2));
+    assert_eq!(
+        b,
+        vec![
+            (vec![0, 4], vec![0, 4]),
+            (vec![1, 3], vec![1, 3]),
+            (vec![2], vec![2]),
+            (vec![5], vec![5]),
+        ]
+    );
+    // A head ahead of the centre: yaw acceleration pushes it sideways, pitch moves it up.
+    let b = blocks(&Vector3::new(0.5, 0.0, -1.2));
+    assert_eq!(
+        b,
+        vec![
+            (vec![0, 2, 4], vec![0, 2, 4]),
+            (vec![1, 3, 5], vec![1, 3, 5])
+        ]
+    );
+}
+
+#[test]
+fn a_flight_without_motion_has_a_zero_bound() {
+    let profile = full_flight();
+    let trace = trace_of(300, |_| (Vector3::zeros(), Vector3::zeros()));
+    let setup = Setup::new(&profile, &trace).unwrap();
+    let r = relaxed(&setup, [true; 6]).unwrap();
+    assert!(r.total.abs() < 1e-6, "{}", r.total);
+    for c in 0..6 {
+        assert!(r.channel[c].abs() < 1e-6, "{c}: {}", r.channel[c]);
+    }
+}
+
+#[test]
+fn a_reference_within_reach_is_cued_exactly() {
+    // The aircraft heaves, yaws and surges as a platform can: a smooth bump of 0.5 m/s² in
+    // z, 3 °/s of yaw rate and 0.3 m/s² in x, each back to rest within the strokes. The
+    // platform repeats them, so every channel's bound is zero up to the solver's tolerance.
+    let profile = full_flight();
+    let bump = |t: f64, t0: f64| {
+        let x = (t - t0) / 2.0;
+        if (0.0..1.0).contains(&x) {
+            (2.0 * std::f64::consts::PI * x).sin()
+        } else {
+            0.0
+        }
+    };
+    let trace = trace_of(600, |t| {
+        (
+            Vector3::new(0.3 * bump(t, 1.0), 0.0, 0.5 * bump(t, 0.5)),
+            Vector3::new(
+                0.0,
+                0.0,
+                0.05 * (std::f64::consts::PI * (t / 2.0)).sin().max(0.0)
+                    * if t < 2.0 { 1.0 } else { 0.0 },
+            ),
+        )
+    });
+    let setup = Setup::new(&profile, &trace).unwrap();
+    let r = relaxed(&setup, [true; 6]).unwrap();
+    for c in 0..6 {
+        assert!(r.channel[c] < 1e-5, "{c}: {:?}", r.channel);
+    }
+    assert!(r.total < 1e-5, "{}", r.total);
+}
+
+#[test]
+fn a_platform_that_cannot_move_scores_the_uncued_error() {
+    // With every limit at zero the only motion is none: the bound is the reference's own
+    // soft-dead-zone error, computed here by hand from the score's definition.
+    let profile = full_flight();
+    let trace = trace_of(400, |t| {
+        let on = if (0.5..2.5).contains(&t) { 1.0 } else { 0.0 };
+        (
+            Vector3::new(1.5 * on, -0.4 * on, 2.0 * on),
+            Vector3::new(0.1 * on, 0.0, -0.2 * on),
+        )
+    });
+    let mut setup = Setup::new(&profile, &trace).unwrap();
+    setup.limits.excursion = Vector6::zeros();
+    setup.limits.velocity = Vector6::zeros();
+    setup.limits.acceleration = Vector6::zeros();
+    let r = relaxed(&setup, [true; 6]).unwrap();
+    let tau = thresholds(&profile);
+    let s = profile.score.below_threshold_weight;
+    for (c, t) in tau.iter().enumerate() {
+        let x = &setup.reference[c];
+        let by_hand = x.iter().map(|v| soft_dead_zone(v / t, s)).sum::<f64>() / x.len() as f64;
+        assert!(
+            (r.channel[c] - by_hand).abs() < 1e-6 * (1.0 + by_hand),
+            "{c}"
+        );
+        assert!(
+            (r.joint_error[c] - by_hand).abs() < 1e-6 * (1.0 + by_hand),
+            "{c}"
+        );
+    }
+}
+
+#[test]
+fn a_sustained_heave_is_cued_at_onset_and_the_rest_is_uncueable() {
+    // A sustained Δf_z of 2 m/s²: the platform can push for a while, not for ever; the bound
+    // lies between zero and the uncued error, and the joint optimum's motion replays inside
+    // the workspace with the error the programme claims.
+    let profile = full_flight();
+    let trace = trace_of(1500, |t| {
+        (
+            Vector3::new(0.0, 0.0, if t > 1.0 { 2.0 } else { 0.0 }),
+            Vector3::zeros(),
+        )
+    });
+    let setup = Setup::new(&profile, &trace).unwrap();
+    let r = relaxed(&setup, [true; 6]).unwrap();
+    let tau = thresholds(&profile);
+    let s = profile.score.below_threshold_weight;
+    let x = &setup.reference[2];
+    let uncued = x.iter().map(|v| soft_dead_zone(v / tau[2], s)).sum::<f64>() / x.len() as f64;
+    assert!(
+        r.channel[2] > 0.05 && r.channel[2] < 0.99 * uncued,
+        "{} vs {uncued}",
+        r.channel[2]
+    );
+    let cmds = commands_of(&r.joint, &setup.limits);
+    let replayed = replay(&profile, &trace, &cmds);
+    assert_eq!(replayed.leg_violations, 0);
+    // The limiter's braking look-ahead trims the few steps that run at the stroke's end at
+    // full speed; otherwise the pipeline charges what the programme claims.
+    assert!(
+        replayed.limiter_fraction < 0.02,
+        "{}",
+        replayed.limiter_fraction
+    );
+    assert!(
+        (replayed.error[2] - r.joint_error[2]).abs() < 0.005 * r.joint_error[2],
+        "{} vs {}",
+        replayed.error[2],
+        r.joint_error[2]
+    );
+}

@@ -1,0 +1,143 @@
+//! `hexcue bound` (docs/bound.md): the yardstick on the shipped flights. An algorithm that
+//! beats the lower bound is a bug in the bound; the achieved motion must be one the platform
+//! makes; the heave-only figure of the turbulent cruise must agree with the independent check.
+
+mod common;
+
+use common::{hexcue, read_json, repo, shipped_traces, stderr};
+
+const CHANNELS: [&str; 6] = ["fx", "fy", "fz", "wx", "wy", "wz"];
+
+fn bound_json(trace: &std::path::Path, extra: &[&str]) -> serde_json::Value {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bound.json");
+    let mut args = vec![
+        "bound".to_string(),
+        "--trace".into(),
+        trace.to_string_lossy().into_owned(),
+        "--json".into(),
+        out.to_string_lossy().into_owned(),
+    ];
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let run = hexcue(&args);
+    assert!(run.status.success(), "{}", stderr(&run));
+    read_json(&out)
+}
+
+#[test]
+fn no_algorithm_beats_the_lower_bound_on_the_shipped_flights() {
+    for trace in shipped_traces() {
+        let j = bound_json(&trace, &[]);
+        let name = trace.display();
+        let bound = &j["bound"];
+        let lower_total = bound["lower"]["total"].as_f64().unwrap();
+        let algorithms = j["algorithms"].as_object().unwrap();
+        assert_eq!(algorithms.len(), 3, "{name}: {j}");
+        for (alg, e) in algorithms {
+            let total = e["total"].as_f64().unwrap();
+            assert!(
+                lower_total <= total,
+                "{name}: {alg} total {total} < lower {lower_total}"
+            );
+            for c in CHANNELS {
+                let lower = bound["lower"]["channel"][c].as_f64().unwrap();
+                let err = e["error"][c].as_f64().unwrap();
+                assert!(lower <= err, "{name}: {alg} {c} {err} < lower {lower}");
+            }
+        }
+        // The achieved motion: made by the platform (no leg outside its stroke) and, being a
+        // motion, no better than the bound. Within 15 % of it is issue #33's aim, met on the
+        // turbulent cruise only so far (docs/bound.md, "Not done yet").
+        let achieved = &bound["achieved"];
+        assert_eq!(achieved["leg_violations"].as_u64(), Some(0), "{name}");
+        let total = achieved["total"].as_f64().unwrap();
+        assert!(
+            total >= lower_total - 1e-6,
+            "{name}: achieved {total} < lower {lower_total}"
+        );
+        // The joint optimum bounds every channel's own optimum from above.
+        for c in CHANNELS {
+            let own = bound["lower"]["channel"][c].as_f64().unwrap();
+            let joint = j["details"]["joint_error"][c].as_f64().unwrap();
+            assert!(
+                own <= joint + 1e-6,
+                "{name}: {c} alone {own} > joint {joint}"
+            );
+        }
+        assert!(bound["dominance"]["possible"].is_boolean(), "{name}");
+        assert!(bound["dominance"]["binding"].is_array(), "{name}");
+    }
+}
+
+#[test]
+fn the_turbulent_cruise_heave_bound_agrees_with_the_independent_check() {
+    // scripts/heave-bound.py (10 Hz, HiGHS) gives 1.698 and an independent 100 Hz programme
+    // with exact kinematics 1.704 (issue #33): the heave channel alone must be 1.70 ± 3 %.
+    let trace = repo().join("recordings/traces/turbulence-cruise.csv");
+    let j = bound_json(&trace, &["--channels", "fz", "--algorithms", "cwf"]);
+    let fz = j["bound"]["lower"]["channel"]["fz"].as_f64().unwrap();
+    assert!((fz - 1.70).abs() <= 0.03 * 1.70, "heave bound {fz}");
+    // Only the asked channel is solved alone.
+    assert!(j["bound"]["lower"]["channel"]["fx"].is_null(), "{j}");
+    let cwf = j["algorithms"]["cwf"]["error"]["fz"].as_f64().unwrap();
+    assert!(fz < cwf, "{fz} vs the CWF's {cwf}");
+}
+
+#[test]
+fn bound_refuses_an_unknown_channel_naming_it() {
+    let trace = repo().join("recordings/traces/takeoff.csv");
+    let out = hexcue(&[
+        "bound",
+        "--trace",
+        trace.to_str().unwrap(),
+        "--channels",
+        "fx,heave",
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("heave"), "{}", stderr(&out));
+}
+
+#[test]
+fn play_headless_bound_adds_the_bound_object_and_the_cueable_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let summary = dir.path().join("s.json");
+    let trace = repo().join("recordings/traces/landing.csv");
+    let out = hexcue(&[
+        "play",
+        "--headless",
+        "--bound",
+        "--algorithms",
+        "cwf",
+        "--trace",
+        trace.to_str().unwrap(),
+        "--summary",
+        summary.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        common::stdout(&out).contains("cueable"),
+        "{}",
+        common::stdout(&out)
+    );
+    let j = read_json(&summary);
+    let b = j["bound"].as_object().unwrap();
+    let keys: Vec<&str> = b.keys().map(|k| k.as_str()).collect();
+    assert_eq!(keys, ["achieved", "dominance", "lower"]);
+    let lower = &j["bound"]["lower"];
+    assert_eq!(lower["channel"].as_object().unwrap().len(), 6);
+    let mut achieved: Vec<&str> = j["bound"]["achieved"]
+        .as_object()
+        .unwrap()
+        .keys()
+        .map(|k| k.as_str())
+        .collect();
+    achieved.sort();
+    assert_eq!(
+        achieved,
+        ["error", "leg_violations", "limiter_fraction", "total"]
+    );
+    let cwf = j["algorithms"]["cwf"]["score_terms"]["error"]["fx"]
+        .as_f64()
+        .unwrap();
+    assert!(lower["channel"]["fx"].as_f64().unwrap() <= cwf);
+}
