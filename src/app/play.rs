@@ -4,7 +4,7 @@
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 
 use crate::app::common::{
     check_session_outputs, headless_or_console, inputs, progress_bar, stop_flag,
