@@ -229,6 +229,7 @@ impl Profile {
                 });
             }
         }
+        out.extend(self.safety.warnings(&self.limits.si(), self.dt_s()));
         let (condition, weakest) = neutral_conditioning(&stewart);
         if condition > MAX_NEUTRAL_CONDITION {
             let key = if self.geometry.by_joints() {
@@ -395,7 +396,7 @@ impl Profile {
         positive("moog.reply_timeout_s", m.reply_timeout_s)?;
         positive("moog.engage_timeout_s", m.engage_timeout_s)?;
         positive("moog.park_timeout_s", m.park_timeout_s)?;
-        self.safety.validate(&self.limits.si(), self.dt_s())?;
+        self.safety.validate(&self.limits.si())?;
         self.actuators()?;
         if self.mpc.fine_step_s < self.dt_s() - 1e-12 {
             return err(

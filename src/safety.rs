@@ -86,9 +86,9 @@ impl SafetySettings {
         }
     }
 
-    /// Every value possible, the gentle limits within the DoFs' own, and the return time
-    /// long enough for the gentle limits to bring every DoF back from the end of its travel.
-    pub fn validate(&self, limits: &DofLimits, dt_s: f64) -> Result<(), ProfileError> {
+    /// Every value possible and the gentle limits within the DoFs' own (the return time is
+    /// checked by [`Self::warnings`]).
+    pub fn validate(&self, limits: &DofLimits) -> Result<(), ProfileError> {
         positive("safety.fade_in_s", self.fade_in_s)?;
         positive("safety.input_timeout_s", self.input_timeout_s)?;
         positive("safety.return_time_s", self.return_time_s)?;
@@ -131,7 +131,17 @@ impl SafetySettings {
                 }
             }
         }
+        Ok(())
+    }
+
+    /// A return time that the gentle limits cannot meet from rest at the end of a DoF's
+    /// travel: a warning, not an error. The way back then takes the next step of the ladder
+    /// for that DoF (up to its own acceleration limit) and says so when it happens (a hard
+    /// brake, `why: return_time`); refusing the profile would refuse every larger workspace
+    /// that leaves `[safety]` at its defaults.
+    pub fn warnings(&self, limits: &DofLimits, dt_s: f64) -> Vec<ProfileError> {
         let t = self.transition_limits(limits, dt_s);
+        let mut out = Vec::new();
         for (i, name) in DOF_NAMES.iter().enumerate() {
             let need_s = t.gentle_full_return_s(i);
             if need_s > self.return_time_s {
@@ -140,18 +150,19 @@ impl SafetySettings {
                 } else {
                     ("angular_acceleration_dps2", i - 3)
                 };
-                return Err(ProfileError {
+                out.push(ProfileError {
                     key: "safety.return_time_s".into(),
                     reason: format!(
                         "{} s is shorter than the {need_s:.2} s the gentle limits take to bring \
-                         {name} back from the end of its travel at rest; raise it, or \
-                         safety.{acc_key}[{k}] and its jerk",
+                         {name} back from the end of its travel at rest, so such a way back \
+                         brakes harder and says so; raise it, or safety.{acc_key}[{k}] and its \
+                         jerk",
                         self.return_time_s
                     ),
                 });
             }
         }
-        Ok(())
+        out
     }
 }
 
