@@ -158,7 +158,8 @@ pub struct HardBrake {
     pub t_s: f64,
     /// surge, sway, heave, roll, pitch or yaw.
     pub dof: String,
-    /// What the gentle path would have broken: `excursion`, `velocity` or `return_time`.
+    /// What the gentle path would have broken: `excursion`, `velocity` or `return_time`; or
+    /// `inherited_acceleration` when the start's own acceleration was above the gentle limit.
     pub why: String,
     /// The path's peak |acceleration| (m/s² or deg/s²).
     pub peak_acceleration: f64,

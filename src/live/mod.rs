@@ -634,6 +634,10 @@ impl LiveSession {
                 Escalation::ReturnTime => {
                     "too far out and too fast to be back on neutral gently within the return time"
                 }
+                Escalation::Inherited => {
+                    "its acceleration at the hand-over was above the gentle limit, too much to \
+                     ramp down gently"
+                }
             };
             self.events.push(Event {
                 t_s,

@@ -284,6 +284,11 @@ pub enum Escalation {
     Velocity,
     /// The gentle path would have missed the return time.
     ReturnTime,
+    /// The platform's own acceleration at the start (the driving algorithm's) is above the
+    /// gentle limit, and ramping it down at the gentle jerk would have broken one of the
+    /// above: the cause is the hand-over, not where the DoF is (found against a real JSBSim
+    /// in roll reversals, docs/live.md "Against a real JSBSim").
+    Inherited,
 }
 
 impl Escalation {
@@ -292,6 +297,7 @@ impl Escalation {
             Escalation::Excursion => "excursion",
             Escalation::Velocity => "velocity",
             Escalation::ReturnTime => "return_time",
+            Escalation::Inherited => "inherited_acceleration",
         }
     }
 }
@@ -382,7 +388,8 @@ impl TransitionLimits {
             let path = DofPath::plan(from, &bounds);
             let fault = self.fault(i, from, &path);
             if k == 1.0 {
-                escalation = fault;
+                let inherited = from.a.abs() > self.gentle_acceleration[i] * (1.0 + 1e-9);
+                escalation = fault.map(|f| if inherited { Escalation::Inherited } else { f });
             }
             last = Some((path, bounds));
             if fault.is_none() {
@@ -633,6 +640,23 @@ mod tests {
                 a_prev = a;
             }
         }
+    }
+
+    /// Near neutral and still, but with the algorithm's roll acceleration far above the gentle
+    /// limit at the hand-over: the escalation names the inherited acceleration, not the
+    /// excursion the slow ramp-down would have left.
+    #[test]
+    fn an_inherited_acceleration_is_named_as_the_cause() {
+        let l = limits();
+        let from = DofState {
+            p: (-0.3f64).to_radians(),
+            v: 0.0,
+            a: 67f64.to_radians(),
+        };
+        let plan = l.plan_dof(3, from);
+        assert_eq!(plan.escalation, Some(Escalation::Inherited));
+        assert_eq!(Escalation::Inherited.word(), "inherited_acceleration");
+        check(&plan.path, from, &plan.bounds, l.limits.excursion[3]);
     }
 
     #[test]
