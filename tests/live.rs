@@ -40,38 +40,6 @@ fn limits() -> Limits {
     }
 }
 
-fn free_port() -> u16 {
-    UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-/// Collects the JSON commands sent to 127.0.0.1:port until told to stop.
-fn listen(stop: Arc<AtomicBool>) -> (u16, std::thread::JoinHandle<Vec<Value>>) {
-    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
-    let port = socket.local_addr().unwrap().port();
-    socket
-        .set_read_timeout(Some(Duration::from_millis(50)))
-        .unwrap();
-    let handle = std::thread::spawn(move || {
-        let mut out = Vec::new();
-        let mut buf = [0u8; 65536];
-        while !stop.load(Ordering::Relaxed) {
-            if let Ok((n, _)) = socket.recv_from(&mut buf) {
-                out.push(serde_json::from_slice(&buf[..n]).expect("a JSON command"));
-            }
-        }
-        // What was already on its way.
-        while let Ok((n, _)) = socket.recv_from(&mut buf) {
-            out.push(serde_json::from_slice(&buf[..n]).unwrap());
-        }
-        out
-    });
-    (port, handle)
-}
-
 fn hexcue_live(
     input: &str,
     output_port: u16,
@@ -231,29 +199,12 @@ fn check_recording(dir: &Path, steps: usize) {
     assert_eq!(read_json(&again)["steps"].as_u64(), Some(steps as u64));
 }
 
-/// One JSBSim socket line (Time, then the directive's nine values in its units).
-fn jsbsim_line(t: f64, row: &[f64]) -> String {
-    let ft = |v: f64| v / 0.3048;
-    format!(
-        "{t:12.6},{:12.6},{:12.6},{:12.6},{:12.8},{:12.8},{:12.8},{:12.8},{:12.8},{:12.8}\n",
-        ft(row[1]),
-        ft(row[2]),
-        ft(row[3]),
-        row[4],
-        row[5],
-        row[6],
-        row[7],
-        row[8],
-        row[9]
-    )
-}
-
 #[test]
 fn live_session_against_a_replayed_trace() {
     let dir = tempfile::tempdir().unwrap();
     let stop = Arc::new(AtomicBool::new(false));
-    let (out_port, listener) = listen(stop.clone());
-    let in_port = free_port();
+    let (out_port, listener) = json_listener(stop.clone());
+    let in_port = free_udp_port();
     let child = hexcue_live(
         &format!("jsbsim://127.0.0.1:{in_port}"),
         out_port,
@@ -335,7 +286,7 @@ fn live_session_against_jsbsim() {
     };
     let dir = tempfile::tempdir().unwrap();
     let stop = Arc::new(AtomicBool::new(false));
-    let (out_port, listener) = listen(stop.clone());
+    let (out_port, listener) = json_listener(stop.clone());
     // The shipped directive streams to 127.0.0.1:5138.
     let child = hexcue_live(
         "jsbsim://127.0.0.1:5138",

@@ -68,23 +68,6 @@ fn wait_for(commands: &Commands, bound: Duration, what: &str, ready: impl Fn(&[V
     }
 }
 
-/// One JSBSim socket line (Time, then the directive's nine values in its units).
-fn jsbsim_line(t: f64, row: &[f64]) -> String {
-    let ft = |v: f64| v / 0.3048;
-    format!(
-        "{t:12.6},{:12.6},{:12.6},{:12.6},{:12.8},{:12.8},{:12.8},{:12.8},{:12.8},{:12.8}\n",
-        ft(row[1]),
-        ft(row[2]),
-        ft(row[3]),
-        row[4],
-        row[5],
-        row[6],
-        row[7],
-        row[8],
-        row[9]
-    )
-}
-
 /// The steep turn's roll reversal (37.5 s on: rates of 0.27 rad/s, load factor from 1.5 g
 /// to 0.9 g and back up to 2.2 g).
 fn manoeuvre() -> Vec<Vec<f64>> {
@@ -147,14 +130,6 @@ fn hexcue_live(in_port: u16, out_port: u16, summary: &std::path::Path) -> Child 
         .stderr(Stdio::piped())
         .spawn()
         .expect("the hexcue binary runs")
-}
-
-fn free_port() -> u16 {
-    UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
 }
 
 fn signal(child: &Child, sig: i32) {
@@ -309,7 +284,7 @@ fn input_lost_mid_manoeuvre_returns_to_neutral_without_a_jolt() {
     let summary = dir.path().join("live.json");
     let stop = Arc::new(AtomicBool::new(false));
     let (out_port, commands, listener) = listen(stop.clone());
-    let in_port = free_port();
+    let in_port = free_udp_port();
     let child = hexcue_live(in_port, out_port, &summary);
     // It is up once its first command arrives (one leaves every step from the start).
     wait_for(&commands, Duration::from_secs(60), "first command", |c| {
@@ -371,7 +346,7 @@ fn sigint_mid_manoeuvre_returns_to_neutral_without_a_jolt() {
     let summary = dir.path().join("live.json");
     let stop = Arc::new(AtomicBool::new(false));
     let (out_port, commands, listener) = listen(stop.clone());
-    let in_port = free_port();
+    let in_port = free_udp_port();
     let child = hexcue_live(in_port, out_port, &summary);
     wait_for(&commands, Duration::from_secs(60), "first command", |c| {
         !c.is_empty()
