@@ -136,11 +136,8 @@ fn session(
     let child = spawn_live(&args);
     let rows = trace_rows("steep-turn.csv");
     let n = (input_s * 100.0) as usize;
-    let sim = replay_jsbsim(
-        in_port,
-        rows[2000..2000 + n].to_vec(),
-        Duration::from_millis(500),
-    );
+    listener.wait_for_first_command(Duration::from_secs(60));
+    let sim = replay_jsbsim(in_port, rows[2000..2000 + n].to_vec());
     let out = child.wait_with_output().unwrap();
     stop.store(true, Ordering::Relaxed);
     sim.join().unwrap();
@@ -446,11 +443,7 @@ fn a_udp_output_with_nothing_listening_is_said_within_2_s_and_so_is_its_recovery
     .map(|s| s.to_string())
     .collect();
     let mut child = spawn_live(&args);
-    let sim = replay_jsbsim(
-        in_port,
-        trace_rows("steep-turn.csv")[..1100].to_vec(),
-        Duration::ZERO,
-    );
+    let sim = replay_jsbsim(in_port, trace_rows("steep-turn.csv")[..1100].to_vec());
     // Read stderr as it comes; once the warning is out, start listening there.
     let err = BufReader::new(child.stderr.take().unwrap());
     let mut lines = Vec::new();

@@ -222,7 +222,7 @@ fn live_session_against_a_replayed_trace() {
         .collect();
     let sender = UdpSocket::bind("127.0.0.1:0").unwrap();
     let to = format!("127.0.0.1:{in_port}");
-    std::thread::sleep(Duration::from_millis(500));
+    listener.wait_for_first_command(Duration::from_secs(60));
     sender
         .send_to(b"<LABELS> ,Time,a-pilot-x-ft sec2,a-pilot-y-ft sec2,a-pilot-z-ft sec2,p-rad sec,q-rad sec,r-rad sec,phi-rad,theta-rad,psi-rad\n", &to)
         .unwrap();
@@ -295,7 +295,7 @@ fn live_session_against_jsbsim() {
         dir.path(),
         &["--algorithms", "cwf", "--drive", "cwf"],
     );
-    std::thread::sleep(Duration::from_millis(500));
+    listener.wait_for_first_command(Duration::from_secs(60));
     let flight = Command::new(python)
         .arg(repo().join("tests/jsbsim_flight.py"))
         .arg(repo().join("integrations/jsbsim/hexcue.xml"))

@@ -99,21 +99,22 @@ pub fn free_udp_port() -> u16 {
 
 /// Collects hexcue's JSON commands (`udp://` output) on a port of 127.0.0.1 until `stop`,
 /// then what was already on its way.
-pub fn json_listener(
-    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
-) -> (u16, std::thread::JoinHandle<Vec<serde_json::Value>>) {
+pub fn json_listener(stop: std::sync::Arc<std::sync::atomic::AtomicBool>) -> (u16, JsonListener) {
     use std::sync::atomic::Ordering;
     let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
     let port = socket.local_addr().unwrap().port();
     socket
         .set_read_timeout(Some(std::time::Duration::from_millis(50)))
         .unwrap();
+    let received = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let count = received.clone();
     let handle = std::thread::spawn(move || {
         let mut out = Vec::new();
         let mut buf = [0u8; 65536];
         while !stop.load(Ordering::Relaxed) {
             if let Ok((n, _)) = socket.recv_from(&mut buf) {
                 out.push(serde_json::from_slice(&buf[..n]).expect("a JSON command"));
+                count.fetch_add(1, Ordering::Relaxed);
             }
         }
         while let Ok((n, _)) = socket.recv_from(&mut buf) {
@@ -121,7 +122,34 @@ pub fn json_listener(
         }
         out
     });
-    (port, handle)
+    (port, JsonListener { handle, received })
+}
+
+/// The thread collecting a live session's JSON commands, and how many it has so far.
+pub struct JsonListener {
+    handle: std::thread::JoinHandle<Vec<serde_json::Value>>,
+    received: std::sync::Arc<std::sync::atomic::AtomicUsize>,
+}
+
+impl JsonListener {
+    /// Every command received, once the stop flag is set.
+    pub fn join(self) -> std::thread::Result<Vec<serde_json::Value>> {
+        self.handle.join()
+    }
+
+    /// Blocks until the platform has received its first command: hexcue is up, bound to its
+    /// input and parked. Waiting on that, not on a fixed sleep, keeps a loaded CI machine
+    /// from sending the flight before hexcue listens (a session would then start engaging).
+    pub fn wait_for_first_command(&self, limit: std::time::Duration) {
+        let start = std::time::Instant::now();
+        while self.received.load(std::sync::atomic::Ordering::Relaxed) == 0 {
+            assert!(
+                start.elapsed() < limit,
+                "no command from hexcue live within {limit:?}"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+    }
 }
 
 /// One JSBSim socket line (Time, then the directive's nine values in its units) from a row
@@ -151,17 +179,12 @@ pub fn trace_rows(name: &str) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// A JSBSim stand-in: sends `rows` to 127.0.0.1:port in real time at 100 Hz after `wait`
+/// A JSBSim stand-in: sends `rows` to 127.0.0.1:port in real time at 100 Hz from now
 /// (the labels line first); returns how many samples it sent.
-pub fn replay_jsbsim(
-    port: u16,
-    rows: Vec<Vec<f64>>,
-    wait: std::time::Duration,
-) -> std::thread::JoinHandle<usize> {
+pub fn replay_jsbsim(port: u16, rows: Vec<Vec<f64>>) -> std::thread::JoinHandle<usize> {
     std::thread::spawn(move || {
         let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
         let to = format!("127.0.0.1:{port}");
-        std::thread::sleep(wait);
         sender
             .send_to(b"<LABELS> ,Time,a-pilot-x-ft sec2,a-pilot-y-ft sec2,a-pilot-z-ft sec2,p-rad sec,q-rad sec,r-rad sec,phi-rad,theta-rad,psi-rad\n", &to)
             .unwrap();
