@@ -16,12 +16,20 @@ use std::collections::BTreeMap;
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
+use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 use common::{repo, stderr};
 use serde_json::Value;
 
+/// The venv's Python with Optuna, made once per test run: the tests run in parallel and must
+/// not both create the venv.
 fn optuna_python() -> Option<PathBuf> {
+    static PYTHON: OnceLock<Option<PathBuf>> = OnceLock::new();
+    PYTHON.get_or_init(make_optuna_python).clone()
+}
+
+fn make_optuna_python() -> Option<PathBuf> {
     let venv = repo().join("target/optuna-venv");
     let python = venv.join("bin/python");
     let ok = |c: &mut Command| {
