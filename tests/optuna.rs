@@ -145,6 +145,46 @@ fn best(scores: &BTreeMap<String, f64>) -> (String, f64) {
         .unwrap()
 }
 
+/// A worker whose evaluation never ends: a stand-in for `hexcue` that says it started and
+/// then does not finish. Returns once it has started, so that the worker is stopped while its
+/// candidate is being evaluated. In its own process group, to be killed with its evaluation.
+fn hanging_worker(study: &Campaign, dir: &Path) -> std::process::Child {
+    let started = dir.join("started");
+    let stand_in = dir.join("hanging-hexcue");
+    std::fs::write(
+        &stand_in,
+        format!(
+            "#!/bin/sh\ntouch '{}'\nexec sleep 3600\n",
+            started.display()
+        ),
+    )
+    .unwrap();
+    std::fs::set_permissions(
+        &stand_in,
+        std::os::unix::fs::PermissionsExt::from_mode(0o755),
+    )
+    .unwrap();
+    let mut worker = study
+        .command("work", &stand_in.display().to_string(), &[])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .process_group(0)
+        .spawn()
+        .unwrap();
+    let limit = Instant::now() + Duration::from_secs(120);
+    while !started.exists() {
+        assert!(
+            Instant::now() < limit,
+            "the worker never started an evaluation"
+        );
+        if let Some(s) = worker.try_wait().unwrap() {
+            panic!("the worker ended before its evaluation: {s}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    worker
+}
+
 /// The reference: one worker through the whole study.
 fn one_worker(python: &Path, dir: &Path) -> (Campaign, Value, Duration) {
     let one = Campaign::new(python, dir, "one");
@@ -317,41 +357,7 @@ fn a_worker_killed_mid_study_loses_nothing_but_its_own_candidate() {
 
     let study = Campaign::new(&python, dir.path(), "killed");
     study.create();
-    // The worker to kill evaluates through a stand-in for hexcue that says it started and
-    // then does not finish: the worker is killed while its candidate is being evaluated.
-    let started = dir.path().join("started");
-    let stand_in = dir.path().join("hanging-hexcue");
-    std::fs::write(
-        &stand_in,
-        format!(
-            "#!/bin/sh\ntouch '{}'\nexec sleep 3600\n",
-            started.display()
-        ),
-    )
-    .unwrap();
-    std::fs::set_permissions(
-        &stand_in,
-        std::os::unix::fs::PermissionsExt::from_mode(0o755),
-    )
-    .unwrap();
-    let mut doomed = study
-        .command("work", &stand_in.display().to_string(), &[])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .process_group(0)
-        .spawn()
-        .unwrap();
-    let limit = Instant::now() + Duration::from_secs(120);
-    while !started.exists() {
-        assert!(
-            Instant::now() < limit,
-            "the worker never started an evaluation"
-        );
-        if let Some(s) = doomed.try_wait().unwrap() {
-            panic!("the worker ended before its evaluation: {s}");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let mut doomed = hanging_worker(&study, dir.path());
     // The worker and its evaluation, as a lost machine would lose them.
     let rc = unsafe { libc::kill(-(doomed.id() as libc::pid_t), libc::SIGKILL) };
     assert_eq!(rc, 0);
@@ -387,4 +393,43 @@ fn a_worker_killed_mid_study_loses_nothing_but_its_own_candidate() {
     assert!(c.iter().all(|t| t["state"] == "COMPLETE"), "{status}");
     assert_eq!(scores(&status), all);
     assert_eq!(best(&scores(&status)), best(&all));
+}
+
+#[test]
+fn a_worker_stopped_by_sigterm_hands_its_candidate_back() {
+    let Some(python) = optuna_python() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (_, reference, _) = one_worker(&python, dir.path());
+    let study = Campaign::new(&python, dir.path(), "stopped");
+    study.create();
+    let worker = hanging_worker(&study, dir.path());
+    // SIGTERM to the worker alone, as Slurm sends at a time limit or a pre-emption.
+    let rc = unsafe { libc::kill(worker.id() as libc::pid_t, libc::SIGTERM) };
+    assert_eq!(rc, 0);
+    let out = worker.wait_with_output().unwrap();
+    let err = stderr(&out);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("its candidate is enqueued again"), "{err}");
+    let status = study.status();
+    let trials = status["trials"].as_array().unwrap();
+    let handed: Vec<&Value> = trials
+        .iter()
+        .filter(|t| t["user_attrs"].get("not_counted").is_some())
+        .collect();
+    assert_eq!(handed.len(), 1, "{status}");
+    assert_eq!(handed[0]["state"], "FAIL");
+    let again = trials
+        .iter()
+        .find(|t| t["user_attrs"]["requeued_from"] == handed[0]["number"])
+        .unwrap_or_else(|| panic!("not enqueued again: {status}"));
+    assert_eq!(again["state"], "WAITING");
+    // The next worker scores it with the others: the study is the reference's.
+    study.run("work", &[]);
+    let status = study.status();
+    let c = counted(&status);
+    assert_eq!(c.len(), 9, "{status}");
+    assert!(c.iter().all(|t| t["state"] == "COMPLETE"), "{status}");
+    assert_eq!(scores(&status), scores(&reference));
 }

@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -227,6 +228,28 @@ def evaluate(study, trial, config: dict, base_file: str, args, tmp: str) -> None
     )
 
 
+class Stopped(Exception):
+    """SIGTERM: what Slurm sends at a time limit or a pre-emption, and `kill` by default."""
+
+
+def on_sigterm(signum, frame):
+    raise Stopped()
+
+
+def hand_back(study, trial, space: dict) -> None:
+    """A worker stopped mid-evaluation gives its candidate back: its trial fails and is not
+    counted, and the same values are enqueued for the next worker."""
+    params = dict(trial.params)
+    try:
+        trial.set_user_attr(NOT_COUNTED, "handed back: its worker was stopped")
+        study.tell(trial, state=TrialState.FAIL)
+    except Exception:  # stopped after its result was told: nothing to give back
+        return
+    if len(params) == len(space["keys"]):
+        study.enqueue_trial(params, user_attrs={"requeued_from": trial.number})
+    print(f"trial {trial.number}: stopped; its candidate is enqueued again", file=sys.stderr)
+
+
 def cmd_work(args) -> None:
     study, config, base = load(args)
     study = optuna.load_study(
@@ -235,6 +258,7 @@ def cmd_work(args) -> None:
         sampler=sampler_of(config, base, args.seed),
     )
     budget = config["budget"]
+    signal.signal(signal.SIGTERM, on_sigterm)
     with tempfile.TemporaryDirectory() as tmp:
         base_file = os.path.join(tmp, "base.json")
         with open(base_file, "w") as f:
@@ -257,6 +281,9 @@ def cmd_work(args) -> None:
                     break
             try:
                 evaluate(study, trial, config, base_file, args, tmp)
+            except (KeyboardInterrupt, Stopped):
+                hand_back(study, trial, config["space"])
+                sys.exit(1)
             except BaseException:
                 study.tell(trial, state=TrialState.FAIL)
                 raise
