@@ -50,6 +50,11 @@ pub enum Command {
     /// Tune one algorithm's keys against the cueing score on a set of traces (CMA-ES) and
     /// write the tuned profile (docs/tuning.md).
     Tune(TuneArgs),
+    /// One candidate's evaluation, as a deterministic command: a profile (with --set values)
+    /// run on traces, scored and judged against its base by `tune`'s rules, written as JSON;
+    /// `--space` prints `tune`'s search space. Workers of an Optuna campaign run it
+    /// (docs/tuning.md).
+    Eval(EvalArgs),
     /// The yardstick: the best motion any platform could give on a flight (the whole future
     /// known, within the profile's limits), against the algorithms' errors (docs/bound.md).
     Bound(BoundArgs),
@@ -327,6 +332,62 @@ pub struct TuneArgs {
     #[arg(long, value_name = "TUNED.toml")]
     pub out: PathBuf,
     /// Overwrite the --out file if it exists.
+    #[arg(long)]
+    pub force: bool,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct EvalArgs {
+    /// The algorithm to evaluate: cwf, mpc or smpc.
+    #[arg(long, value_name = "ALG")]
+    pub algorithm: String,
+    /// The base profile (TOML), against which the candidate is judged. Default: the embedded
+    /// profiles/full-flight.toml.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+    /// A value of the candidate, any number of times: the profile's key path and a TOML
+    /// value (`cwf.tilt_lp_zeta=0.8`, `cwf.specific_force_scale=[0.6, 0.6, 0.4]`), or some
+    /// elements of an array (`mpc.specific_force_weight[0,1]=3`, as `--space` names them).
+    /// Checked by the profile loader, as in a file.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// The flights to score: folders (every *.csv in them) or CSV files, comma-separated
+    /// (`tune --traces`).
+    #[arg(
+        long,
+        value_name = "DIR|FILE",
+        value_delimiter = ',',
+        required_unless_present = "space"
+    )]
+    pub traces: Vec<PathBuf>,
+    /// Validation flights (`tune --validate`): the verdict is `tune`'s whole gate, the
+    /// --traces flights as training flights and these as validation flights.
+    #[arg(long, value_name = "DIR|FILE", value_delimiter = ',')]
+    pub validate: Vec<PathBuf>,
+    /// Score only shard I of N (0 ≤ I < N) of the --traces flights: the I-th, (I+N)-th, …
+    /// in the order listed (a folder's files sorted by name).
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<String>,
+    /// The base's figures from an earlier `hexcue eval` of the base (no --set) on these
+    /// flights, instead of running the base again (same hexcue, profile and trace files).
+    #[arg(long, value_name = "BASE.json")]
+    pub base_result: Option<PathBuf>,
+    /// Where to write the result (JSON; refused if it exists, unless --force). With --space:
+    /// where to write the space (default: stdout).
+    #[arg(long, value_name = "R.json", required_unless_present = "space")]
+    pub out: Option<PathBuf>,
+    /// Also write the candidate as a profile: the base file with the --set values in place
+    /// (comments kept) under a `# tuned:` line.
+    #[arg(long, value_name = "TUNED.toml")]
+    pub save_profile: Option<PathBuf>,
+    /// With --save-profile: words for its `# tuned:` line (e.g. the study and trial).
+    #[arg(long, value_name = "TEXT", requires = "save_profile")]
+    pub note: Option<String>,
+    /// Print `tune`'s search space for --algorithm as JSON (each key's --set name, bounds,
+    /// scale and the profile's value) and exit.
+    #[arg(long, conflicts_with_all = ["validate", "shard", "base_result", "save_profile"])]
+    pub space: bool,
+    /// Overwrite the --out and --save-profile files if they exist.
     #[arg(long)]
     pub force: bool,
 }

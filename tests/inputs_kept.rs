@@ -138,4 +138,21 @@ fn review_plot_recover_export_compare_and_tune_never_write_over_their_inputs() {
         "--force".as_ref(),
     ];
     refused(&tune, &trace, &trace_before, "--traces");
+    for option in ["--out", "--save-profile"] {
+        let other = trace.with_extension("json");
+        let mut eval: Vec<&OsStr> = vec![
+            "eval".as_ref(),
+            "--algorithm".as_ref(),
+            "cwf".as_ref(),
+            "--traces".as_ref(),
+            traces_dir,
+            "--force".as_ref(),
+            option.as_ref(),
+            trace.as_os_str(),
+        ];
+        if option == "--save-profile" {
+            eval.extend(["--out".as_ref(), other.as_os_str()]);
+        }
+        refused(&eval, &trace, &trace_before, "--traces");
+    }
 }

@@ -5,6 +5,7 @@
 pub mod bound;
 pub mod common;
 pub mod compare;
+pub mod eval;
 pub mod export;
 pub mod live;
 pub mod omct;
@@ -41,6 +42,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Omct(args) => omct::run(&args),
         Command::Live(args) => live::run(&args),
         Command::Tune(args) => tune::run(&args),
+        Command::Eval(args) => eval::run(&args),
         Command::Export(args) => export::run(&args),
         Command::Bound(args) => bound::run(&args),
         Command::Recover {

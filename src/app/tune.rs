@@ -17,13 +17,22 @@ use crate::formats::trace::load_trace;
 use crate::mca::AlgorithmId;
 use crate::trace::Trace;
 use crate::tune::{
-    keys, tunable_keys, tune, validate::PER_FLIGHT_TOLERANCE, Evaluator, GenerationRecord,
-    Progress, Validated, LIMITER_TOLERANCE,
+    default_budget, default_step, keys, tunable_keys, tune, validate::PER_FLIGHT_TOLERANCE,
+    Evaluator, GenerationRecord, Progress, Validated, LIMITER_TOLERANCE,
 };
 use crate::vocab::plural;
 
 /// Traces from folders (their *.csv, sorted) and files, checked before any work.
 pub fn load_traces(paths: &[PathBuf], rate_hz: f64) -> Result<Vec<Arc<Trace>>> {
+    trace_files(paths, "--traces")?
+        .iter()
+        .map(|f| Ok(Arc::new(load_trace(f, rate_hz)?.trace)))
+        .collect()
+}
+
+/// The trace files that `paths` name: a folder's *.csv (sorted by name), a file itself, in the
+/// order given. `option` names the option in the messages.
+pub fn trace_files(paths: &[PathBuf], option: &str) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     for p in paths {
         if p.is_dir() {
@@ -34,7 +43,7 @@ pub fn load_traces(paths: &[PathBuf], rate_hz: f64) -> Result<Vec<Arc<Trace>>> {
                 .collect();
             in_dir.sort();
             if in_dir.is_empty() {
-                bail!("{}: --traces: no trace (*.csv) in this folder", p.display());
+                bail!("{}: {option}: no trace (*.csv) in this folder", p.display());
             }
             files.extend(in_dir);
         } else {
@@ -42,12 +51,21 @@ pub fn load_traces(paths: &[PathBuf], rate_hz: f64) -> Result<Vec<Arc<Trace>>> {
         }
     }
     if files.is_empty() {
-        bail!("--traces: expected at least one trace");
+        bail!("{option}: expected at least one trace");
     }
-    files
+    Ok(files)
+}
+
+/// `--algorithm`'s one algorithm: cwf, mpc or smpc (case, `-` and `_` aside).
+pub fn parse_algorithm(name: &str) -> Result<AlgorithmId> {
+    let wanted = name.trim().to_ascii_lowercase().replace(['-', '_'], "");
+    AlgorithmId::ALL
         .iter()
-        .map(|f| Ok(Arc::new(load_trace(f, rate_hz)?.trace)))
-        .collect()
+        .copied()
+        .find(|a| a.key() == wanted)
+        .ok_or_else(|| {
+            anyhow!("--algorithm: unknown algorithm `{name}`; expected one of cwf, mpc, smpc")
+        })
 }
 
 struct Bar {
@@ -130,7 +148,7 @@ fn command_line(args: &TuneArgs, algorithm: AlgorithmId, budget: usize, step: f6
 
 /// Puts `line` after the `# tuned:` lines already at the top of a profile (or first), so
 /// that a profile tuned in several passes lists its commands in order.
-fn add_header(text: &str, line: &str) -> String {
+pub fn add_header(text: &str, line: &str) -> String {
     let mut lines: Vec<&str> = text.lines().collect();
     let at = lines
         .iter()
@@ -143,21 +161,7 @@ fn add_header(text: &str, line: &str) -> String {
 }
 
 pub fn run(args: &TuneArgs) -> Result<()> {
-    let wanted = args
-        .algorithm
-        .trim()
-        .to_ascii_lowercase()
-        .replace(['-', '_'], "");
-    let algorithm = AlgorithmId::ALL
-        .iter()
-        .copied()
-        .find(|a| a.key() == wanted)
-        .ok_or_else(|| {
-            anyhow!(
-                "--algorithm: unknown algorithm `{}`; expected one of cwf, mpc, smpc",
-                args.algorithm
-            )
-        })?;
+    let algorithm = parse_algorithm(&args.algorithm)?;
     let (profile, text, source) = match &args.profile {
         Some(path) => {
             let (p, t) = crate::app::common::load_profile_warned(path)?;
@@ -178,20 +182,14 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         inputs.push(crate::outputs::Input::new(p, "--profile"));
     }
     crate::outputs::check_output_of(&args.out, args.force, "--out", &inputs)?;
-    let budget = args.budget.unwrap_or(match algorithm {
-        AlgorithmId::Cwf => 200,
-        _ => 50,
-    });
+    let budget = args.budget.unwrap_or(default_budget(algorithm));
     if budget == 0 {
         bail!("--budget: expected at least 1 candidate");
     }
     // A poor base wants a wide first step, a good one a narrow step that refines it: with 0.2
     // the MPC's search found no candidate better than the shipped base in three generations
     // (docs/tuning.md, "The search's first step").
-    let step = args.step.unwrap_or(match algorithm {
-        AlgorithmId::Cwf => 0.2,
-        _ => 0.05,
-    });
+    let step = args.step.unwrap_or(default_step(algorithm));
     if !(step > 0.0 && step <= 0.5) {
         bail!("--step: expected a share of each key's range in (0, 0.5], got {step}");
     }

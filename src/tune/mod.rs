@@ -12,6 +12,7 @@
 //! the result.
 
 pub mod keys;
+pub mod set;
 pub mod validate;
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -25,7 +26,7 @@ use crate::engine::Engine;
 use crate::formats::profile::parse_profile;
 use crate::mca::AlgorithmId;
 use crate::profile::Profile;
-use crate::summary::SummaryBuilder;
+use crate::summary::{AlgorithmSummary, SummaryBuilder};
 use crate::trace::Trace;
 
 pub use keys::{tunable_keys, TunableKey};
@@ -50,12 +51,40 @@ const INFEASIBLE_PENALTY: f64 = 100.0;
 /// The score of a candidate the profile loader refuses.
 const INVALID_SCORE: f64 = 1e6;
 
+/// `hexcue tune`'s budget when `--budget` is not given: the MPCs' candidates cost far more.
+pub fn default_budget(algorithm: AlgorithmId) -> usize {
+    match algorithm {
+        AlgorithmId::Cwf => 200,
+        _ => 50,
+    }
+}
+
+/// CMA-ES's first step (a share of each key's range) when `--step` is not given: wide to
+/// explore the CWF's poor base, narrow to refine the hand-tuned MPCs (docs/tuning.md, "The
+/// search's first step").
+pub fn default_step(algorithm: AlgorithmId) -> f64 {
+    match algorithm {
+        AlgorithmId::Cwf => 0.2,
+        _ => 0.05,
+    }
+}
+
 /// How one candidate did on one trace.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TraceOutcome {
     pub score: f64,
     pub limiter_fraction: f64,
     pub leg_violations: u64,
+}
+
+impl From<&AlgorithmSummary> for TraceOutcome {
+    fn from(a: &AlgorithmSummary) -> Self {
+        TraceOutcome {
+            score: a.score,
+            limiter_fraction: a.limiter_fraction,
+            leg_violations: a.leg_violations,
+        }
+    }
 }
 
 impl TraceOutcome {
@@ -133,7 +162,7 @@ impl Candidate {
     }
 
     /// The objective the search minimises: the ranked score, plus the penalty when infeasible.
-    fn objective(&self, bounds: &[f64], ceilings: &[f64]) -> f64 {
+    pub fn objective(&self, bounds: &[f64], ceilings: &[f64]) -> f64 {
         if self.feasible_within(bounds) {
             return self.ranked_score(ceilings);
         }
@@ -193,15 +222,23 @@ impl Evaluator {
 
     /// Runs one profile on every trace, in parallel; `None` once stopped.
     pub fn run(&self, profile: &Profile) -> Result<Option<Vec<TraceOutcome>>> {
-        let outcomes: Vec<Result<Option<TraceOutcome>>> = self
+        Ok(self
+            .run_summaries(profile)?
+            .map(|s| s.iter().map(TraceOutcome::from).collect()))
+    }
+
+    /// [`Evaluator::run`] with each trace's whole summary of the algorithm (`hexcue eval`
+    /// reports its score terms, limiter and legs).
+    pub fn run_summaries(&self, profile: &Profile) -> Result<Option<Vec<AlgorithmSummary>>> {
+        let summaries: Vec<Result<Option<AlgorithmSummary>>> = self
             .traces
             .par_iter()
-            .map(|trace| self.run_trace(profile, trace))
+            .map(|trace| self.run_summary(profile, trace))
             .collect();
-        let mut out = Vec::with_capacity(outcomes.len());
-        for o in outcomes {
-            match o? {
-                Some(o) => out.push(o),
+        let mut out = Vec::with_capacity(summaries.len());
+        for s in summaries {
+            match s? {
+                Some(s) => out.push(s),
                 None => return Ok(None),
             }
         }
@@ -222,6 +259,19 @@ impl Evaluator {
     }
 
     fn run_trace(&self, profile: &Profile, trace: &Arc<Trace>) -> Result<Option<TraceOutcome>> {
+        Ok(self
+            .run_summary(profile, trace)?
+            .as_ref()
+            .map(TraceOutcome::from))
+    }
+
+    /// One trace's run of the algorithm under `profile`, summarised as `play --headless`'s
+    /// summary does (`None` once stopped).
+    pub fn run_summary(
+        &self,
+        profile: &Profile,
+        trace: &Arc<Trace>,
+    ) -> Result<Option<AlgorithmSummary>> {
         let mut engine = Engine::new(profile, trace.clone(), &[self.algorithm])?;
         let mut summary = SummaryBuilder::new(profile, &trace.name);
         while let Some(frame) = engine.step() {
@@ -230,16 +280,12 @@ impl Evaluator {
                 return Ok(None);
             }
         }
-        let s = summary.finish();
+        let mut s = summary.finish();
         let a = s
             .algorithms
-            .get(self.algorithm.key())
+            .remove(self.algorithm.key())
             .ok_or_else(|| anyhow!("{}: no summary of {}", trace.name, self.algorithm))?;
-        Ok(Some(TraceOutcome {
-            score: a.score,
-            limiter_fraction: a.limiter_fraction,
-            leg_violations: a.leg_violations,
-        }))
+        Ok(Some(a))
     }
 
     /// Scores the candidate at search coordinates `z`: `None` when stopped or refused.
