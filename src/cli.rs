@@ -196,8 +196,8 @@ pub struct PlayArgs {
     pub algorithms: Vec<String>,
     #[command(flatten)]
     pub start: ConsoleStart,
-    /// Let the MPCs see the trace's true future over their horizon (offline studies), instead
-    /// of holding the current sample as a live simulator must. Overrides `[mpc] reference`.
+    /// Let the MPCs see the trace's true future over their horizon, as `[mpc] preview = true`
+    /// does, instead of predicting it as a live simulator must (`[mpc] reference`).
     #[arg(long)]
     pub preview: bool,
     /// With --headless: compute the yardstick (docs/bound.md) and show each algorithm's error
@@ -228,6 +228,10 @@ pub struct CompareArgs {
     /// Algorithms to run, comma-separated: smpc (or s-mpc), mpc, cwf.
     #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = DEFAULT_ALGORITHMS)]
     pub algorithms: Vec<String>,
+    /// Also run the MPCs with each flight's true future over their horizon (`[mpc] preview`),
+    /// shown beside the causal ones as `mpc-preview` and `smpc-preview`.
+    #[arg(long)]
+    pub preview: bool,
     /// Overwrite the --out file if it exists.
     #[arg(long)]
     pub force: bool,

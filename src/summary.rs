@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::engine::Frame;
 use crate::jolts::{self, AircraftOnsets, JoltAccumulator, Jolts};
+use crate::mca::mpc::params::MpcParams;
 use crate::mca::AlgorithmId;
 use crate::metrics::{ChannelAccumulator, ChannelMetrics, StepTimes, TimeHistogram};
 use crate::model::stewart::{head_motion, Stewart};
@@ -39,6 +40,11 @@ pub struct Summary {
     /// The yardstick (`play --headless --bound`, docs/bound.md); absent unless asked for.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bound: Option<crate::bound::Bound>,
+    /// The reference the MPCs predicted with: `preview` (the flight's true future over the
+    /// horizon, `[mpc] preview`), or the causal `hold` or `decay` (`[mpc] reference`). A live
+    /// session, which has no future, never previews. Absent in summaries written before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mpc_reference: Option<String>,
 }
 
 /// The input axes [`Summary::input_clipped`] counts, in the order of `cue_sample`.
@@ -267,6 +273,8 @@ pub struct SummaryBuilder {
     onset_thresholds: [f64; 6],
     onset_window: usize,
     aircraft_onsets: AircraftOnsets,
+    /// The MPCs' reference on a source that reads ahead, and on one that does not.
+    mpc_reference: [&'static str; 2],
 }
 
 impl SummaryBuilder {
@@ -301,7 +309,15 @@ impl SummaryBuilder {
             onset_thresholds,
             onset_window,
             aircraft_onsets: AircraftOnsets::new(onset_thresholds, onset_window),
+            mpc_reference: [true, false].map(|future_known| {
+                MpcParams::reference_word(profile.mpc.reference_with(future_known))
+            }),
         }
+    }
+
+    /// The MPCs' reference where the source has no future (a live simulator).
+    pub fn causal_mpc_reference(&self) -> &'static str {
+        self.mpc_reference[1]
     }
 
     pub fn push(&mut self, frame: &Frame) {
@@ -432,6 +448,7 @@ impl SummaryBuilder {
                 .collect(),
             live: None,
             bound: None,
+            mpc_reference: Some(self.mpc_reference[0].to_string()),
         }
     }
 }

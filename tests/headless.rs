@@ -408,3 +408,79 @@ fn the_readmes_stall_rae_is_what_play_gives() {
         );
     }
 }
+
+/// `[mpc] preview = true` runs with the flight's future on a recorded flight, and the summary
+/// says so; without it the summary names the causal reference. `compare --preview` shows the
+/// preview runs beside the causal ones, and they differ from them (a surge step ahead).
+#[test]
+fn preview_is_a_profile_option_the_summary_and_compare_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = dir.path().join("step.csv");
+    write_trace(&trace, 100.0, 6.0, |t| {
+        let mut s = quiet_sample();
+        s[0] = if t >= 3.0 { 2.0 } else { 0.0 };
+        s
+    });
+    let shipped = std::fs::read_to_string(repo().join("profiles/full-flight.toml")).unwrap();
+    let with_preview = dir.path().join("preview.toml");
+    std::fs::write(
+        &with_preview,
+        shipped.replacen("[mpc]\n", "[mpc]\npreview = true\n", 1),
+    )
+    .unwrap();
+    let reference = |profile: &std::path::Path, name: &str| {
+        let summary = dir.path().join(name);
+        let run = hexcue(&[
+            "play".as_ref(),
+            "--headless".as_ref(),
+            "--algorithms".as_ref(),
+            "mpc".as_ref(),
+            "--trace".as_ref(),
+            trace.as_os_str(),
+            "--profile".as_ref(),
+            profile.as_os_str(),
+            "--summary".as_ref(),
+            summary.as_os_str(),
+        ]);
+        assert!(run.status.success(), "{}", stderr(&run));
+        let json = read_json(&summary);
+        (
+            json["mpc_reference"].as_str().unwrap().to_string(),
+            json["algorithms"]["mpc"]["metrics"]["fx"]["rae"]
+                .as_f64()
+                .unwrap(),
+        )
+    };
+    let (seen, rae_preview) = reference(&with_preview, "p.json");
+    let (causal, rae_causal) = reference(&repo().join("profiles/full-flight.toml"), "c.json");
+    assert_eq!(seen, "preview");
+    assert_eq!(causal, "decay");
+    assert_ne!(rae_preview, rae_causal);
+    let folder = dir.path().join("flights");
+    std::fs::create_dir(&folder).unwrap();
+    std::fs::copy(&trace, folder.join("step.csv")).unwrap();
+    let report = dir.path().join("report.md");
+    let run = hexcue(&[
+        "compare".as_ref(),
+        "--traces".as_ref(),
+        folder.as_os_str(),
+        "--algorithms".as_ref(),
+        "mpc,cwf".as_ref(),
+        "--preview".as_ref(),
+        "--out".as_ref(),
+        report.as_os_str(),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let md = std::fs::read_to_string(&report).unwrap();
+    assert!(
+        md.contains("MPC (preview)") && md.contains("--preview"),
+        "{md}"
+    );
+    let refused = hexcue(&["compare", "--algorithms", "cwf", "--preview"]);
+    assert!(!refused.status.success());
+    assert!(
+        stderr(&refused).contains("--preview"),
+        "{}",
+        stderr(&refused)
+    );
+}

@@ -13,6 +13,40 @@ use crate::formats::trace::load_trace;
 use crate::outputs::check_output_of;
 use crate::session::{FrameSink, Runner, SinkFailure};
 use crate::sinks::recorder::ProgressSink;
+use crate::summary::Summary;
+use crate::vocab::AlgorithmId;
+
+/// The suffix of an algorithm's key in the report when it ran with the flight's future.
+pub const PREVIEW_SUFFIX: &str = "-preview";
+
+/// One run of `algorithms` over `trace`, its progress shown on `bar` from `done` steps on.
+fn run_one(
+    profile: &crate::profile::Profile,
+    trace: &Arc<crate::trace::Trace>,
+    algorithms: &[AlgorithmId],
+    bar: &indicatif::ProgressBar,
+    done: usize,
+    stop: &Arc<std::sync::atomic::AtomicBool>,
+) -> Result<Summary> {
+    let engine = Engine::new(profile, trace.clone(), algorithms)?;
+    let progress: Box<dyn FrameSink> = Box::new(ProgressSink::part(bar.clone(), done));
+    let mut runner = Runner::new(
+        Box::new(engine),
+        profile,
+        &trace.name,
+        vec![progress],
+        SinkFailure::Stop,
+    );
+    if runner.run(None, stop)?.interrupted {
+        bar.finish_and_clear();
+        bail!(
+            "stopped by a signal during {}; no report written",
+            trace.name
+        );
+    }
+    runner.finish()?;
+    Ok(runner.summary())
+}
 
 /// Runs every algorithm on every trace of the folder and writes the report.
 pub fn run(args: &CompareArgs) -> Result<()> {
@@ -51,6 +85,22 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         }
         None => crate::formats::library::library_traces(profile.rate_hz)?,
     };
+    // With --preview, the MPCs also run with the flight's future over their horizon.
+    let preview = args.preview.then(|| {
+        let mut p = profile.clone();
+        p.mpc.preview = true;
+        let mpcs: Vec<AlgorithmId> = algorithms
+            .iter()
+            .copied()
+            .filter(|&a| a != AlgorithmId::Cwf)
+            .collect();
+        (p, mpcs)
+    });
+    if preview.as_ref().is_some_and(|p| p.1.is_empty()) {
+        bail!(
+            "--preview: none of --algorithms is an MPC (mpc, smpc), so there is nothing to preview"
+        );
+    }
     let stop = stop_flag()?;
     let total: usize = traces.iter().map(|t| t.len()).sum();
     let bar = progress_bar(
@@ -63,24 +113,17 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         let trace = Arc::new(trace);
         bar.set_message(trace.name.clone());
         let started = std::time::Instant::now();
-        let engine = Engine::new(&profile, trace.clone(), &algorithms)?;
-        let progress: Box<dyn FrameSink> = Box::new(ProgressSink::part(bar.clone(), done));
-        let mut runner = Runner::new(
-            Box::new(engine),
-            &profile,
-            &trace.name,
-            vec![progress],
-            SinkFailure::Stop,
-        );
-        if runner.run(None, &stop)?.interrupted {
-            bar.finish_and_clear();
-            bail!(
-                "stopped by a signal during {}; no report written",
-                trace.name
-            );
+        let mut summary = run_one(&profile, &trace, &algorithms, &bar, done, &stop)?;
+        if let Some(preview) = &preview {
+            // The same flight again with its future over the MPCs' horizon, beside the
+            // causal runs under the `-preview` keys.
+            let run = run_one(&preview.0, &trace, &preview.1, &bar, done, &stop)?;
+            for (key, a) in run.algorithms {
+                summary
+                    .algorithms
+                    .insert(format!("{key}{PREVIEW_SUFFIX}"), a);
+            }
         }
-        runner.finish()?;
-        let summary = runner.summary();
         done += trace.len();
         let wall = started.elapsed().as_secs_f64();
         progress_line(
@@ -107,7 +150,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
     }
     bar.finish_and_clear();
     let command = format!(
-        "hexcue compare{}{}",
+        "hexcue compare{}{}{}",
         args.traces
             .as_ref()
             .map(|t| format!(" --traces {}", t.display()))
@@ -115,7 +158,8 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         args.profile
             .as_ref()
             .map(|p| format!(" --profile {}", p.display()))
-            .unwrap_or_default()
+            .unwrap_or_default(),
+        if args.preview { " --preview" } else { "" }
     );
     let report = crate::compare::render_markdown(&results, &profile, &command);
     match &args.out {

@@ -51,7 +51,7 @@ pub fn load_play(args: &PlayArgs) -> Result<(Profile, String, Vec<AlgorithmId>)>
     };
     let algorithms = parse_algorithms(&args.algorithms)?;
     if args.preview {
-        profile.mpc.reference = crate::mca::mpc::params::ReferenceMode::Preview;
+        profile.mpc.preview = true;
     }
     Ok((profile, profile_toml, algorithms))
 }

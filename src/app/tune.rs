@@ -265,6 +265,21 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         start: Mutex::new(None),
     };
     let started = std::time::Instant::now();
+    match (&validator, evaluator.traces.len()) {
+        (None, 2..) => {
+            return run_cross_validated(
+                args, algorithm, &evaluator, budget, step, progress, started,
+            );
+        }
+        (None, _) => progress_line(
+            &progress.bar,
+            "note: one flight and no --validate: there is no flight to validate on, so the \
+             result is checked only on the flight it fits (give two flights or more for \
+             k-fold validation by flight)"
+                .to_string(),
+        ),
+        _ => {}
+    }
     let result = tune(
         &evaluator,
         validator.as_ref(),
@@ -404,6 +419,119 @@ pub fn run(args: &TuneArgs) -> Result<()> {
              profile found so far",
             result.evaluations
         );
+    }
+    Ok(())
+}
+
+/// `tune` without `--validate`: k-fold by flight over the training flights
+/// (`crate::tune::cross_validated_tune`), the result written and shown flight by flight with
+/// the fold that held it out.
+fn run_cross_validated(
+    args: &TuneArgs,
+    algorithm: AlgorithmId,
+    evaluator: &Evaluator,
+    budget: usize,
+    step: f64,
+    progress: Bar,
+    started: std::time::Instant,
+) -> Result<()> {
+    let cv = crate::tune::cross_validated_tune(evaluator, budget, step, args.seed, &progress)?;
+    progress.bar.finish_and_clear();
+    let wall = started.elapsed().as_secs_f64();
+    let names: Vec<&str> = evaluator.traces.iter().map(|t| t.name.as_str()).collect();
+    let fold_of = |i: usize| cv.folds.iter().position(|f| f.held_out.contains(&i));
+    let verdict = match cv.chosen_fold {
+        Some(f) => format!(
+            "the winner of fold {} (held out: {})",
+            f + 1,
+            cv.folds[f]
+                .held_out
+                .iter()
+                .map(|&i| names[i])
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        None => "base kept: no fold's winner passed its held-out flights' gate".to_string(),
+    };
+    let header = format!(
+        "# tuned: `{}` (hexcue {}): {} mean score {:.4} -> {:.4} on {}; validated {}-fold by \
+         flight: {verdict}",
+        command_line(args, algorithm, budget, step),
+        env!("CARGO_PKG_VERSION"),
+        algorithm.label(),
+        cv.base.mean_score(),
+        cv.best.mean_score(),
+        names.join(", "),
+        cv.folds.len()
+    );
+    let tuned = add_header(&evaluator.document(&cv.best.values)?, &header);
+    let shown = args.out.display().to_string();
+    parse_profile(&tuned, &shown)?;
+    std::fs::write(&args.out, &tuned)
+        .with_context(|| format!("{shown}: cannot write the tuned profile"))?;
+    let mut out = format!(
+        "{} tuned in {:.1} s: {}{}, {}-fold cross-validated by flight (docs/tuning.md); \
+         wrote {shown}: {verdict}\n\n",
+        algorithm.label(),
+        wall,
+        plural(cv.evaluations as u64, "candidate"),
+        if cv.interrupted { " (interrupted)" } else { "" },
+        cv.folds.len()
+    );
+    out.push_str(&format!(
+        "{:<28} {:>5} {:>10} {:>10} {:>9} {:>9}\n",
+        "trace", "fold", "before", "after", "limiter", "before"
+    ));
+    for (i, name) in names.iter().enumerate() {
+        let (b, a) = (&cv.base.outcomes[i], &cv.best.outcomes[i]);
+        out.push_str(&format!(
+            "{:<28} {:>5} {:>10.4} {:>10.4} {:>8.2}% {:>8.2}%\n",
+            name,
+            fold_of(i).map_or("-".to_string(), |f| (f + 1).to_string()),
+            b.score,
+            a.score,
+            100.0 * a.limiter_fraction,
+            100.0 * b.limiter_fraction
+        ));
+    }
+    out.push_str(&format!(
+        "{:<28} {:>5} {:>10.4} {:>10.4}\n\n",
+        "mean",
+        "",
+        cv.base.mean_score(),
+        cv.best.mean_score()
+    ));
+    for (f, fold) in cv.folds.iter().enumerate() {
+        let line = match &fold.result.validation {
+            Some(v) => match &v.chosen {
+                Some(c) => format!(
+                    "held-out mean {:.4} -> {:.4} (accepted)",
+                    v.base_mean(),
+                    c.mean()
+                ),
+                None => format!(
+                    "held-out mean {:.4}: base kept ({} validated, none passed)",
+                    v.base_mean(),
+                    v.validated.len()
+                ),
+            },
+            None => "not validated".to_string(),
+        };
+        out.push_str(&format!("fold {}: {line}\n", f + 1));
+    }
+    out.push('\n');
+    out.push_str(&format!("{:<40} {:>10} {:>10}\n", "key", "base", "tuned"));
+    for ((k, b), v) in evaluator
+        .keys
+        .iter()
+        .zip(&cv.base.values)
+        .zip(&cv.best.values)
+    {
+        out.push_str(&format!("{:<40} {:>10} {:>10}\n", k.name(), b, v));
+    }
+    print!("{out}");
+    if cv.interrupted {
+        bail!("interrupted by a signal; {shown} holds the best profile the finished folds found");
     }
     Ok(())
 }

@@ -13,9 +13,11 @@ pub struct TraceResult {
 
 /// An algorithm's name for people; a key this version does not know, as it is.
 pub(crate) fn label(key: &str) -> &str {
-    match known(key) {
-        Some(id) => id.label(),
-        None => key,
+    match (known(key), key) {
+        (Some(id), _) => id.label(),
+        (None, "smpc-preview") => "S-MPC (preview)",
+        (None, "mpc-preview") => "MPC (preview)",
+        (None, _) => key,
     }
 }
 

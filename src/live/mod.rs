@@ -760,6 +760,7 @@ impl LiveSession {
     pub fn summary(&self) -> Summary {
         let mut s = self.summary.finish();
         s.live = Some(self.stats.summary(self.rate_hz));
+        s.mpc_reference = Some(self.summary.causal_mpc_reference().to_string());
         s
     }
 

@@ -515,6 +515,150 @@ pub fn tune(
     })
 }
 
+/// The number of folds of [`cross_validated_tune`]: three, or one per flight when fewer.
+pub const FOLDS: usize = 3;
+
+/// One fold of a cross-validated tune: the flights it held out and what its search found.
+pub struct Fold {
+    /// Indices (in the evaluator's traces) of the flights held out of this fold's search.
+    pub held_out: Vec<usize>,
+    pub result: TuneResult,
+}
+
+/// What a cross-validated tune found.
+pub struct CrossValidated {
+    /// The base on every flight.
+    pub base: Candidate,
+    /// The written result on every flight (outcomes in the evaluator's order): the accepted
+    /// fold winner with the lowest mean over all flights, or the base when no fold's winner
+    /// passed its gate.
+    pub best: Candidate,
+    /// The fold whose winner is `best`; `None` when the base was kept.
+    pub chosen_fold: Option<usize>,
+    pub folds: Vec<Fold>,
+    pub evaluations: usize,
+    pub interrupted: bool,
+}
+
+/// The flights of each fold: flight i in fold i mod k, with k = min([`FOLDS`], flights).
+pub fn folds_by_flight(flights: usize) -> Vec<Vec<usize>> {
+    let k = FOLDS.min(flights);
+    (0..k)
+        .map(|f| (0..flights).filter(|i| i % k == f).collect())
+        .collect()
+}
+
+/// A tune with no validation flights of its own validates on its training flights by k-fold
+/// cross-validation (issue #35, docs/tuning.md "Validation without --validate"): each fold's
+/// search fits on the other folds' flights with a share of the budget and is gated on its own
+/// (`validate::rejection`: no held-out flight worse than the base by more than 2 %, the
+/// limiter at most + 1 % of the steps, no leg out; `validate::training_rejection`: the 2 % on
+/// the flights it fitted as well). A fold's winner is thus within the gate on every flight,
+/// and on the held-out ones it was never fitted to. The result is the winner with the lowest
+/// mean over all flights, or the base when no fold's winner passed.
+pub fn cross_validated_tune(
+    evaluator: &Evaluator,
+    budget: usize,
+    step: f64,
+    seed: u64,
+    progress: &dyn Progress,
+) -> Result<CrossValidated> {
+    let n = evaluator.traces.len();
+    if n < 2 {
+        bail!(
+            "one flight cannot validate itself: give two flights or more to --traces (k-fold by \
+             flight), or --validate with flights the search does not fit on"
+        );
+    }
+    let subset = |idx: &[usize]| Evaluator {
+        algorithm: evaluator.algorithm,
+        keys: evaluator.keys.clone(),
+        base: evaluator.base.clone(),
+        traces: idx.iter().map(|&i| evaluator.traces[i].clone()).collect(),
+        stop: evaluator.stop.clone(),
+    };
+    let folds = folds_by_flight(n);
+    let per_fold = (budget / folds.len()).max(1);
+    let mut done = Vec::new();
+    let (mut evaluations, mut interrupted) = (0, false);
+    for (f, held_out) in folds.iter().enumerate() {
+        let training: Vec<usize> = (0..n).filter(|i| !held_out.contains(i)).collect();
+        let result = tune(
+            &subset(&training),
+            Some(&subset(held_out)),
+            per_fold,
+            step,
+            seed.wrapping_add(f as u64),
+            progress,
+        )?;
+        evaluations += result.evaluations;
+        interrupted |= result.interrupted;
+        done.push(Fold {
+            held_out: held_out.clone(),
+            result,
+        });
+        if interrupted {
+            break;
+        }
+    }
+    // Each fold's outcomes back in the evaluator's order: its training flights from the
+    // search, its held-out ones from the validation.
+    let whole = |fold: &Fold, c: &Candidate, held: &[TraceOutcome]| -> Candidate {
+        let mut outcomes = Vec::with_capacity(n);
+        let (mut t, mut v) = (c.outcomes.iter(), held.iter());
+        for i in 0..n {
+            let next = if fold.held_out.contains(&i) {
+                v.next()
+            } else {
+                t.next()
+            };
+            if let Some(o) = next {
+                outcomes.push(o.clone());
+            }
+        }
+        Candidate {
+            values: c.values.clone(),
+            outcomes,
+        }
+    };
+    let base = match done.first() {
+        Some(fold) => {
+            let held = fold.result.validation.as_ref().map(|v| v.base.clone());
+            whole(fold, &fold.result.base, &held.unwrap_or_default())
+        }
+        None => bail!("interrupted before the first fold; nothing written"),
+    };
+    let winners: Vec<(usize, Candidate)> = done
+        .iter()
+        .enumerate()
+        .filter_map(|(f, fold)| {
+            let chosen = fold.result.validation.as_ref()?.chosen.as_ref()?;
+            Some((f, whole(fold, &chosen.candidate, &chosen.validation)))
+        })
+        .filter(|(_, c)| c.outcomes.len() == n)
+        .collect();
+    let chosen =
+        winners.into_iter().fold(
+            None,
+            |best: Option<(usize, Candidate)>, (f, c)| match best {
+                Some(b) if b.1.mean_score() <= c.mean_score() => Some(b),
+                _ => Some((f, c)),
+            },
+        );
+    let (chosen_fold, best) = match chosen {
+        Some((f, c)) => (Some(f), c),
+        None => (None, base.clone()),
+    };
+    Ok(CrossValidated {
+        base,
+        best,
+        chosen_fold,
+        folds: done,
+        evaluations,
+        interrupted,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -724,5 +868,145 @@ mod tests {
         let ev = evaluator(vec![short_manoeuvre()]);
         ev.stop.store(true, Ordering::Relaxed);
         assert!(tune(&ev, None, 20, 0.2, 1, &Quiet).is_err());
+    }
+
+    #[test]
+    fn folds_hold_each_flight_out_once() {
+        assert_eq!(folds_by_flight(5), vec![vec![0, 3], vec![1, 4], vec![2]]);
+        assert_eq!(folds_by_flight(2), vec![vec![0], vec![1]]);
+    }
+
+    /// Without --validate: three folds, each flight held out of one search, and the result
+    /// within the gate on every flight (2 % on the score, + 1 % of the steps of limiter), or
+    /// the base itself.
+    #[test]
+    fn a_tune_without_validation_folds_by_flight_and_never_writes_worse_than_the_base() {
+        let scaled = |name: &str, gain: f64| {
+            let mut t = (*short_manoeuvre()).clone();
+            t.name = name.into();
+            for s in &mut t.samples {
+                s.specific_force_mps2.x *= gain;
+                s.angular_velocity_radps *= gain;
+            }
+            Arc::new(t)
+        };
+        let ev = evaluator(vec![
+            scaled("a", 1.0),
+            scaled("b", 1.6),
+            scaled("c", 0.6),
+            scaled("d", 1.3),
+        ]);
+        let cv = cross_validated_tune(&ev, 30, 0.2, 7, &Quiet).unwrap();
+        assert_eq!(cv.folds.len(), 3);
+        let mut held: Vec<usize> = cv.folds.iter().flat_map(|f| f.held_out.clone()).collect();
+        held.sort();
+        assert_eq!(held, vec![0, 1, 2, 3]);
+        assert_eq!(cv.best.outcomes.len(), 4);
+        for (b, a) in cv.base.outcomes.iter().zip(&cv.best.outcomes) {
+            assert!(a.score <= b.score * (1.0 + validate::PER_FLIGHT_TOLERANCE) + 1e-12);
+            assert!(a.limiter_fraction <= b.limiter_fraction + validate::LIMITER_MARGIN + 1e-12);
+            assert_eq!(a.leg_violations, 0);
+        }
+        match cv.chosen_fold {
+            Some(f) => {
+                let v = cv.folds[f].result.validation.as_ref().unwrap();
+                assert!(v.chosen.is_some());
+                assert!(cv.best.mean_score() <= cv.base.mean_score() * 1.02);
+            }
+            None => assert_eq!(cv.best.values, cv.base.values),
+        }
+        // The base's outcomes are those of a plain run on each flight.
+        let base_run = ev
+            .run(&ev.profile(&cv.base.values).unwrap())
+            .unwrap()
+            .unwrap();
+        assert_eq!(base_run, cv.base.outcomes);
+        assert!(
+            cross_validated_tune(&evaluator(vec![short_manoeuvre()]), 10, 0.2, 1, &Quiet).is_err()
+        );
+    }
+
+    /// A small deterministic generator (splitmix64), so that the sampled weights are the same
+    /// on every run: a failure names the sample that fails.
+    fn uniform(state: &mut u64) -> f64 {
+        *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = *state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        (z ^ (z >> 31)) as f64 / u64::MAX as f64
+    }
+
+    /// No corner lock for any weights the tuner may try (issue #35): with `[mpc]` weights drawn
+    /// uniformly (in the tuner's own coordinates) from every range of `MPC_KEYS`, on the hard
+    /// part of the F-16 roll doublet (full-stick rolls beyond the platform's reach), the MPC's
+    /// own constraints keep it inside: the limiter acts on at most the default profile's share
+    /// plus 1 % of the steps, and no leg leaves its stroke. `HEXCUE_LOCK_SAMPLES` sets the
+    /// number of samples (6 by default). It fails today on the second sample (limiter 1.50 %
+    /// against the default's 0.45 % plus 1 %).
+    #[test]
+    #[ignore = "fails: the corner lock of issue #35 is not cured (docs/mpc.md); run with --ignored"]
+    fn no_corner_lock_for_mpc_weights_from_the_tuner_s_ranges() {
+        let traces = crate::formats::library::library_traces(100.0).unwrap();
+        let mut hard = traces
+            .into_iter()
+            .find(|t| t.name == "f16-roll-doublet")
+            .expect("the library has the F-16 roll doublet");
+        hard.samples.truncate(2000);
+        let ev = Evaluator {
+            algorithm: AlgorithmId::Mpc,
+            keys: keys::MPC_KEYS.to_vec(),
+            base: DEFAULT_PROFILE_TOML.parse().unwrap(),
+            traces: vec![Arc::new(hard)],
+            stop: Arc::new(AtomicBool::new(false)),
+        };
+        let base_values: Vec<f64> = ev.keys.iter().map(|k| k.get(&ev.base).unwrap()).collect();
+        let base = ev
+            .run(&ev.profile(&base_values).unwrap())
+            .unwrap()
+            .unwrap()
+            .remove(0);
+        let samples: usize = std::env::var("HEXCUE_LOCK_SAMPLES")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(6);
+        let mut state = 35;
+        let mut failures = Vec::new();
+        for s in 0..samples {
+            let values: Vec<f64> = ev
+                .keys
+                .iter()
+                .map(|k| k.decode(uniform(&mut state)))
+                .collect();
+            let o = ev
+                .run(&ev.profile(&values).unwrap())
+                .unwrap()
+                .unwrap()
+                .remove(0);
+            eprintln!(
+                "sample {s}: limiter {:.2} % (default {:.2} %), legs out {}, score {:.3} (default {:.3})",
+                100.0 * o.limiter_fraction,
+                100.0 * base.limiter_fraction,
+                o.leg_violations,
+                o.score,
+                base.score
+            );
+            if o.limiter_fraction > base.limiter_fraction + validate::LIMITER_MARGIN
+                || o.leg_violations > 0
+            {
+                let named: Vec<String> = ev
+                    .keys
+                    .iter()
+                    .zip(&values)
+                    .map(|(k, v)| format!("{} = {v:.4}", k.name()))
+                    .collect();
+                failures.push(format!(
+                    "sample {s}: limiter {:.2} %, {} legs out: {}",
+                    100.0 * o.limiter_fraction,
+                    o.leg_violations,
+                    named.join(", ")
+                ));
+            }
+        }
+        assert!(failures.is_empty(), "{}", failures.join("\n"));
     }
 }

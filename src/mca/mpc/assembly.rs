@@ -21,6 +21,10 @@ pub(super) struct StepData<'a> {
     pub(super) terminal_tilt_rad: [f64; 2],
 }
 
+/// The dead-zone slack's quadratic weight relative to its linear price, per threshold²: at one
+/// threshold beyond the dead zone the quadratic part is this share of the linear one.
+const DEAD_ZONE_CURVATURE: f64 = 1e-3;
+
 impl Mpc {
     /// The Riccati equation of COTC's terminal weight: the last interval's model, its state
     /// weight (perceived and washout terms at the nominal gain) and input weight w·S + R.
@@ -109,9 +113,10 @@ impl Mpc {
 
     pub(super) fn stage_hessian(&self, gain: f64) -> DMatrix<f64> {
         let p = &self.params;
+        let (q_f, q_w) = p.output_weights(&self.thresholds);
         let mut h = self.stage_hessian_with(
-            p.specific_force_weight,
-            p.angular_velocity_weight,
+            q_f,
+            q_w,
             [
                 p.washout_position_weight,
                 p.washout_velocity_weight,
@@ -131,7 +136,16 @@ impl Mpc {
     }
 
     pub(super) fn n_vars(&self) -> usize {
+        self.n_intervals()
+            * (NU + NX + self.false_cue_channels.len() + self.dead_zone_channels.len())
+    }
+
+    /// Column of the dead-zone slack of the `j`-th dead-zone channel at the end of interval
+    /// i; these follow the false-cue slacks.
+    pub(super) fn dead_zone_col(&self, i: usize, j: usize) -> usize {
         self.n_intervals() * (NU + NX + self.false_cue_channels.len())
+            + i * self.dead_zone_channels.len()
+            + j
     }
 
     /// Column of the false-cue slack of the `j`-th false-cue channel at the end of interval i;
@@ -192,6 +206,14 @@ impl Mpc {
                 let col = self.slack_col(i, j);
                 t.push(col, col, 2.0 * w * weight);
             }
+            // The dead zone's price is linear (in `assemble_q`); the small quadratic term keeps
+            // the condensed Hessian positive definite in the slack, as the active set needs.
+            for (j, &c) in self.dead_zone_channels.iter().enumerate() {
+                let th = self.thresholds[c];
+                let weight = DEAD_ZONE_CURVATURE * self.params.dead_zone_weight[c] / (th * th);
+                let col = self.dead_zone_col(i, j);
+                t.push(col, col, 2.0 * w * weight);
+            }
         }
         self.p_trip = t;
     }
@@ -202,6 +224,7 @@ impl Mpc {
         self.q.clear();
         self.q.resize(self.n_vars(), 0.0);
         let p = &self.params;
+        let (q_f, q_w) = p.output_weights(&self.thresholds);
         let mut qy = DVector::zeros(6);
         let r = self.input_change_weight();
         for k in 0..NU {
@@ -215,13 +238,17 @@ impl Mpc {
                 } else {
                     self.y_ref[i][a]
                 };
-                qy[a] = p.specific_force_weight[a] * y;
-                qy[3 + a] = p.angular_velocity_weight[a] * self.y_ref[i][3 + a];
+                qy[a] = q_f[a] * y;
+                qy[3 + a] = q_w[a] * self.y_ref[i][3 + a];
             }
             let lin = self.cache.perceived_c.tr_mul(&qy) * (-2.0 * w);
             let xc = Self::x_col(i);
             for (k, v) in lin.iter().enumerate() {
                 self.q[xc + k] = *v;
+            }
+            for (j, &c) in self.dead_zone_channels.iter().enumerate() {
+                let col = self.dead_zone_col(i, j);
+                self.q[col] = w * p.dead_zone_weight[c] / self.thresholds[c];
             }
             // COTC's last interval carries the terminal weight instead of the stage's.
             if i + 1 < n || self.terminal_weight.is_none() {
@@ -458,6 +485,34 @@ impl Mpc {
                 t.push(row + 1, col, -1.0);
                 b.push(0.0);
                 row += 2;
+            }
+        }
+        // The dead zone: σ ≥ |ŷ − ŷ_ref| − th, σ ≥ 0, σ priced linearly, as the score prices
+        // the error beyond the threshold. ŷ_ref is what the cost tracks (the heave cue's
+        // reference for heave when it is on).
+        for i in 0..n {
+            let xc = Self::x_col(i);
+            for (j, &c) in self.dead_zone_channels.iter().enumerate() {
+                let th = self.thresholds[c];
+                let r = match c {
+                    2 => self.y_heave.get(i).copied().unwrap_or(0.0),
+                    _ => self.y_ref.get(i).map_or(0.0, |y| y[c]),
+                };
+                let col = self.dead_zone_col(i, j);
+                for sign in [1.0, -1.0] {
+                    for k in 0..NX {
+                        let v = self.cache.perceived_c[(c, k)];
+                        if v != 0.0 {
+                            t.push(row, xc + k, sign * v);
+                        }
+                    }
+                    t.push(row, col, -1.0);
+                    b.push(th + sign * finite_or_zero(r));
+                    row += 1;
+                }
+                t.push(row, col, -1.0);
+                b.push(0.0);
+                row += 1;
             }
         }
         self.a_trip = t;

@@ -122,6 +122,9 @@ pub struct Mpc {
     thresholds: [f64; 6],
     /// Channels that carry a false-cue slack at every grid point (weight > 0).
     false_cue_channels: Vec<usize>,
+    /// Channels whose error beyond the threshold carries a linearly priced slack at every
+    /// grid point (`dead_zone_weight` > 0).
+    dead_zone_channels: Vec<usize>,
     /// The aircraft's roll and pitch rate over each interval as the reference predicts it
     /// (rad/s): the rotation the platform may follow above the canals' threshold.
     ref_rate_radps: Vec<[f64; 2]>,
@@ -229,6 +232,9 @@ impl Mpc {
             tilt_bound_rad: vec![[limits.excursion[3], limits.excursion[4]]; grid.len()],
             false_cue_channels: (0..6)
                 .filter(|&c| params.false_cue_weight[c] > 0.0)
+                .collect(),
+            dead_zone_channels: (0..6)
+                .filter(|&c| params.dead_zone_weight[c] > 0.0)
                 .collect(),
             false_cue_ahead: Vec::new(),
             ref_rate_radps: vec![[0.0; 2]; grid.len()],
@@ -427,7 +433,7 @@ impl Mpc {
             // The heave cue's input over the interval: it fades to nothing, since the cue is
             // what the stroke can give and then take back.
             let mut u_heave = heave_now;
-            match self.params.reference {
+            match self.params.reference_with(!preview.is_empty()) {
                 ReferenceMode::Hold => avg(&mut u, sample, 1.0),
                 ReferenceMode::Decay => {
                     let tau = self.params.reference_decay_s[2];
@@ -551,7 +557,7 @@ impl Mpc {
         }
         let rates = input.sample.angular_velocity_radps.map(finite_or_zero);
         self.run.follow.step(&df, &rates, dt_s);
-        let decay_s = match self.params.reference {
+        let decay_s = match self.params.reference_with(!input.preview.is_empty()) {
             ReferenceMode::Decay => Some([
                 self.params.reference_decay_s[3],
                 self.params.reference_decay_s[4],

@@ -79,6 +79,23 @@ pub struct MpcParams {
     pub specific_force_weight: [f64; 3],
     /// Weight on the perceived angular-velocity error ω̂ − ω̂_ref per axis, per (rad/s)².
     pub angular_velocity_weight: [f64; 3],
+    /// When given, the weight of the perceived error per channel (f̂x, f̂y, f̂z, ω̂x, ω̂y, ω̂z)
+    /// per squared perception threshold, the score's unit: Q_c = w_c / τ_c², in place of
+    /// `specific_force_weight` and `angular_velocity_weight`. The shipped surge weight, 1.5
+    /// per (m/s²)², is 0.043 per threshold² (docs/mpc.md, "Pricing what the score prices").
+    #[serde(default)]
+    pub threshold_error_weight: Option<[f64; 6]>,
+    /// Linear price of the perceived error beyond the perception threshold per channel, per
+    /// threshold and per fine interval: the score's dead zone is linear above the threshold,
+    /// the quadratic weights are not. A slack σ ≥ |ŷ − ŷ_ref| − τ at every grid point, priced
+    /// at w·σ/τ. 0 (the default) leaves the channel without one.
+    #[serde(default)]
+    pub dead_zone_weight: [f64; 6],
+    /// The trace's future over the horizon when the input has one (recorded and scripted
+    /// flights), in place of `reference`; a live simulator, which has no future, falls back to
+    /// `reference`. The summary says which ran (docs/mpc.md, "Preview").
+    #[serde(default)]
+    pub preview: bool,
     /// Weight of a false cue per channel (f̂x, f̂y, f̂z, ω̂x, ω̂y, ω̂z): the square of how far,
     /// in perception thresholds, the simulator's perceived motion at a grid point goes to the
     /// opposite side of a reference that is itself above the threshold. A soft constraint
@@ -190,6 +207,37 @@ impl MpcParams {
             .collect()
     }
 
+    /// The reference the MPC predicts with, given whether the input offers its future: the
+    /// preview where `preview` asks for it and there is one, else `reference`.
+    pub fn reference_with(&self, future_known: bool) -> ReferenceMode {
+        if self.preview && future_known {
+            ReferenceMode::Preview
+        } else {
+            self.reference
+        }
+    }
+
+    /// The reference's name as summaries give it (`hold`, `decay`, `preview`).
+    pub fn reference_word(mode: ReferenceMode) -> &'static str {
+        match mode {
+            ReferenceMode::Hold => "hold",
+            ReferenceMode::Preview => "preview",
+            ReferenceMode::Decay => "decay",
+        }
+    }
+
+    /// The weights Q of the perceived error, per (m/s²)² for f̂ and per (rad/s)² for ω̂, given
+    /// the perception thresholds (m/s², rad/s) in the order f̂x..ω̂z.
+    pub fn output_weights(&self, thresholds: &[f64; 6]) -> ([f64; 3], [f64; 3]) {
+        match &self.threshold_error_weight {
+            Some(w) => {
+                let q = |c: usize| w[c] / (thresholds[c] * thresholds[c]);
+                ([q(0), q(1), q(2)], [q(3), q(4), q(5)])
+            }
+            None => (self.specific_force_weight, self.angular_velocity_weight),
+        }
+    }
+
     pub fn horizon_s(&self) -> f64 {
         self.grid().iter().sum()
     }
@@ -267,6 +315,10 @@ impl MpcParams {
         non_negative("specific_force_weight", &self.specific_force_weight)?;
         non_negative("angular_velocity_weight", &self.angular_velocity_weight)?;
         non_negative("false_cue_weight", &self.false_cue_weight)?;
+        if let Some(w) = &self.threshold_error_weight {
+            non_negative("threshold_error_weight", w)?;
+        }
+        non_negative("dead_zone_weight", &self.dead_zone_weight)?;
         non_negative("acceleration_weight", &self.acceleration_weight)?;
         non_negative("tilt_rate_weight", &self.tilt_rate_weight)?;
         non_negative("rotation_rate_weight", &self.rotation_rate_weight)?;

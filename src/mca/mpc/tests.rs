@@ -933,3 +933,130 @@ fn active_set_and_clarabel_agree_with_the_heave_cue() {
         eprintln!("{}", agree_on_trace(&p, "heave", &samples, terminal));
     }
 }
+
+#[test]
+fn threshold_weights_price_each_channel_per_threshold() {
+    let mut p = full_flight();
+    let th = [0.17, 0.17, 0.28, 0.05, 0.06, 0.04];
+    // Unset: the per-unit weights as they are.
+    assert_eq!(
+        p.mpc.output_weights(&th),
+        (p.mpc.specific_force_weight, p.mpc.angular_velocity_weight)
+    );
+    p.mpc.threshold_error_weight = Some([1.0, 2.0, 1.0, 1.0, 1.0, 3.0]);
+    let (f, w) = p.mpc.output_weights(&th);
+    // By hand: w_c / τ_c².
+    let expect = [1.0 / 0.0289, 2.0 / 0.0289, 1.0 / 0.0784];
+    for k in 0..3 {
+        assert!((f[k] - expect[k]).abs() < 1e-9 * expect[k], "{f:?}");
+    }
+    assert!(
+        (w[0] - 400.0).abs() < 1e-9 && (w[2] - 3.0 / 0.0016).abs() < 1e-9,
+        "{w:?}"
+    );
+    // A channel one threshold off costs the same whatever its unit.
+    assert!((f[0] * 0.17 * 0.17 - w[0] * 0.05 * 0.05).abs() < 1e-12);
+}
+
+fn with_dead_zone(weight: f64) -> Profile {
+    let mut p = full_flight();
+    p.mpc.dead_zone_weight = [weight; 6];
+    p
+}
+
+/// With a positive linear price the optimum puts each dead-zone slack at its lower bound, so
+/// the solution's slacks must equal max(|ŷ − ŷ_ref| − τ, 0), recomputed here from the plan's
+/// states and the reference: a check of the rows' signs and right-hand sides.
+#[test]
+fn the_dead_zone_slack_is_the_error_beyond_the_threshold() {
+    let p = with_dead_zone(0.5);
+    let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
+    let (nv, _, _) = mpc.qp_size();
+    let guarded = p.mpc.false_cue_weight.iter().filter(|w| **w > 0.0).count();
+    assert_eq!(nv, 6 * (NU + NX + guarded + 6));
+    // A surge and roll far beyond what the platform holds: errors above the threshold.
+    let outs = run(&mut mpc, 80, |t| {
+        sample([3.0 * (t * 2.0).min(1.0), 0.0, 0.0], [0.3, 0.0, 0.0])
+    });
+    assert!(outs.iter().all(|o| o.feasible));
+    let z = last_solution(&mpc);
+    let th = mpc.thresholds;
+    let mut beyond = 0;
+    for i in 0..mpc.n_intervals() {
+        let x = DVector::from_column_slice(&z[Mpc::x_col(i)..Mpc::x_col(i) + NX]);
+        let y = &mpc.cache.perceived_c * x;
+        for (j, &c) in mpc.dead_zone_channels.iter().enumerate() {
+            let r = if c == 2 {
+                mpc.y_heave[i]
+            } else {
+                mpc.y_ref[i][c]
+            };
+            let want = ((y[c] - r).abs() - th[c]).max(0.0);
+            let got = z[mpc.dead_zone_col(i, j)];
+            assert!(
+                (got - want).abs() <= 1e-4 * th[c],
+                "interval {i} channel {c}: slack {got}, error beyond the threshold {want}"
+            );
+            beyond += usize::from(want > 0.0);
+        }
+    }
+    assert!(beyond > 0, "the test must reach beyond the dead zone");
+}
+
+#[test]
+fn active_set_and_clarabel_agree_with_the_dead_zone() {
+    let mut p = with_dead_zone(0.2);
+    p.mpc.tolerance = 1e-11;
+    p.mpc.max_iterations = 200;
+    let samples: Vec<CueSample> = (0..300)
+        .map(|k| {
+            let t = k as f64 * 0.01;
+            sample(
+                [
+                    2.0 * (1.3 * t).sin(),
+                    1.0 * (2.1 * t).sin(),
+                    1.5 * (7.0 * t).sin(),
+                ],
+                [0.2 * (1.7 * t).sin(), 0.1, 0.0],
+            )
+        })
+        .collect();
+    for terminal in [Terminal::Free, Terminal::Cotc] {
+        eprintln!("{}", agree_on_trace(&p, "dead zone", &samples, terminal));
+    }
+}
+
+/// `[mpc] preview = true` previews where the input has a future, and is the causal
+/// `reference` where it has none (a live simulator).
+#[test]
+fn the_preview_key_sees_the_future_and_falls_back_without_one() {
+    let mut p = full_flight();
+    p.mpc.preview = true;
+    let future: Vec<CueSample> = (0..300)
+        .map(|_| sample([2.0, 0.0, 0.0], [0.0; 3]))
+        .collect();
+    let applied = PlatformCommand::default();
+    let solve = |params: &MpcParams, preview: &[CueSample]| {
+        let mut mpc = Mpc::new(params, &p.setting(), Terminal::Free).unwrap();
+        let input = CueInput {
+            k: 0,
+            t_s: 0.0,
+            dt_s: 0.01,
+            sample: sample([0.0; 3], [0.0; 3]),
+            preview,
+            applied: &applied,
+        };
+        mpc.solve(&input).command
+    };
+    let seen = solve(&p.mpc, &future);
+    assert!(
+        seen.acceleration.amax() > 1e-3,
+        "it moves before the step: {seen:?}"
+    );
+    let mut causal = p.mpc.clone();
+    causal.preview = false;
+    assert_eq!(solve(&p.mpc, &[]), solve(&causal, &[]));
+    assert_eq!(solve(&causal, &future), solve(&causal, &[]));
+    assert_eq!(p.mpc.reference_with(true), ReferenceMode::Preview);
+    assert_eq!(p.mpc.reference_with(false), p.mpc.reference);
+}
