@@ -115,3 +115,42 @@ fn the_readmes_omct_numbers_are_those_of_omct_json() {
         );
     }
 }
+
+/// The README's workspace figures (the share of the S-MPC's steps the limiter changed and
+/// its peak leg usage on the stall, the take-off and the landing) are those of `hexcue play
+/// --headless --trace recordings/traces/NAME.csv` (the S-MPC alone: its figures do not
+/// depend on the other lanes).
+#[test]
+fn the_readmes_limiter_shares_are_what_play_gives() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut shares = Vec::new();
+    let mut peaks = Vec::new();
+    for name in ["horizontal-stall", "takeoff", "landing"] {
+        let trace = repo().join(format!("recordings/traces/{name}.csv"));
+        let summary = dir.path().join(format!("{name}.json"));
+        let out = common::hexcue(&[
+            "play".as_ref(),
+            "--headless".as_ref(),
+            "--algorithms".as_ref(),
+            "smpc".as_ref(),
+            "--trace".as_ref(),
+            trace.as_os_str(),
+            "--summary".as_ref(),
+            summary.as_os_str(),
+        ]);
+        assert!(out.status.success(), "{name}: {}", common::stderr(&out));
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+        let smpc = &json["algorithms"]["smpc"];
+        shares.push(100.0 * smpc["limiter_fraction"].as_f64().unwrap());
+        peaks.push(100.0 * smpc["max_leg_usage"].as_f64().unwrap());
+    }
+    let want = format!(
+        "The limiter acted on {:.2} % of the S-MPC's steps on the stall, {:.2} % on the \
+         take-off and {:.2} % on the landing (peak leg usage {:.1} %, {:.1} %, {:.1} %)",
+        shares[0], shares[1], shares[2], peaks[0], peaks[1], peaks[2]
+    );
+    let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
+    let readme = readme.split_whitespace().collect::<Vec<_>>().join(" ");
+    assert!(readme.contains(&want), "the README does not say {want:?}");
+}
