@@ -589,9 +589,9 @@ pub fn draw<DB: DrawingBackend>(root: &Area<DB>, tl: &Timeline) -> DrawResult<DB
         entries.push((a.label().to_string(), algorithm_color(a).stroke_width(2)));
     }
     if tl.thresholds.is_some() && tl.panels.iter().any(|(p, _)| p.has_reference()) {
-        entries.push(("reference ± perception threshold".to_string(), band_fill()));
+        entries.push(("± perception threshold".to_string(), band_fill()));
         entries.push((
-            "false cue (strip in the algorithm's colour)".to_string(),
+            "false cue (strip)".to_string(),
             RGBColor(120, 120, 120).filled(),
         ));
     }
