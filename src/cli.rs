@@ -204,6 +204,10 @@ pub struct PlayArgs {
     /// above the bound (its cueable error) per channel; the summary gains a `bound` object.
     #[arg(long, requires = "headless")]
     pub bound: bool,
+    /// With --bound, which reads the trace into memory: the largest trace file read, in MB
+    /// (10^6 bytes). Default: 256 (about 7.5 h at 100 Hz). `play` itself streams any size.
+    #[arg(long, value_name = "MB", value_parser = parse_trace_mb, requires = "bound")]
+    pub max_trace_mb: Option<f64>,
     /// Serve the session live to Foxglove over its WebSocket protocol, on ADDR (default
     /// 127.0.0.1:8765; port 0 takes a free one). With --headless the run is paced at --speed
     /// (real time by default) so that a viewer can follow. See docs/foxglove.md.
@@ -235,6 +239,10 @@ pub struct CompareArgs {
     /// Overwrite the --out file if it exists.
     #[arg(long)]
     pub force: bool,
+    /// Largest trace file read into memory, in MB (10^6 bytes); a larger one is refused
+    /// before it is read. Default: 256 (about 7.5 h at 100 Hz).
+    #[arg(long, value_name = "MB", value_parser = parse_trace_mb)]
+    pub max_trace_mb: Option<f64>,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -264,6 +272,10 @@ pub struct BoundArgs {
     /// Overwrite the --json file if it exists.
     #[arg(long)]
     pub force: bool,
+    /// Largest trace file read into memory, in MB (10^6 bytes); a larger one is refused
+    /// before it is read. Default: 256 (about 7.5 h at 100 Hz).
+    #[arg(long, value_name = "MB", value_parser = parse_trace_mb)]
+    pub max_trace_mb: Option<f64>,
 }
 
 /// The channels named in a list (fx, fy, fz, wx, wy, wz), as a mask in that order.
@@ -338,6 +350,10 @@ pub struct TuneArgs {
     /// Overwrite the --out file if it exists.
     #[arg(long)]
     pub force: bool,
+    /// Largest trace file read into memory, in MB (10^6 bytes); a larger one is refused
+    /// before it is read. Default: 256 (about 7.5 h at 100 Hz).
+    #[arg(long, value_name = "MB", value_parser = parse_trace_mb)]
+    pub max_trace_mb: Option<f64>,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -355,6 +371,10 @@ pub struct EvalArgs {
     /// Checked by the profile loader, as in a file.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
+    /// Largest trace file read into memory, in MB (10^6 bytes); a larger one is refused
+    /// before it is read. Default: 256 (about 7.5 h at 100 Hz).
+    #[arg(long, value_name = "MB", value_parser = parse_trace_mb)]
+    pub max_trace_mb: Option<f64>,
     /// The flights to score: folders (every *.csv in them) or CSV files, comma-separated
     /// (`tune --traces`).
     #[arg(
@@ -449,6 +469,14 @@ impl Cli {
 pub const DEFAULT_ALGORITHMS: &str = "smpc,mpc,cwf";
 
 /// `--speed`: one of the console's speeds, as an index into `tui::player::SPEEDS`.
+/// `--max-trace-mb`: a positive number of MB.
+fn parse_trace_mb(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(mb) if mb.is_finite() && mb > 0.0 => Ok(mb),
+        _ => Err("expected a positive number of MB (10^6 bytes), e.g. 400".to_string()),
+    }
+}
+
 fn parse_speed(text: &str) -> Result<usize, String> {
     use crate::tui::player::SPEEDS;
     let t = text.trim().trim_start_matches(['x', '×']);

@@ -1,13 +1,12 @@
 //! Long traces (issue 38, item 2): `play` streams a trace of any size, with no cap on the
 //! file; `compare` and `tune`, which hold their traces in memory, refuse one beyond their
-//! limit with a message that says how to raise it. The limit is lowered here through its
-//! variable, so that the test needs a few MB rather than 340.
+//! limit with a message that names the option that raises it (`--max-trace-mb`). The limit
+//! is lowered here through that option, so that the test needs a few MB rather than 340.
 
 mod common;
 
 use std::io::Write;
 use std::path::Path;
-use std::process::Command;
 
 use common::*;
 
@@ -34,14 +33,21 @@ fn write_trace(path: &Path, rows: usize) {
     }
 }
 
-fn hexcue_with_limit(limit: u64, args: &[&std::ffi::OsStr]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_hexcue"))
-        .args(args)
-        .current_dir(repo())
-        .env("HEXCUE_MAX_TRACE_BYTES", limit.to_string())
-        .stdin(std::process::Stdio::null())
-        .output()
-        .expect("the hexcue binary runs")
+/// `compare` on the traces in `dir` with `--max-trace-mb` at `limit` bytes.
+fn compare_with_limit(limit: u64, dir: &Path, md: &Path) -> std::process::Output {
+    let mb = format!("{}", limit as f64 / 1e6);
+    hexcue(&[
+        "compare".as_ref(),
+        "--algorithms".as_ref(),
+        "cwf".as_ref(),
+        "--traces".as_ref(),
+        dir.as_os_str(),
+        "--out".as_ref(),
+        md.as_os_str(),
+        "--force".as_ref(),
+        "--max-trace-mb".as_ref(),
+        mb.as_ref(),
+    ])
 }
 
 #[test]
@@ -55,20 +61,9 @@ fn play_streams_a_trace_beyond_the_in_memory_limit_and_compare_says_how_to_raise
     let size = std::fs::metadata(&trace).unwrap().len();
     let limit = size / 4;
 
-    // Held in memory: refused, naming the file, the limit and the variable that raises it.
+    // Held in memory: refused, naming the file, the limit and the option that raises it.
     let md = dir.path().join("report.md");
-    let out = hexcue_with_limit(
-        limit,
-        &[
-            "compare".as_ref(),
-            "--algorithms".as_ref(),
-            "cwf".as_ref(),
-            "--traces".as_ref(),
-            traces.as_os_str(),
-            "--out".as_ref(),
-            md.as_os_str(),
-        ],
-    );
+    let out = compare_with_limit(limit, &traces, &md);
     let err = stderr(&out);
     assert!(
         !out.status.success(),
@@ -77,39 +72,39 @@ fn play_streams_a_trace_beyond_the_in_memory_limit_and_compare_says_how_to_raise
     assert!(
         err.contains("long.csv")
             && err.contains(&format!("larger than {limit} bytes"))
-            && err.contains("HEXCUE_MAX_TRACE_BYTES"),
+            && err.contains("--max-trace-mb"),
         "{err}"
     );
     // Raised, it reads.
-    let out = hexcue_with_limit(
-        size + 1,
-        &[
-            "compare".as_ref(),
-            "--algorithms".as_ref(),
-            "cwf".as_ref(),
-            "--traces".as_ref(),
-            traces.as_os_str(),
-            "--out".as_ref(),
-            md.as_os_str(),
-        ],
-    );
+    let out = compare_with_limit(size + 1, &traces, &md);
     assert!(out.status.success(), "{}", stderr(&out));
+    // Not a size: refused by the option's parser, naming what it expects.
+    let out = hexcue(&[
+        "compare".as_ref(),
+        "--traces".as_ref(),
+        traces.as_os_str(),
+        "--max-trace-mb".as_ref(),
+        "0".as_ref(),
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("positive number of MB"),
+        "{}",
+        stderr(&out)
+    );
 
     // Streamed: no limit applies, and the recording attaches the whole trace.
     let mcap = dir.path().join("long.mcap");
-    let out = hexcue_with_limit(
-        limit,
-        &[
-            "play".as_ref(),
-            "--headless".as_ref(),
-            "--algorithms".as_ref(),
-            "cwf".as_ref(),
-            "--trace".as_ref(),
-            trace.as_os_str(),
-            "--record".as_ref(),
-            mcap.as_os_str(),
-        ],
-    );
+    let out = hexcue(&[
+        "play".as_ref(),
+        "--headless".as_ref(),
+        "--algorithms".as_ref(),
+        "cwf".as_ref(),
+        "--trace".as_ref(),
+        trace.as_os_str(),
+        "--record".as_ref(),
+        mcap.as_os_str(),
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(
         stdout(&out).contains(&format!("{rows} steps")),

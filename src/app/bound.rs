@@ -13,7 +13,7 @@ use crate::bound::{Bound, BoundDetails};
 use crate::cli::{parse_algorithms, parse_channels, BoundArgs};
 use crate::engine::Engine;
 use crate::formats::profile::{default_profile, load_profile};
-use crate::formats::trace::load_trace;
+use crate::formats::trace::load_trace_within;
 use crate::mca::AlgorithmId;
 use crate::outputs::check_output_of;
 use crate::profile::Profile;
@@ -117,7 +117,7 @@ pub fn run(args: &BoundArgs) -> Result<()> {
         ]);
         check_output_of(path, args.force, "--json", &inputs)?;
     }
-    let trace = Arc::new(load_trace(&args.trace, profile.rate_hz)?.trace);
+    let trace = Arc::new(load_trace_within(&args.trace, profile.rate_hz, args.max_trace_mb)?.trace);
     let (bound, details, summary, bound_time_s) =
         bound_with_algorithms(&profile, &trace, &algorithms, alone)?;
     let wall_time_s = started.elapsed().as_secs_f64();

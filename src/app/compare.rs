@@ -9,7 +9,7 @@ use crate::app::common::{inputs, print_stdout, progress_bar, progress_line, stop
 use crate::cli::{parse_algorithms, CompareArgs};
 use crate::engine::Engine;
 use crate::formats::profile::default_profile;
-use crate::formats::trace::load_trace;
+use crate::formats::trace::load_trace_within;
 use crate::outputs::check_output_of;
 use crate::session::{FrameSink, Runner, SinkFailure};
 use crate::sinks::recorder::ProgressSink;
@@ -80,7 +80,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
             }
             paths
                 .iter()
-                .map(|p| load_trace(p, profile.rate_hz).map(|l| l.trace))
+                .map(|p| load_trace_within(p, profile.rate_hz, args.max_trace_mb).map(|l| l.trace))
                 .collect::<Result<_, _>>()?
         }
         None => crate::formats::library::library_traces(profile.rate_hz)?,

@@ -21,7 +21,7 @@ use crate::app::common::{load_profile_warned, stop_flag};
 use crate::app::tune::{add_header, parse_algorithm, trace_files};
 use crate::cli::EvalArgs;
 use crate::formats::profile::{parse_profile, DEFAULT_PROFILE_SOURCE, DEFAULT_PROFILE_TOML};
-use crate::formats::trace::load_trace;
+use crate::formats::trace::load_trace_within;
 use crate::mca::AlgorithmId;
 use crate::outputs::{check_distinct, check_output_of, Input};
 use crate::profile::Profile;
@@ -193,13 +193,18 @@ fn shard_of<T>(items: Vec<T>, (i, n): (usize, usize)) -> Vec<T> {
         .collect()
 }
 
-fn load_flights(files: &[PathBuf], rate_hz: f64) -> Result<Vec<FlightFile>> {
+fn load_flights(
+    files: &[PathBuf],
+    rate_hz: f64,
+    max_trace_mb: Option<f64>,
+) -> Result<Vec<FlightFile>> {
     let flights: Vec<FlightFile> = files
         .iter()
         .map(|f| {
+            // Loaded first: a trace over the size limit is refused before it is read whole.
+            let trace = load_trace_within(f, rate_hz, max_trace_mb)?.trace;
             let bytes = std::fs::read(f)
                 .with_context(|| format!("{}: cannot read the trace", f.display()))?;
-            let trace = load_trace(f, rate_hz)?.trace;
             for notice in &trace.notices {
                 eprintln!("note: {}: {notice}", trace.name);
             }
@@ -471,13 +476,14 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             );
         }
     }
-    let flights = load_flights(&files, base_profile.rate_hz)?;
+    let flights = load_flights(&files, base_profile.rate_hz, args.max_trace_mb)?;
     let validation_flights = if args.validate.is_empty() {
         Vec::new()
     } else {
         load_flights(
             &trace_files(&args.validate, "--validate")?,
             base_profile.rate_hz,
+            args.max_trace_mb,
         )
         .context("--validate")?
     };

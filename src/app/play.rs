@@ -202,7 +202,10 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
 /// it (otherwise from a CWF run of its own).
 fn bound_of(args: &PlayArgs, profile: &Profile, summary: &Summary) -> Result<crate::bound::Bound> {
     let trace = match &args.trace {
-        Some(path) => crate::formats::trace::load_trace(path, profile.rate_hz)?.trace,
+        Some(path) => {
+            crate::formats::trace::load_trace_within(path, profile.rate_hz, args.max_trace_mb)?
+                .trace
+        }
         None => default_trace(profile.rate_hz).trace,
     };
     let trace = Arc::new(trace);

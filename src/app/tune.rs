@@ -13,7 +13,7 @@ use crate::cli::TuneArgs;
 use crate::formats::profile::{
     default_profile, parse_profile, DEFAULT_PROFILE_SOURCE, DEFAULT_PROFILE_TOML,
 };
-use crate::formats::trace::load_trace;
+use crate::formats::trace::load_trace_within;
 use crate::mca::AlgorithmId;
 use crate::trace::Trace;
 use crate::tune::{
@@ -23,10 +23,14 @@ use crate::tune::{
 use crate::vocab::plural;
 
 /// Traces from folders (their *.csv, sorted) and files, checked before any work.
-pub fn load_traces(paths: &[PathBuf], rate_hz: f64) -> Result<Vec<Arc<Trace>>> {
+pub fn load_traces(
+    paths: &[PathBuf],
+    rate_hz: f64,
+    max_trace_mb: Option<f64>,
+) -> Result<Vec<Arc<Trace>>> {
     trace_files(paths, "--traces")?
         .iter()
-        .map(|f| Ok(Arc::new(load_trace(f, rate_hz)?.trace)))
+        .map(|f| Ok(Arc::new(load_trace_within(f, rate_hz, max_trace_mb)?.trace)))
         .collect()
 }
 
@@ -204,11 +208,11 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         );
     }
     keys::check_table(&keys, &base).with_context(|| source.clone())?;
-    let traces = load_traces(&args.traces, profile.rate_hz)?;
+    let traces = load_traces(&args.traces, profile.rate_hz, args.max_trace_mb)?;
     let validation_traces = if args.validate.is_empty() {
         Vec::new()
     } else {
-        load_traces(&args.validate, profile.rate_hz).context("--validate")?
+        load_traces(&args.validate, profile.rate_hz, args.max_trace_mb).context("--validate")?
     };
     for t in traces.iter().chain(&validation_traces) {
         for notice in &t.notices {

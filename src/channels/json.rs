@@ -47,14 +47,19 @@ pub mod resolution {
         (x * scale).round() / scale + 0.0
     }
 
-    /// Platform pose and leg lengths and margins: 1 µm and 1 µrad, finer than a hexapod's
-    /// actuator encoders resolve, and finer than `review` needs: its leg usage must agree with
-    /// the run's within 10⁻⁵ relative, and 1 µm is 7 × 10⁻⁶ of the compact rig's half-stroke.
+    /// Platform pose and leg lengths: 1 µm and 1 µrad, finer than a hexapod's actuator
+    /// encoders resolve, and finer than `review` needs: its leg usage must agree with the
+    /// run's within 10⁻⁵ relative, and 1 µm is 7 × 10⁻⁶ of the compact rig's half-stroke.
     pub const POSITION_DECIMALS: u32 = 6;
-    /// Platform and leg velocities: 0.1 mm/s and 10⁻⁴ rad/s (0.006 °/s, 1/500 of the 3 °/s
-    /// rotation threshold); over a 10 ms step that is 1 µm, the pose's resolution. Nothing
-    /// `review` computes reads them.
-    pub const VELOCITY_DECIMALS: u32 = 4;
+    /// Leg margins: 0.1 mm. Read by people (the console shows whole mm) and for the least
+    /// margin of a run; the limiter's own margin is tens of mm, and `review`'s leg usage is
+    /// computed from the lengths, not from the margins. Was 1 µm, the lengths' resolution
+    /// (docs/recordings.md, "3D topics at 33 Hz").
+    pub const MARGIN_DECIMALS: u32 = 4;
+    /// Platform and leg velocities: 1 mm/s and 10⁻³ rad/s (0.06 °/s, 1/50 of the 3 °/s
+    /// rotation threshold). Nothing `review` computes reads them. Was 0.1 mm/s (docs/
+    /// recordings.md, "3D topics at 33 Hz").
+    pub const VELOCITY_DECIMALS: u32 = 3;
     /// Platform accelerations: 1 mm/s² and 10⁻³ rad/s², 1/170 of the 0.17 m/s² specific-force
     /// threshold, about the noise of an accelerometer on a motion base; over a step that is
     /// 10⁻⁵ m/s, below the velocity's resolution. Nothing `review` computes reads them.
@@ -74,14 +79,19 @@ pub mod resolution {
         rounded(x, VELOCITY_DECIMALS)
     }
 
+    pub fn margin(x: f64) -> f64 {
+        rounded(x, MARGIN_DECIMALS)
+    }
+
     pub fn acceleration(x: f64) -> f64 {
         rounded(x, ACCELERATION_DECIMALS)
     }
 
-    /// Durations measured by the wall clock in µs (solve and step times): 0.1 µs, below the
-    /// jitter of a step (µs) and 1/500 of the 50 µs an MPC step is budgeted.
+    /// Durations measured by the wall clock in µs (solve and step times): 1 µs, the jitter of
+    /// a step, as the console shows them (`12µs`). Was 0.1 µs (docs/recordings.md, "3D
+    /// topics at 33 Hz").
     pub fn duration_us(x: f64) -> f64 {
-        rounded(x, 1)
+        rounded(x, 0)
     }
 
     /// Trace-time durations in s (time in mode): 1 ns, as log times; the digits beyond were
@@ -182,6 +192,7 @@ macro_rules! array_at {
 }
 array_at!(position_array, resolution::position);
 array_at!(velocity_array, resolution::velocity);
+array_at!(margin_array, resolution::margin);
 array_at!(acceleration_array, resolution::acceleration);
 array_at!(signal_array, resolution::signal);
 
@@ -336,7 +347,7 @@ pub struct ActuatorsMsg {
     #[serde(deserialize_with = "nan_array", serialize_with = "velocity_array")]
     #[schemars(with = "[Option<f64>; 6]", description = "leg velocities (m/s)")]
     pub velocity: [f64; 6],
-    #[serde(deserialize_with = "nan_array", serialize_with = "position_array")]
+    #[serde(deserialize_with = "nan_array", serialize_with = "margin_array")]
     #[schemars(
         with = "[Option<f64>; 6]",
         description = "distance to the nearer end stop (m); < 0 outside"
@@ -489,6 +500,7 @@ impl Message {
         let fixed = |decimals| move |out: &mut Vec<u8>, x| write_fixed(out, x, decimals);
         let position = fixed(resolution::POSITION_DECIMALS);
         let velocity = fixed(resolution::VELOCITY_DECIMALS);
+        let margin = fixed(resolution::MARGIN_DECIMALS);
         let acceleration = fixed(resolution::ACCELERATION_DECIMALS);
         let t = |out: &mut Vec<u8>, t: f64| {
             out.extend_from_slice(b"{\"t\":");
@@ -520,7 +532,7 @@ impl Message {
                 t(out, m.t);
                 array(out, "length", &m.length, position);
                 array(out, "velocity", &m.velocity, velocity);
-                array(out, "margin", &m.margin, position);
+                array(out, "margin", &m.margin, margin);
             }
             Message::Controller(m) => return serde_json::to_writer(out, m),
         }
@@ -635,16 +647,14 @@ mod tests {
         assert_eq!(fixed(f64::INFINITY, 4), "null");
         for (x, d, f) in [
             (0.123_456_789, 6, resolution::position as fn(f64) -> f64),
-            (-0.123_456_789, 4, resolution::velocity),
+            (-0.123_456_789, 3, resolution::velocity),
+            (0.123_456_789, 4, resolution::margin),
             (0.987_654_321, 3, resolution::acceleration),
         ] {
             assert_eq!(fixed(x, d).parse::<f64>().unwrap(), f(x), "{x}");
             assert_eq!(f(f(x)), f(x), "rounding twice changes nothing");
         }
-        assert_eq!(
-            shortest(resolution::duration_us(133.726_999_999_999_98)),
-            "133.7"
-        );
+        assert_eq!(resolution::duration_us(133.726_999_999_999_98), 134.0);
         assert_eq!(shortest(resolution::time_s(30.010_000_000_001_89)), "30.01");
     }
 

@@ -118,10 +118,12 @@ fn point(v: &Vector3<f64>) -> Point3 {
 }
 
 /// What moves in the 3D topics (the platform's transform, the legs' upper ends) is drawn at
-/// 2^-20 m (about 1 µm, the recorded pose's resolution) and its rotation at 2^-24 per
-/// quaternion component: invisible in a drawing, and the doubles' low bytes become zeros
-/// that zstd removes; full doubles were most of these topics' bytes (docs/recordings.md,
-/// "Size per minute").
+/// 2^-12 m (0.24 mm; a leg is drawn 60 mm thick) and its rotation at 2^-16 per quaternion
+/// component (about 0.002°, 45 µm at a 1.5 m platform radius): invisible in a drawing, and
+/// the doubles' low bytes become zeros that zstd removes. Full doubles were most of these
+/// topics' bytes; 2^-20 m and 2^-24 (a micrometre, the recorded pose's resolution) kept the
+/// 3D topics at 33 Hz over the 5 MB a minute of the steep turn (docs/recordings.md, "3D
+/// topics at 33 Hz"). The recorded pose on `/ALG/platform` keeps its micrometre.
 fn drawn(x: f64, bits: i32) -> f64 {
     let scale = 2f64.powi(bits);
     (x * scale).round() / scale
@@ -131,8 +133,8 @@ fn drawn_point(v: &Vector3<f64>) -> Vector3<f64> {
     v.map(|x| drawn(x, POSITION_BITS))
 }
 
-const POSITION_BITS: i32 = 20;
-const ROTATION_BITS: i32 = 24;
+const POSITION_BITS: i32 = 12;
+const ROTATION_BITS: i32 = 16;
 
 fn rgba(r: f64, g: f64, b: f64, a: f64) -> Color {
     Color { r, g, b, a }
@@ -612,8 +614,8 @@ mod tests {
         for (i, line) in legs.lines.iter().enumerate() {
             let [p, q] = [&line.points[0], &line.points[1]];
             let length = Vector3::new(q.x - p.x, q.y - p.y, q.z - p.z).norm();
-            // The upper end is drawn at 2^-20 m per coordinate.
-            assert!((length - lane.legs.length_m[i]).abs() < 2e-6, "leg {i}");
+            // The upper end is drawn at 2^-12 m per coordinate: within √3 · 2^-13 m.
+            assert!((length - lane.legs.length_m[i]).abs() < 3e-4, "leg {i}");
         }
         let red = legs.lines[2].color.as_ref().unwrap();
         let amber = legs.lines[4].color.as_ref().unwrap();

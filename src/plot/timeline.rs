@@ -280,6 +280,11 @@ fn band_style(i: usize) -> ShapeStyle {
     SHADED[i].2.mix(0.18).filled()
 }
 
+/// The perception-threshold band around the reference.
+fn band_fill() -> ShapeStyle {
+    RGBColor(150, 150, 150).mix(0.25).filled()
+}
+
 /// A stretch of time during which one controller was active.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Band {
@@ -338,6 +343,24 @@ pub struct Line {
     pub label: String,
     pub color: RGBColor,
     pub signal: Decimated,
+    /// Channel panels, an algorithm's line: the pixel columns in which a step was a false
+    /// cue (reference and simulator beyond the perception threshold with opposite signs, as
+    /// the summary's `false_cue_s` counts them); empty otherwise.
+    pub false_cues: Vec<bool>,
+}
+
+/// Merges marked columns into time spans (s).
+fn spans_of(columns: &[bool], from_s: f64, to_s: f64) -> Vec<(f64, f64)> {
+    let dt = (to_s - from_s) / columns.len().max(1) as f64;
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    for (c, _) in columns.iter().enumerate().filter(|(_, &on)| on) {
+        let (a, b) = (from_s + c as f64 * dt, from_s + (c + 1) as f64 * dt);
+        match out.last_mut() {
+            Some(last) if (last.1 - a).abs() < 0.5 * dt => last.1 = b,
+            _ => out.push((a, b)),
+        }
+    }
+    out
 }
 
 /// Everything a figure shows, reduced to its width.
@@ -354,6 +377,9 @@ pub struct Timeline {
     pub shaded_by: Option<AlgorithmId>,
     /// Each DoF's excursion limit in the unit shown (m, °), when the profile is known.
     pub limits: Option<[f64; 6]>,
+    /// Perception thresholds per channel in the unit shown (m/s², °/s), when the profile is
+    /// known: the band drawn around the reference.
+    pub thresholds: Option<[f64; 6]>,
 }
 
 /// The lane whose controller modes are shaded: the S-MPC's, found by its key so that this
@@ -411,6 +437,12 @@ pub fn read_timeline(recording: &Recording, request: &PlotRequest) -> Result<Tim
         .as_ref()
         .ok()
         .map(|p| p.limits.si().excursion);
+    // The channel panels draw the perception thresholds (band, false cues) when it loads.
+    let thresholds: Option<[f64; 6]> = recording
+        .profile
+        .as_ref()
+        .ok()
+        .map(crate::bound::thresholds);
     let columns = request.width_px.max(100) as usize;
     let algorithms = recording.algorithms.clone();
     let mut panels: Vec<(Panel, Vec<Line>)> = request
@@ -423,6 +455,7 @@ pub fn read_timeline(recording: &Recording, request: &PlotRequest) -> Result<Tim
                     label: "reference (aircraft)".to_string(),
                     color: REFERENCE_COLOR,
                     signal: Decimated::new(from_s, to_s, columns),
+                    false_cues: Vec::new(),
                 });
             }
             for &a in &algorithms {
@@ -430,6 +463,11 @@ pub fn read_timeline(recording: &Recording, request: &PlotRequest) -> Result<Tim
                     label: a.label().to_string(),
                     color: algorithm_color(a),
                     signal: Decimated::new(from_s, to_s, columns),
+                    false_cues: if panel.has_reference() {
+                        vec![false; columns]
+                    } else {
+                        Vec::new()
+                    },
                 });
             }
             (panel, lines)
@@ -454,10 +492,19 @@ pub fn read_timeline(recording: &Recording, request: &PlotRequest) -> Result<Tim
             let scale = panel.scale();
             match *panel {
                 Panel::Channel(i) => {
-                    lines[0].signal.push(t, scale * frame.reference.channel(i));
+                    let x = frame.reference.channel(i);
+                    lines[0].signal.push(t, scale * x);
+                    let c = column(from_s, to_s, columns, t);
                     for (line, &a) in lines[1..].iter_mut().zip(&algorithms) {
                         if let Some(lane) = frame.lane(a) {
-                            line.signal.push(t, scale * lane.perceived.channel(i));
+                            let y = lane.perceived.channel(i);
+                            line.signal.push(t, scale * y);
+                            // The summary's test (`metrics::ChannelAccumulator::push`).
+                            if let Some(th) = thresholds.map(|th| th[i]) {
+                                if x.abs() > th && y.abs() > th && x.signum() != y.signum() {
+                                    line.false_cues[c] = true;
+                                }
+                            }
                         }
                     }
                 }
@@ -514,6 +561,7 @@ pub fn read_timeline(recording: &Recording, request: &PlotRequest) -> Result<Tim
         bands: modes.bands(from_s, to_s),
         shaded_by,
         limits: excursion.map(|e| std::array::from_fn(|i| e[i] * Panel::Pose(i).scale())),
+        thresholds: thresholds.map(|th| std::array::from_fn(|i| th[i] * Panel::Channel(i).scale())),
     })
 }
 
@@ -539,6 +587,13 @@ pub fn draw<DB: DrawingBackend>(root: &Area<DB>, tl: &Timeline) -> DrawResult<DB
     }
     for &a in &tl.algorithms {
         entries.push((a.label().to_string(), algorithm_color(a).stroke_width(2)));
+    }
+    if tl.thresholds.is_some() && tl.panels.iter().any(|(p, _)| p.has_reference()) {
+        entries.push(("± perception threshold".to_string(), band_fill()));
+        entries.push((
+            "false cue (strip)".to_string(),
+            RGBColor(120, 120, 120).filled(),
+        ));
     }
     if tl
         .panels
@@ -583,12 +638,16 @@ fn draw_panel<DB: DrawingBackend>(
     panel: Panel,
     lines: &[Line],
 ) -> DrawResult<DB> {
-    let (lo, hi) = lines
+    let (mut lo, mut hi) = lines
         .iter()
         .map(|l| l.signal.range())
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (c, d)| {
             (a.min(c), b.max(d))
         });
+    if let (Panel::Channel(i), Some(th), Some(reference)) = (panel, tl.thresholds, lines.first()) {
+        let (r0, r1) = reference.signal.range();
+        (lo, hi) = (lo.min(r0 - th[i]), hi.max(r1 + th[i]));
+    }
     // The red lines: end stops and limits, always in view so that the signal reads against
     // them at a glance.
     let stops: Vec<f64> = match panel {
@@ -635,6 +694,32 @@ fn draw_panel<DB: DrawingBackend>(
             [(tl.from_s, y), (tl.to_s, y)],
             RED.stroke_width(1),
         ))?;
+    }
+    // The reference ± the perception threshold: what the pilot would not tell from it.
+    if let (Panel::Channel(i), Some(th), Some(reference)) = (panel, tl.thresholds, lines.first()) {
+        let points = reference.signal.points();
+        if !points.is_empty() {
+            let mut outline: Vec<(f64, f64)> =
+                points.iter().map(|&(t, y)| (t, y + th[i])).collect();
+            outline.extend(points.iter().rev().map(|&(t, y)| (t, y - th[i])));
+            chart.draw_series(std::iter::once(Polygon::new(outline, band_fill())))?;
+        }
+    }
+    // False cues: a strip along the bottom per algorithm, in its colour, where it was felt
+    // the wrong way.
+    let strip = 0.035 * (y1 - y0);
+    for (k, line) in lines
+        .iter()
+        .filter(|l| !l.false_cues.is_empty())
+        .enumerate()
+    {
+        let (a, b) = (y0 + k as f64 * strip, y0 + (k as f64 + 0.8) * strip);
+        for (from, to) in spans_of(&line.false_cues, tl.from_s, tl.to_s) {
+            chart.draw_series(std::iter::once(Rectangle::new(
+                [(from, a), (to, b)],
+                line.color.mix(0.85).filled(),
+            )))?;
+        }
     }
     // The reference first and wider, so that an algorithm that follows it shows as its
     // colour on a black outline, and one that does not shows the reference beside it.
@@ -741,11 +826,13 @@ mod tests {
                     label: id.label().into(),
                     color: algorithm_color(id),
                     signal,
+                    false_cues: Vec::new(),
                 }],
             )],
             bands: modes.bands(0.0, 10.0),
             shaded_by: Some(id),
             limits: None,
+            thresholds: None,
         };
         assert_eq!(tl.bands.len(), 4, "{:?}", tl.bands);
         crate::plot::register_font().unwrap();
@@ -789,6 +876,97 @@ mod tests {
         );
     }
 
+    /// Issue 38 item 9: a channel panel draws the reference's perception-threshold band and,
+    /// per algorithm, a strip where it was a false cue; without a profile, neither.
+    #[test]
+    fn the_threshold_band_and_false_cues_are_drawn() {
+        let id = AlgorithmId::Mpc;
+        let (from, to, columns) = (0.0, 10.0, 200);
+        let mut reference = Decimated::new(from, to, columns);
+        let mut sim = Decimated::new(from, to, columns);
+        let mut false_cues = vec![false; columns];
+        let th = 0.17;
+        for k in 0..1000 {
+            let t = k as f64 * 0.01;
+            let x = (t * 0.6).sin();
+            // Wrong way round between 4 and 5 s.
+            let y = if (4.0..5.0).contains(&t) { -x } else { 0.5 * x };
+            reference.push(t, x);
+            sim.push(t, y);
+            if x.abs() > th && y.abs() > th && x.signum() != y.signum() {
+                false_cues[column(from, to, columns, t)] = true;
+            }
+        }
+        let spans = spans_of(&false_cues, from, to);
+        assert_eq!(spans.len(), 1, "{spans:?}");
+        assert!((spans[0].0 - 4.0).abs() < 0.06 && (spans[0].1 - 5.0).abs() < 0.06);
+        let mpc = algorithm_color(id);
+        let tl = Timeline {
+            title: "test".into(),
+            from_s: from,
+            to_s: to,
+            algorithms: vec![id],
+            panels: vec![(
+                Panel::Channel(0),
+                vec![
+                    Line {
+                        label: "reference (aircraft)".into(),
+                        color: REFERENCE_COLOR,
+                        signal: reference,
+                        false_cues: Vec::new(),
+                    },
+                    Line {
+                        label: id.label().into(),
+                        color: mpc,
+                        signal: sim,
+                        false_cues,
+                    },
+                ],
+            )],
+            bands: Vec::new(),
+            shaded_by: None,
+            limits: None,
+            thresholds: Some([th, 0.17, 0.28, 3.0, 3.6, 2.6]),
+        };
+        crate::plot::register_font().unwrap();
+        let svg_of = |tl: &Timeline| {
+            let mut svg = String::new();
+            {
+                let root =
+                    SVGBackend::with_string(&mut svg, figure_size(800, 1)).into_drawing_area();
+                draw(&root, tl).unwrap();
+                root.present().unwrap();
+            }
+            svg
+        };
+        let svg = svg_of(&tl);
+        assert!(
+            svg.contains("perception threshold"),
+            "no band in the legend"
+        );
+        assert!(svg.contains("false cue"), "no false cue in the legend");
+        assert!(svg.contains("<polygon"), "no band drawn");
+        // The strip is one rectangle more than the same figure with no false cue.
+        let mut clean = tl.clone();
+        clean.panels[0].1[1]
+            .false_cues
+            .iter_mut()
+            .for_each(|c| *c = false);
+        let rects = |svg: &str| svg.matches("<rect").count();
+        assert_eq!(
+            rects(&svg),
+            rects(&svg_of(&clean)) + 1,
+            "no false-cue strip"
+        );
+        // Without the profile's thresholds: no band, no strip.
+        let bare = Timeline {
+            thresholds: None,
+            ..tl
+        };
+        let svg = svg_of(&bare);
+        assert!(!svg.contains("perception threshold") && !svg.contains("<polygon"));
+    }
+
     #[test]
     fn channels_parse_with_clear_errors() {
         let keys: Vec<String> = DEFAULT_PANELS.split(',').map(String::from).collect();
@@ -824,6 +1002,7 @@ mod tests {
                 label: id.label().into(),
                 color: algorithm_color(id),
                 signal,
+                false_cues: Vec::new(),
             }]
         };
         let tl = Timeline {
@@ -838,6 +1017,7 @@ mod tests {
             bands: Vec::new(),
             shaded_by: None,
             limits: Some([1.7, 1.7, 0.8, 25.0, 25.0, 30.0]),
+            thresholds: None,
         };
         crate::plot::register_font().unwrap();
         let mut svg = String::new();

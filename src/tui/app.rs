@@ -91,6 +91,10 @@ impl App {
                 self.toggle_pose();
                 None
             }
+            KeyCode::Char('v') | KeyCode::Char('V') => {
+                self.overlay = !self.overlay;
+                None
+            }
             KeyCode::Tab => {
                 self.channel = (self.channel + 1) % CHANNELS.len();
                 None

@@ -18,6 +18,10 @@ pub const KEYS: &[(&str, &str)] = &[
     ("l", "loop at the end"),
     ("tab 1..6", "channel fx fy Δfz wx wy wz"),
     ("p", "pose panel on / off (in place of the legs if no room)"),
+    (
+        "v",
+        "view: a column per algorithm / a chart per channel, overlaid",
+    ),
     ("r", "record on / off (a new file each time)"),
     (
         "q Esc Ctrl-C",
@@ -55,6 +59,11 @@ pub const LEGEND: &[(&str, &str)] = &[
         "charts: the last 10 s; one y scale a channel, all columns",
     ),
     ("Δfz", "fz's change from 1 g (0 in level flight); m/s², °/s"),
+    ("⣀band", "overlaid view (v): ref ± the perception threshold"),
+    (
+        "⣿S-MPC ▞MPC •CWF",
+        "overlaid view: each algorithm's sim, own marker",
+    ),
     ("⇄n", "controller switches (S-MPC) since the start"),
     (
         "w=0.42 0.3s",

@@ -12,6 +12,7 @@ use ratatui::Terminal;
 use super::player::{Command, Player, RecordingStatus};
 use super::tests::{draw, dressed_snapshot, engine, recording_opts, screen, settle, Counters};
 use super::*;
+use crate::mca::AlgorithmId;
 
 /// The screen's rows without TestBackend's quotes.
 fn rows(text: &str) -> Vec<String> {
@@ -501,4 +502,77 @@ fn a_negative_time_is_refused_and_esc_quits() {
     assert_eq!(app.on_key(key(KeyCode::Esc)), None);
     assert!(app.goto.is_none() && !app.should_quit());
     assert_eq!(app.on_key(key(KeyCode::Esc)), Some(Command::Quit));
+}
+
+/// Issue 38, item 9: `v` turns the columns into one chart per channel with the three
+/// algorithms overlaid, each with its own marker and a legend, and the band of ± the
+/// perception threshold around the reference; `v` again turns them back.
+#[test]
+fn v_overlays_the_algorithms_on_one_chart_per_channel() {
+    let (mut app, mut s) = unequal_lanes();
+    // The dressed snapshot runs the CWF thrice: named as the three algorithms here.
+    s.algorithms = AlgorithmId::ALL.to_vec();
+    app.snapshot = Arc::new(s.clone());
+    assert!(!app.overlay);
+    assert_eq!(
+        app.on_key(KeyEvent::new(KeyCode::Char('v'), KeyModifiers::NONE)),
+        None
+    );
+    assert!(app.overlay);
+    let text = screen(&draw(&app, 80, 24));
+    let lines = rows(&text);
+    // No column borders: each chart spans the screen, its caption naming every algorithm.
+    let captions: Vec<&String> = lines
+        .iter()
+        .filter(|r| r.contains("⣀band") && (r.contains(" m/s²") || r.contains(" °/s")))
+        .collect();
+    assert!(
+        captions.len() >= 2,
+        "fewer than two charts at 80×24:\n{text}"
+    );
+    assert!(captions[0].starts_with("fx"), "{captions:?}");
+    for cap in &captions {
+        for label in ["⣿ref", "⣿S-MPC", "▞MPC", "•CWF"] {
+            assert!(cap.contains(label), "{label} missing from {cap}");
+        }
+    }
+    // One line per algorithm with what the verdict decides by.
+    for label in ["⣿S-MPC", "▞MPC", "•CWF"] {
+        assert!(
+            lines
+                .iter()
+                .any(|r| r.starts_with(label) && r.contains("felt")),
+            "{label}'s numbers missing:\n{text}"
+        );
+    }
+    // The band: the chart's range holds the reference ± its threshold.
+    for ch in 0..6 {
+        let scale = crate::vocab::Channel::ALL[ch].display_scale();
+        let (lo, hi) = view::overlay_range(&s, &[0, 1, 2], ch, app.thresholds[ch]);
+        for r in &s.window {
+            let x = f64::from(r.reference[ch]) * scale;
+            let band = app.thresholds[ch] * scale;
+            assert!(
+                lo <= x - band && x + band <= hi,
+                "{ch}: {x} ± {band} outside {lo}…{hi}"
+            );
+        }
+    }
+    // The thresholds are the profile's (m/s², and °/s on screen).
+    assert_eq!(app.thresholds[0], 0.17);
+    assert!((app.thresholds[3].to_degrees() - 3.0).abs() < 1e-12);
+    insta::assert_snapshot!("console_80x24_overlay", text);
+    insta::assert_snapshot!("console_120x40_overlay", screen(&draw(&app, 120, 40)));
+    // Tab still picks the channel shown first.
+    app.on_key(KeyEvent::new(KeyCode::Char('4'), KeyModifiers::NONE));
+    let text = screen(&draw(&app, 80, 24));
+    assert!(
+        rows(&text)
+            .iter()
+            .any(|r| r.starts_with("wx") && r.contains("⣀band")),
+        "{text}"
+    );
+    app.on_key(KeyEvent::new(KeyCode::Char('v'), KeyModifiers::NONE));
+    assert!(!app.overlay);
+    assert!(!screen(&draw(&app, 80, 24)).contains("⣀band"));
 }

@@ -93,6 +93,12 @@ pub struct App {
     /// The pose panel is shown (`p`): beside the leg gauges where there is room, in their
     /// place where there is not.
     pub pose: bool,
+    /// The overlaid view (`v`): one chart per channel with every algorithm on it, instead of
+    /// a column per algorithm.
+    pub overlay: bool,
+    /// Perception thresholds per channel (m/s², rad/s), for the overlaid view's band: those
+    /// the summary's false cues and score use (`bound::thresholds`).
+    pub thresholds: [f64; 6],
     /// A live session's header (`hexcue live`); `None` for playback and review.
     pub live: Option<LiveStatus>,
     pub(super) quit: Option<&'static str>,
@@ -113,6 +119,8 @@ impl App {
             legs: LegScale::of(profile),
             pose_limits: profile.limits.si().excursion.into(),
             pose: false,
+            overlay: false,
+            thresholds: crate::bound::thresholds(profile),
             live: None,
             quit: None,
         }

@@ -60,6 +60,21 @@ impl Theme {
     pub fn perceived(&self) -> Style {
         self.fg(Color::LightCyan)
     }
+    /// An algorithm's line in the overlaid charts (`v`): the hue of its colour in figures
+    /// and Foxglove (`channels::algorithm_rgb`: blue, orange, green), among the 16 named
+    /// colours; each also has its own marker, so that it reads without colour.
+    pub fn algorithm(&self, id: crate::mca::AlgorithmId) -> Style {
+        use crate::mca::AlgorithmId;
+        self.fg(match id {
+            AlgorithmId::Smpc => Color::LightBlue,
+            AlgorithmId::Mpc => Color::LightMagenta,
+            AlgorithmId::Cwf => Color::LightGreen,
+        })
+    }
+    /// The perception-threshold band around the reference in the overlaid charts.
+    pub fn band(&self) -> Style {
+        self.fg(Color::DarkGray)
+    }
     pub fn gauge(&self) -> Style {
         self.fg(Color::Green)
     }

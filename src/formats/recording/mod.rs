@@ -317,7 +317,7 @@ mod tests {
                     let l = &mut lane.legs;
                     l.length_m = l.length_m.map(resolution::position);
                     l.velocity_mps = l.velocity_mps.map(resolution::velocity);
-                    l.margin_m = l.margin_m.map(resolution::position);
+                    l.margin_m = l.margin_m.map(resolution::margin);
                     lane.step_time_us = resolution::duration_us(lane.step_time_us);
                     let s = &mut lane.state;
                     s.time_in_mode_s = resolution::time_s(s.time_in_mode_s);
@@ -677,13 +677,13 @@ mod tests {
                     name: "cotc".into(),
                     status: "primal_infeasible".into(),
                     iterations: 5,
-                    solve_time_us: 120.5,
+                    solve_time_us: 121.0,
                 },
                 SolverReport {
                     name: "free".into(),
                     status: "solved".into(),
                     iterations: 9,
-                    solve_time_us: 800.2,
+                    solve_time_us: 800.0,
                 },
             ],
         };

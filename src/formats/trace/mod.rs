@@ -32,19 +32,17 @@ pub use sidecar::*;
 /// Longest line read. A CSV row of ten numbers is under 200 bytes and JSBSim's widest
 /// header a few kB; a longer line is a binary or a one-line file, refused before it is split.
 pub const MAX_LINE_BYTES: usize = 64 * 1024;
-/// Largest trace file read into memory (`compare`, `tune`): 256 MiB is about 7.5 h at 100 Hz.
-/// `play` streams its trace and has no such limit. Raised with [`MAX_TRACE_BYTES_VAR`].
-pub const MAX_TRACE_BYTES: u64 = 256 * 1024 * 1024;
-/// The environment variable that sets another [`MAX_TRACE_BYTES`] (bytes).
-pub const MAX_TRACE_BYTES_VAR: &str = "HEXCUE_MAX_TRACE_BYTES";
+/// Largest trace file read into memory by default (`compare`, `tune`, `bound`, `play
+/// --bound`), in MB (10^6 bytes): 256 MB is about 7.5 h at 100 Hz. `play` streams its trace
+/// and has no such limit. Each of those commands takes [`MAX_TRACE_OPTION`] to set another.
+pub const DEFAULT_MAX_TRACE_MB: f64 = 256.0;
+/// The command-line option that sets another limit than [`DEFAULT_MAX_TRACE_MB`].
+pub const MAX_TRACE_OPTION: &str = "--max-trace-mb";
 
-/// The largest trace file read into memory: [`MAX_TRACE_BYTES_VAR`] when set to a number of
-/// bytes, else [`MAX_TRACE_BYTES`].
-pub fn max_trace_bytes() -> u64 {
-    std::env::var(MAX_TRACE_BYTES_VAR)
-        .ok()
-        .and_then(|v| v.trim().parse().ok())
-        .unwrap_or(MAX_TRACE_BYTES)
+/// The largest trace file read into memory (bytes): `max_trace_mb` MB, or
+/// [`DEFAULT_MAX_TRACE_MB`] when `None`.
+pub fn max_trace_bytes(max_trace_mb: Option<f64>) -> u64 {
+    (max_trace_mb.unwrap_or(DEFAULT_MAX_TRACE_MB) * 1e6).round() as u64
 }
 /// Largest sidecar read.
 const MAX_SIDECAR_BYTES: u64 = 1024 * 1024;
@@ -203,14 +201,25 @@ fn read_text(
     })
 }
 
-/// Reads a trace and, if there is one, its sidecar `stem.json` beside it. A broken sidecar
-/// is a notice, not an error: the data are what matter.
+/// Reads a trace and, if there is one, its sidecar `stem.json` beside it, within the
+/// default size ([`DEFAULT_MAX_TRACE_MB`]). A broken sidecar is a notice, not an error: the
+/// data are what matter.
 pub fn load_trace(path: &Path, target_rate_hz: f64) -> Result<LoadedTrace, TraceError> {
+    load_trace_within(path, target_rate_hz, None)
+}
+
+/// [`load_trace`] with the size limit the user gave ([`MAX_TRACE_OPTION`], in MB).
+pub fn load_trace_within(
+    path: &Path,
+    target_rate_hz: f64,
+    max_trace_mb: Option<f64>,
+) -> Result<LoadedTrace, TraceError> {
     let source_name = path.display().to_string();
-    let limit = max_trace_bytes();
+    let limit = max_trace_bytes(max_trace_mb);
     let beyond = format!(
-        ", the most read into memory (`compare` and `tune` hold their traces; `play` streams a \
-         trace of any size); set {MAX_TRACE_BYTES_VAR} to a larger number of bytes to allow it"
+        ", the most read into memory (`compare`, `tune` and `bound` hold their traces; `play` \
+         streams a trace of any size); give {MAX_TRACE_OPTION} a larger number of MB \
+         (10^6 bytes) to allow it"
     );
     let text = read_text(path, &source_name, limit, &beyond)?;
     let name = path
