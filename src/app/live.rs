@@ -93,7 +93,12 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
         )?));
     }
     if let Some(addr) = args.foxglove {
-        session.add_frame_sink(Box::new(start_foxglove(addr, &profile, &algorithms)?));
+        session.add_frame_sink(Box::new(start_foxglove(
+            addr,
+            &profile,
+            &algorithms,
+            Some(session.tuning()),
+        )?));
     }
     Ok(LiveSetup { profile, session })
 }

@@ -84,6 +84,7 @@ mod tests {
                 aircraft_jolts: BTreeMap::new(),
                 live: None,
                 bound: None,
+                tuning: None,
             },
             description: Some("a test".into()),
         }
