@@ -306,6 +306,7 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
         .filter(|e| e.starts_with("parameter "))
         .collect();
     assert_eq!(changes.len(), 1, "{events:?}");
+    eprintln!("event: {}", changes[0]);
     assert!(
         changes[0].starts_with("parameter motion_gain set: 1 → 0"),
         "{}",
