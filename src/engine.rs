@@ -10,6 +10,7 @@ use std::time::Instant;
 
 use nalgebra::{Vector3, Vector6};
 
+use crate::bumpless::{Blend, GainStage};
 use crate::mca::limiter::WorkspaceLimiter;
 use crate::mca::{
     self, AlgorithmId, AlgorithmState, BuildError, CueInput, CueSample, MotionCueing,
@@ -67,6 +68,50 @@ struct Lane {
     algorithm: Box<dyn MotionCueing>,
     limiter: WorkspaceLimiter,
     vestibular: Vestibular,
+    /// The algorithm as it was tuned before a live change, still heard while the blend to
+    /// the new tuning lasts.
+    fade: Option<Fade>,
+}
+
+/// The old side of a retune's blend ([`Engine::retune`]).
+struct Fade {
+    algorithm: Box<dyn MotionCueing>,
+    limiter: WorkspaceLimiter,
+    blend: Blend,
+}
+
+/// Algorithms rebuilt for a new tuning, ready for [`Engine::retune`]: built apart from the
+/// engine so that a live session builds them off its stepping thread (an MPC's set-up takes
+/// longer than a step).
+pub struct Retune {
+    profile: Profile,
+    algorithms: Vec<Box<dyn MotionCueing>>,
+}
+
+impl Retune {
+    /// The algorithms among `ids` whose section differs between `old` and `new`, built as
+    /// `new` tunes them (`[mpc]` rebuilds the MPC and the S-MPC, `[smpc]` the S-MPC).
+    pub fn build(old: &Profile, new: &Profile, ids: &[AlgorithmId]) -> Result<Self, BuildError> {
+        let changed = |id: AlgorithmId| match id {
+            AlgorithmId::Cwf => old.cwf != new.cwf,
+            AlgorithmId::Mpc => old.mpc != new.mpc,
+            AlgorithmId::Smpc => old.mpc != new.mpc || old.smpc != new.smpc,
+        };
+        let algorithms = ids
+            .iter()
+            .filter(|id| changed(**id))
+            .map(|id| new.algorithm(*id))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Retune {
+            profile: new.clone(),
+            algorithms,
+        })
+    }
+
+    /// The algorithms it changes.
+    pub fn algorithms(&self) -> Vec<AlgorithmId> {
+        self.algorithms.iter().map(|a| a.id()).collect()
+    }
 }
 
 /// What every lane's step shares.
@@ -78,6 +123,7 @@ struct StepContext<'a> {
     preview: &'a [CueSample],
     stewart: &'a Stewart,
     eye_m: &'a Vector3<f64>,
+    gains: &'a GainStage,
 }
 
 impl StepContext<'_> {
@@ -95,20 +141,34 @@ impl StepContext<'_> {
         let started = Instant::now();
         let raw = lane.algorithm.step(&input);
         let limited = lane.limiter.apply(&raw);
+        let (mut command, mut acted) = (limited.command, limited.acted);
+        if let Some(fade) = &mut lane.fade {
+            let applied = *fade.limiter.last();
+            let old_raw = fade.algorithm.step(&CueInput {
+                applied: &applied,
+                ..input
+            });
+            let old = fade.limiter.apply(&old_raw);
+            command = fade.blend.mix(&old.command, &command);
+            acted |= old.acted;
+            fade.blend.advance(self.dt_s);
+            if fade.blend.done() {
+                lane.fade = None;
+            }
+        }
+        // After the limiter, whose last command the algorithm sees as applied: the gains
+        // scale what is sent, never the algorithm's own state.
+        let command = self.gains.apply(&command);
         let step_time_us = started.elapsed().as_secs_f64() * 1e6;
-        let (perceived, legs) = perceive_command(
-            &limited.command,
-            self.stewart,
-            self.eye_m,
-            &mut lane.vestibular,
-        );
+        let (perceived, legs) =
+            perceive_command(&command, self.stewart, self.eye_m, &mut lane.vestibular);
         LaneFrame {
             id: lane.algorithm.id(),
-            command: limited.command,
+            command,
             perceived,
             legs,
             state: lane.algorithm.state(),
-            limiter_active: limited.acted,
+            limiter_active: acted,
             step_time_us,
         }
     }
@@ -176,6 +236,10 @@ pub struct Engine {
     lanes: Vec<Lane>,
     /// Step lanes on two threads (on unless set otherwise).
     parallel: bool,
+    /// Whether the algorithms may use rayon's pool ([`Engine::set_parallel`]).
+    algorithms_parallel: bool,
+    /// The live gains on every lane's command (all 1 unless changed: issue 36).
+    gains: GainStage,
     k: usize,
 }
 
@@ -227,9 +291,11 @@ impl Engine {
                         dt,
                     ),
                     vestibular: Vestibular::new(&profile.vestibular, dt),
+                    fade: None,
                 })
             })
             .collect::<Result<Vec<_>, BuildError>>()?;
+        let transitions = profile.safety.transition_limits(&profile.limits.si(), dt);
         Ok(Engine {
             profile: profile.clone(),
             preview_len: (PREVIEW_HORIZON_S * profile.rate_hz).ceil() as usize,
@@ -247,6 +313,13 @@ impl Engine {
             reference: Vestibular::new(&profile.vestibular, dt),
             // Threads pay off only when some lane is expensive: the MPCs.
             parallel: algorithms.iter().any(|a| *a != AlgorithmId::Cwf),
+            algorithms_parallel: true,
+            gains: GainStage::new(
+                &transitions.limits,
+                &transitions.gentle_acceleration,
+                &transitions.gentle_jerk,
+                dt,
+            ),
             lanes,
             k: 0,
         })
@@ -289,9 +362,46 @@ impl Engine {
             .iter()
             .any(|l| l.algorithm.id() != AlgorithmId::Cwf);
         self.parallel = parallel && heavy;
+        self.algorithms_parallel = parallel;
         for lane in &mut self.lanes {
             lane.algorithm.set_parallel(parallel);
         }
+    }
+
+    /// Sends the gains on every lane's command (per DoF, 0 to 1) toward `target` along
+    /// their jerk-limited paths ([`GainStage`]); returns how long the slowest takes (s).
+    pub fn set_gains(&mut self, target: Vector6<f64>) -> f64 {
+        self.gains.set_target(target)
+    }
+
+    /// The gains on the command at the current step.
+    pub fn gains(&self) -> &GainStage {
+        &self.gains
+    }
+
+    /// Hands each lane that `retune` rebuilt over to its new algorithm, which inherits the
+    /// old one's state; the old one is still heard for `blend_s`, faded out along the
+    /// smootherstep ([`Blend`]). A retune during a blend replaces the blend's new side and
+    /// lets the blend run on, so that the command never jumps.
+    pub fn retune(&mut self, retune: Retune, blend_s: f64) {
+        for mut new in retune.algorithms {
+            let Some(lane) = self.lanes.iter_mut().find(|l| l.algorithm.id() == new.id()) else {
+                continue;
+            };
+            if let Some(state) = lane.algorithm.snapshot() {
+                new.inherit(&state);
+            }
+            new.set_parallel(self.algorithms_parallel);
+            let old = std::mem::replace(&mut lane.algorithm, new);
+            if lane.fade.is_none() {
+                lane.fade = Some(Fade {
+                    algorithm: old,
+                    limiter: lane.limiter.clone(),
+                    blend: Blend::new(blend_s),
+                });
+            }
+        }
+        self.profile = retune.profile;
     }
 
     pub fn algorithms(&self) -> Vec<AlgorithmId> {
@@ -331,6 +441,7 @@ impl Engine {
             lane.algorithm.reset();
             lane.limiter.reset();
             lane.vestibular.reset();
+            lane.fade = None;
         }
     }
 
@@ -435,6 +546,7 @@ impl Engine {
             preview,
             stewart: &self.stewart,
             eye_m: &self.eye_m,
+            gains: &self.gains,
         };
         let lanes = match self.lanes.split_first_mut() {
             // Lanes are independent: the first (the heaviest, in the console's order) steps
@@ -457,6 +569,7 @@ impl Engine {
             }
             _ => self.lanes.iter_mut().map(|lane| ctx.step(lane)).collect(),
         };
+        self.gains.advance();
         self.k += 1;
         w.start += 1;
         if w.start > self.preview_len {

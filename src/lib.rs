@@ -10,6 +10,7 @@
 pub mod actuators;
 pub(crate) mod app;
 pub mod bound;
+pub mod bumpless;
 pub mod channels;
 pub(crate) mod cli;
 pub mod compare;
@@ -38,6 +39,7 @@ pub mod summary;
 pub mod trace;
 pub mod tui;
 pub(crate) mod tune;
+pub mod tuning;
 pub mod vocab;
 
 /// Standard gravity (m/s²).

@@ -45,6 +45,29 @@ pub struct Summary {
     /// session, which has no future, never previews. Absent in summaries written before it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mpc_reference: Option<String>,
+    /// Parameters changed live (issue 36, docs/parameters.md); absent when none could be.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tuning: Option<TuningSummary>,
+}
+
+/// The parameters of a session that could be tuned live: each one's value at the end, and
+/// every change with its session time.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TuningSummary {
+    pub final_parameter_values: BTreeMap<String, f64>,
+    pub changes: Vec<ParameterChange>,
+}
+
+/// One live change of a parameter.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ParameterChange {
+    /// Session time of the step that applied it (s).
+    pub t_s: f64,
+    pub name: String,
+    pub from: f64,
+    pub to: f64,
+    /// An undo of the change before.
+    pub undo: bool,
 }
 
 /// The input axes [`Summary::input_clipped`] counts, in the order of `cue_sample`.
@@ -449,6 +472,7 @@ impl SummaryBuilder {
             live: None,
             bound: None,
             mpc_reference: Some(self.mpc_reference[0].to_string()),
+            tuning: None,
         }
     }
 }

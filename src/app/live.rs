@@ -52,6 +52,8 @@ pub fn run(args: &LiveArgs) -> Result<()> {
 /// A live session, ready to run: profile (with its TOML) and the session itself.
 pub struct LiveSetup {
     pub profile: Profile,
+    /// The profile's file and text, for the parameter panel's `w`.
+    pub profile_file: tui::params::ProfileFile,
     pub session: crate::live::LiveSession,
 }
 
@@ -70,6 +72,11 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
     let (profile, profile_toml) = match &args.profile {
         Some(path) => crate::app::common::load_profile_warned(path)?,
         None => (default_profile(), DEFAULT_PROFILE_TOML.to_string()),
+    };
+    let profile_file = tui::params::ProfileFile {
+        path: args.profile.clone(),
+        text: profile_toml.clone(),
+        name: profile.name.clone(),
     };
     let profile = live_profile(&profile);
     let algorithms = parse_algorithms(&args.algorithms)?;
@@ -93,9 +100,18 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
         )?));
     }
     if let Some(addr) = args.foxglove {
-        session.add_frame_sink(Box::new(start_foxglove(addr, &profile, &algorithms)?));
+        session.add_frame_sink(Box::new(start_foxglove(
+            addr,
+            &profile,
+            &algorithms,
+            Some(session.tuning()),
+        )?));
     }
-    Ok(LiveSetup { profile, session })
+    Ok(LiveSetup {
+        profile,
+        profile_file,
+        session,
+    })
 }
 
 pub fn run_live_headless(args: &LiveArgs) -> Result<Summary> {
@@ -103,6 +119,7 @@ pub fn run_live_headless(args: &LiveArgs) -> Result<Summary> {
     let LiveSetup {
         profile,
         mut session,
+        ..
     } = live_setup(args)?;
     let stop = stop_flag()?;
     let outputs = if args.output.is_empty() {
@@ -179,6 +196,7 @@ pub fn run_console(args: &LiveArgs) -> Result<()> {
             outputs: args.output.clone(),
             recording: args.record.as_ref().map(|p| p.display().to_string()),
             theme: tui::Theme::from_env(),
+            profile_file: setup.profile_file,
         },
     );
     let _ = terminal.clear();

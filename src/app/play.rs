@@ -160,7 +160,7 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
         sinks.push(Box::new(ProgressSink::whole(bar)));
     }
     if let Some(addr) = args.foxglove {
-        let server = start_foxglove(addr, &profile, &algorithms)?;
+        let server = start_foxglove(addr, &profile, &algorithms, None)?;
         sinks.push(Box::new(Quiet(Box::new(server))));
     }
     if let Some(recorder) = recorder {
@@ -236,7 +236,7 @@ pub fn run_console(args: &PlayArgs) -> Result<()> {
     cfg.speed = args.start.speed;
     cfg.looping = args.start.looping;
     if let Some(addr) = args.foxglove {
-        let server = start_foxglove(addr, &cfg.profile, &cfg.algorithms)?;
+        let server = start_foxglove(addr, &cfg.profile, &cfg.algorithms, None)?;
         cfg.sinks.push(Box::new(server));
     }
     let factory: tui::SinkFactory = Box::new(move |request: &tui::RecordingRequest| {
@@ -252,8 +252,9 @@ pub fn start_foxglove(
     addr: SocketAddr,
     profile: &Profile,
     algorithms: &[AlgorithmId],
+    tuning: Option<crate::tuning::TuningHandle>,
 ) -> Result<FoxgloveServer> {
-    let server = FoxgloveServer::start(addr, profile, algorithms)?;
+    let server = FoxgloveServer::start_tuned(addr, profile, algorithms, tuning)?;
     eprintln!(
         "foxglove: serving ws://{} (in Foxglove: Open connection → Foxglove WebSocket)",
         server.addr()

@@ -50,7 +50,7 @@ pub fn review_served(path: &Path, addr: SocketAddr, speed: Option<f64>) -> Resul
         .profile
         .as_ref()
         .map_err(|e| anyhow::anyhow!("{e}; the rigs cannot be drawn without it"))?;
-    let server = start_foxglove(addr, profile, &recording.algorithms)?;
+    let server = start_foxglove(addr, profile, &recording.algorithms, None)?;
     let sinks: Vec<Box<dyn FrameSink>> = vec![Box::new(Quiet(Box::new(server)))];
     let stop = stop_flag()?;
     summarise(&recording, profile, sinks, speed, &stop)
@@ -152,6 +152,7 @@ pub fn run_console(args: &ReviewArgs) -> Result<()> {
             addr,
             &profile,
             &recording.algorithms,
+            None,
         )?));
     }
     let outcome = tui::run_review(ReviewConfig {

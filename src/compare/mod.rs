@@ -85,6 +85,7 @@ mod tests {
                 live: None,
                 bound: None,
                 mpc_reference: None,
+                tuning: None,
             },
             description: Some("a test".into()),
         }

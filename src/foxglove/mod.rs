@@ -6,6 +6,7 @@
 //! - [`server`]: a frame sink that serves the channels of that table over the Foxglove
 //!   WebSocket protocol, so that the Foxglove app follows a running session.
 
+pub mod parameters;
 pub mod server;
 
 pub use crate::channels::scene;

@@ -85,6 +85,17 @@ impl FoxgloveServer {
         profile: &Profile,
         algorithms: &[AlgorithmId],
     ) -> Result<Self, ServerError> {
+        Self::start_tuned(addr, profile, algorithms, None)
+    }
+
+    /// [`FoxgloveServer::start`], offering the Parameters capability on `tuning` when given
+    /// (a live session's parameters: [`super::parameters`]).
+    pub fn start_tuned(
+        addr: SocketAddr,
+        profile: &Profile,
+        algorithms: &[AlgorithmId],
+        tuning: Option<crate::tuning::TuningHandle>,
+    ) -> Result<Self, ServerError> {
         let context = Context::new();
         let start_ns = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
@@ -113,11 +124,17 @@ impl FoxgloveServer {
         .into_iter()
         .map(|(k, v)| (k.to_string(), v))
         .collect();
-        let handle = WebSocketServer::new()
+        let mut capabilities = vec![Capability::Time];
+        let mut ws = WebSocketServer::new();
+        if let Some(tuning) = tuning {
+            capabilities.push(Capability::Parameters);
+            ws = ws.parameter_handler(Arc::new(super::parameters::LiveParameters(tuning)));
+        }
+        let handle = ws
             .name(format!("hexcue {}", env!("CARGO_PKG_VERSION")))
             .bind(addr.ip().to_string(), addr.port())
             .context(&server.context)
-            .capabilities([Capability::Time])
+            .capabilities(capabilities)
             .server_info(info)
             .message_backlog_size(BACKLOG)
             .start_blocking()

@@ -40,6 +40,7 @@ use crate::sources::live::LiveInput;
 use crate::summary::{
     HardBrake, LiveSummary, Quantiles, RealtimeSummary, Summary, SummaryBuilder, TransitionSummary,
 };
+use crate::tuning::{Shared, Tuner, TuningHandle};
 use input_watch::{InputCounts, InputWatch};
 
 /// Datagrams read at most per step: ten times what a simulator at 10× the step rate sends.
@@ -242,6 +243,10 @@ pub struct LiveSession {
     actuators_were_limited: bool,
     /// The outputs (bit i) at whose address nothing listened at the last step.
     unreachable_outputs: u32,
+    /// The parameters the console and Foxglove change live (issue 36).
+    tuning: TuningHandle,
+    /// How long a retuned algorithm blends in (the `[safety]` fade-in, s).
+    retune_blend_s: f64,
 }
 
 impl LiveSession {
@@ -264,7 +269,10 @@ impl LiveSession {
         let dt = profile.dt_s();
         let watch = InputWatch::new(input.url(), &input.source_text());
         let actuators = profile.actuators().context("the profile's [actuators]")?;
+        let tuner = Tuner::new(profile, algorithms).context("the live parameters")?;
         Ok(LiveSession {
+            tuning: Shared::handle(tuner),
+            retune_blend_s: profile.safety.fade_in_s,
             engine,
             held,
             safety: Safety::new(profile.safety.params(&profile.limits.si(), dt)),
@@ -328,6 +336,11 @@ impl LiveSession {
 
     pub fn algorithms(&self) -> Vec<AlgorithmId> {
         self.engine.algorithms()
+    }
+
+    /// The parameters changed live: the console and the Foxglove server hold this.
+    pub fn tuning(&self) -> TuningHandle {
+        self.tuning.clone()
     }
 
     pub fn input(&self) -> &LiveInput {
@@ -414,6 +427,21 @@ impl LiveSession {
             self.engine.reset_lanes();
         }
         self.engine.set_cue_gain(plan.cue_gain);
+        // Never wait for the lock on this thread: a change held up by another side's lock
+        // is applied a step later.
+        if let Ok(mut shared) = self.tuning.try_lock() {
+            let texts = crate::tuning::apply_pending(
+                &mut shared,
+                &mut self.engine,
+                t_s,
+                self.retune_blend_s,
+            );
+            self.events.extend(texts.into_iter().map(|text| Event {
+                t_s,
+                level: EventLevel::Info,
+                text,
+            }));
+        }
         if let Some((sample, _)) = latest {
             self.held.set(sample);
         }
@@ -761,6 +789,7 @@ impl LiveSession {
         let mut s = self.summary.finish();
         s.live = Some(self.stats.summary(self.rate_hz));
         s.mpc_reference = Some(self.summary.causal_mpc_reference().to_string());
+        s.tuning = self.tuning.lock().ok().map(|shared| shared.tuner.summary());
         s
     }
 

@@ -171,6 +171,12 @@ pub trait MotionCueing: Send {
     fn restore(&mut self, _snapshot: &AlgorithmSnapshot) -> bool {
         false
     }
+    /// Takes over the running state of a snapshot of the same algorithm tuned otherwise (a
+    /// live change, issue 36), keeping this one's own tuning; false if it cannot. The MPCs'
+    /// running state holds no tuning, so restoring it is enough.
+    fn inherit(&mut self, snapshot: &AlgorithmSnapshot) -> bool {
+        self.restore(snapshot)
+    }
     /// Whether the algorithm may hand part of a step to rayon's pool (true by default). A
     /// live session says no: its stepping thread runs at real-time priority and the pool's
     /// threads do not, so the step would wait behind whatever else the machine runs.

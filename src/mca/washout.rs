@@ -389,6 +389,31 @@ impl MotionCueing for Washout {
         }
     }
 
+    /// The filters' states, the tilt trackers and the last rates from another washout, this
+    /// one's tuning kept. A translational channel's states are its position, velocity and
+    /// acceleration whatever the tuning, so that its pose and rate go on from where they were;
+    /// a changed tilt low-pass frequency moves the tilt target (its output is ω² x₁), which
+    /// the engine's blend from the old washout covers.
+    fn inherit(&mut self, snapshot: &AlgorithmSnapshot) -> bool {
+        let Some(old) = snapshot.get::<Washout>() else {
+            return false;
+        };
+        let filters = self
+            .translational
+            .iter_mut()
+            .zip(&old.translational)
+            .chain(self.rotational.iter_mut().zip(&old.rotational))
+            .chain(self.tilt.lowpass.iter_mut().zip(&old.tilt.lowpass));
+        for (new, old) in filters {
+            new.inherit_state(old);
+        }
+        self.tilt.tracker.clone_from(&old.tilt.tracker);
+        self.tilt.target_rad = old.tilt.target_rad;
+        self.last_rot_rate = old.last_rot_rate;
+        self.running_s = old.running_s;
+        true
+    }
+
     fn reset(&mut self) {
         self.translational.iter_mut().for_each(LtiFilter::reset);
         self.rotational.iter_mut().for_each(LtiFilter::reset);

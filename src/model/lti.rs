@@ -189,6 +189,16 @@ impl LtiFilter {
         self.x.fill(0.0);
     }
 
+    /// Takes over another filter's state (the same structure tuned otherwise: a live
+    /// change); false, and nothing changed, if the state sizes differ.
+    pub fn inherit_state(&mut self, from: &LtiFilter) -> bool {
+        if from.x.len() != self.x.len() {
+            return false;
+        }
+        self.x.copy_from(&from.x);
+        true
+    }
+
     /// Output for the input `u` at this sample, then advance the state by one sample.
     pub fn step(&mut self, u: &[f64]) -> &[f64] {
         self.u.copy_from_slice(u);

@@ -86,6 +86,7 @@ pub const HELP: &[(&str, &str)] = &[
     ("Ctrl-C", "the same stop (so do SIGINT, SIGTERM, SIGHUP)"),
     ("tab 1..6", "channel fx fy Δfz wx wy wz"),
     ("r", "recording? live records with --record, from the start"),
+    ("p", "parameters: ↑↓ choose, ←→ change, u undo, w W write"),
     ("?", "this help; ? or Esc closes it, other keys act"),
 ];
 
@@ -329,6 +330,8 @@ pub struct LiveConsole {
     /// The recording's path, for the header.
     pub recording: Option<String>,
     pub theme: Theme,
+    /// The loaded profile's file, for the parameter panel's `w` and `W`.
+    pub profile_file: super::params::ProfileFile,
 }
 
 /// The metrics are refreshed this often on the session's sink thread.
@@ -352,7 +355,9 @@ where
         outputs,
         recording,
         theme,
+        profile_file,
     } = console;
+    let mut panel = super::params::ParamPanel::new(session.tuning(), profile_file);
     let profile = &profile;
     let stop = Arc::new(AtomicBool::new(false));
     let latest: Arc<Mutex<Option<LiveFrame>>> = Arc::new(Mutex::new(None));
@@ -440,7 +445,10 @@ where
             }
             let since = last_draw.map(|t| t.elapsed());
             if dirty && since.is_none_or(|s| s >= FRAME_INTERVAL) {
-                terminal.draw(|f| app.render(f))?;
+                terminal.draw(|f| {
+                    app.render(f);
+                    panel.render(f, f.area());
+                })?;
                 last_draw = Some(Instant::now());
                 dirty = false;
             }
@@ -448,6 +456,13 @@ where
                 return Ok(());
             }
             match events.next(FRAME_INTERVAL)? {
+                Some(UiEvent::Key(key))
+                    if key.kind != KeyEventKind::Release
+                        && !is_stop_key(key)
+                        && panel.on_key(key) =>
+                {
+                    dirty = true;
+                }
                 Some(UiEvent::Key(key)) if key.kind != KeyEventKind::Release => {
                     match on_key(&mut app, key) {
                         LiveKey::Stop => stop.store(true, Ordering::Relaxed),
@@ -488,6 +503,13 @@ pub enum LiveKey {
     RecordNotice,
     /// Only the view changed (help, channel), or nothing.
     Shown,
+}
+
+/// The keys that stop whatever is open (the parameter panel never takes them).
+fn is_stop_key(key: KeyEvent) -> bool {
+    let ctrl = key.modifiers.contains(KeyModifiers::CONTROL);
+    matches!(key.code, KeyCode::Char('e' | 'E' | 'q' | 'Q'))
+        || (ctrl && matches!(key.code, KeyCode::Char('c' | 'C')))
 }
 
 /// Applies a key to the live view. The stop keys act whatever is open: an operator reaching

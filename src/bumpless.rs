@@ -1,0 +1,304 @@
+//! Bumpless changes of a running cue (issue 36, docs/parameters.md): the gains on the command
+//! move along jerk-limited paths, and a retuned algorithm takes over from the old one through
+//! a C² blend of their commands. No I/O; the engine applies both every step.
+//!
+//! **Gains.** The command of DoF i is scaled by gᵢ(t): pose gᵢp, velocity gᵢv + ġᵢp,
+//! acceleration gᵢa + 2ġᵢv + g̈ᵢp. Each gain follows the safety stage's own jerk-limited path
+//! ([`crate::safety::path::DofPath`], planned from the gain's value, rate and acceleration to
+//! the new target), with its acceleration and jerk bounded so that the terms the change
+//! adds, g̈p and the jerk's g⃛p, stay within the `[safety]` gentle limits for a pose as far out
+//! as the DoF's excursion: |g̈ᵢ| ≤ Aᵢ / Pᵢ, |g⃛ᵢ| ≤ Jᵢ / Pᵢ. A new target mid-way replans from
+//! where the gain is, so that nothing steps however fast the keys are pressed.
+//!
+//! **Retuning.** The new algorithm inherits the old one's state (filters, the MPCs' running
+//! state); both run for the blend time, and the command is (1 − w) old + w new with w the
+//! quintic smootherstep of the fade-in, so that the command's pose, velocity and
+//! acceleration stay continuous where the new tuning acts differently from the old.
+
+use nalgebra::Vector6;
+
+use crate::mca::PlatformCommand;
+use crate::model::platform::DofLimits;
+use crate::safety::path::{Bounds, DofPath, DofState};
+
+/// Fastest a gain moves (per second): not binding for the shipped profiles (a full change
+/// peaks at about 0.5 /s under the acceleration bound), only a guard for a tiny excursion.
+const GAIN_RATE_LIMIT: f64 = 2.0;
+
+/// The gains on the command, one per DoF, each on its own jerk-limited path to its target.
+#[derive(Clone, Debug)]
+pub struct GainStage {
+    target: Vector6<f64>,
+    paths: [DofPath; 6],
+    bounds: [Bounds; 6],
+    /// Time since the paths were planned (s).
+    elapsed_s: f64,
+    dt_s: f64,
+    /// The gains, their rates and accelerations at the current step.
+    now: [DofState; 6],
+}
+
+impl GainStage {
+    /// Gains at 1, for a platform of `limits` whose transitions use the gentle
+    /// acceleration and jerk given (SI, per DoF: the `[safety]` limits).
+    pub fn new(
+        limits: &DofLimits,
+        gentle_acceleration: &Vector6<f64>,
+        gentle_jerk: &Vector6<f64>,
+        dt_s: f64,
+    ) -> Self {
+        let bounds = std::array::from_fn(|i| {
+            let reach = limits.excursion[i].max(1e-6);
+            Bounds {
+                acceleration: gentle_acceleration[i] / reach,
+                jerk: gentle_jerk[i] / reach,
+                velocity: GAIN_RATE_LIMIT,
+            }
+        });
+        let one = DofState {
+            p: 1.0,
+            v: 0.0,
+            a: 0.0,
+        };
+        GainStage {
+            target: Vector6::repeat(1.0),
+            paths: [DofPath::at_rest(); 6],
+            bounds,
+            elapsed_s: 0.0,
+            dt_s,
+            now: [one; 6],
+        }
+    }
+
+    /// Sends every gain toward `target` from where it is; returns how long the slowest takes
+    /// (s).
+    pub fn set_target(&mut self, target: Vector6<f64>) -> f64 {
+        let mut longest = 0.0f64;
+        for i in 0..6 {
+            let from = DofState {
+                p: self.now[i].p - target[i],
+                ..self.now[i]
+            };
+            self.paths[i] = DofPath::plan(from, &self.bounds[i]);
+            longest = longest.max(self.paths[i].duration_s());
+        }
+        self.target = target;
+        self.elapsed_s = 0.0;
+        longest
+    }
+
+    /// The gains the paths are heading for.
+    pub fn target(&self) -> Vector6<f64> {
+        self.target
+    }
+
+    /// The gains at the current step.
+    pub fn gains(&self) -> Vector6<f64> {
+        Vector6::from_fn(|i, _| self.now[i].p)
+    }
+
+    /// Every gain at 1 and still: the command passes unchanged.
+    pub fn is_unity(&self) -> bool {
+        self.now
+            .iter()
+            .all(|s| s.p == 1.0 && s.v == 0.0 && s.a == 0.0)
+    }
+
+    /// The command with the gains of the current step.
+    pub fn apply(&self, c: &PlatformCommand) -> PlatformCommand {
+        if self.is_unity() {
+            return *c;
+        }
+        let mut out = *c;
+        for i in 0..6 {
+            let g = self.now[i];
+            out.pose[i] = g.p * c.pose[i];
+            out.velocity[i] = g.p * c.velocity[i] + g.v * c.pose[i];
+            out.acceleration[i] =
+                g.p * c.acceleration[i] + 2.0 * g.v * c.velocity[i] + g.a * c.pose[i];
+        }
+        out
+    }
+
+    /// On to the next step.
+    pub fn advance(&mut self) {
+        if self.paths.iter().all(|p| self.elapsed_s >= p.duration_s()) {
+            // Settled: exactly on target (the paths end exactly at rest).
+            for i in 0..6 {
+                self.now[i] = DofState {
+                    p: self.target[i],
+                    v: 0.0,
+                    a: 0.0,
+                };
+            }
+            return;
+        }
+        self.elapsed_s += self.dt_s;
+        for i in 0..6 {
+            let s = self.paths[i].at(self.elapsed_s);
+            self.now[i] = DofState {
+                p: self.target[i] + s.p,
+                ..s
+            };
+        }
+    }
+}
+
+/// The C² blend from an old algorithm's command to a new one's over `duration_s`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Blend {
+    elapsed_s: f64,
+    duration_s: f64,
+}
+
+impl Blend {
+    pub fn new(duration_s: f64) -> Self {
+        Blend {
+            elapsed_s: 0.0,
+            duration_s: duration_s.max(1e-9),
+        }
+    }
+
+    /// The new command's weight now, with its first and second time derivatives.
+    pub fn weight(&self) -> (f64, f64, f64) {
+        let (w, dw, ddw) = crate::mca::switching::smoothstep(self.elapsed_s / self.duration_s);
+        let t = self.duration_s;
+        (w.min(1.0), dw / t, ddw / (t * t))
+    }
+
+    /// The blended command at the current step.
+    pub fn mix(&self, old: &PlatformCommand, new: &PlatformCommand) -> PlatformCommand {
+        let (w, dw, ddw) = self.weight();
+        let dp = new.pose - old.pose;
+        let dv = new.velocity - old.velocity;
+        PlatformCommand {
+            pose: old.pose + dp * w,
+            velocity: old.velocity + dv * w + dp * dw,
+            acceleration: old.acceleration
+                + (new.acceleration - old.acceleration) * w
+                + dv * (2.0 * dw)
+                + dp * ddw,
+        }
+    }
+
+    pub fn advance(&mut self, dt_s: f64) {
+        self.elapsed_s += dt_s;
+    }
+
+    /// The old algorithm is no longer heard.
+    pub fn done(&self) -> bool {
+        self.elapsed_s >= self.duration_s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn limits() -> DofLimits {
+        DofLimits {
+            excursion: Vector6::new(1.7, 1.7, 0.8, 0.436, 0.436, 0.524),
+            velocity: Vector6::repeat(1.0),
+            acceleration: Vector6::repeat(10.0),
+        }
+    }
+
+    fn gentle() -> (Vector6<f64>, Vector6<f64>) {
+        let r = 1f64.to_radians();
+        (
+            Vector6::new(0.5, 0.5, 0.5, 10.0 * r, 10.0 * r, 10.0 * r),
+            Vector6::new(1.0, 1.0, 1.0, 20.0 * r, 20.0 * r, 20.0 * r),
+        )
+    }
+
+    /// A pose held at the end of every DoF's travel, the gain from 1 to 0: the command's
+    /// acceleration (second difference of the poses sent) stays within the gentle limit,
+    /// its change within the gentle jerk, and it lands exactly on neutral.
+    #[test]
+    fn a_gain_to_zero_stays_within_the_gentle_limits_at_full_excursion() {
+        let dt = 0.01;
+        let (a, j) = gentle();
+        let mut stage = GainStage::new(&limits(), &a, &j, dt);
+        let held = PlatformCommand {
+            pose: limits().excursion,
+            ..Default::default()
+        };
+        let duration = stage.set_target(Vector6::zeros());
+        assert!(duration > 1.0 && duration < 5.0, "{duration}");
+        let mut poses = Vec::new();
+        for _ in 0..(duration / dt) as usize + 20 {
+            let c = stage.apply(&held);
+            poses.push(c.pose);
+            // The analytic acceleration is the gain's: g̈ p.
+            for i in 0..6 {
+                assert!(c.acceleration[i].abs() <= a[i] * (1.0 + 1e-9), "{i}: {c:?}");
+            }
+            stage.advance();
+        }
+        for k in 3..poses.len() {
+            let acc = (poses[k] - 2.0 * poses[k - 1] + poses[k - 2]) / (dt * dt);
+            let before = (poses[k - 1] - 2.0 * poses[k - 2] + poses[k - 3]) / (dt * dt);
+            for i in 0..6 {
+                assert!(acc[i].abs() <= a[i] * 1.02, "step {k} DoF {i}: {}", acc[i]);
+                assert!(
+                    ((acc[i] - before[i]) / dt).abs() <= j[i] * 1.05,
+                    "step {k} DoF {i}"
+                );
+            }
+        }
+        assert_eq!(poses.last().unwrap(), &Vector6::zeros());
+        assert_eq!(stage.gains(), Vector6::zeros());
+    }
+
+    /// A new target half-way replans from the gain's rate and acceleration: no step in
+    /// either (the second difference of the gain stays within its bound).
+    #[test]
+    fn a_new_target_midway_does_not_step_the_rate() {
+        let dt = 0.01;
+        let (a, j) = gentle();
+        let mut stage = GainStage::new(&limits(), &a, &j, dt);
+        stage.set_target(Vector6::repeat(0.5));
+        let mut g = Vec::new();
+        for k in 0..900 {
+            if k == 100 {
+                stage.set_target(Vector6::repeat(1.0));
+            }
+            g.push(stage.gains()[0]);
+            stage.advance();
+        }
+        let bound = a[0] / limits().excursion[0];
+        for k in 2..g.len() {
+            let acc = (g[k] - 2.0 * g[k - 1] + g[k - 2]) / (dt * dt);
+            assert!(acc.abs() <= bound * 1.02, "step {k}: {acc} > {bound}");
+        }
+        assert_eq!(*g.last().unwrap(), 1.0, "{:?}", &g[590..]);
+        assert!(g.iter().all(|v| *v >= 0.5 - 1e-9 && *v <= 1.0 + 1e-9));
+    }
+
+    /// The blend: equal commands give the same command; from one to another the pose moves
+    /// as the smootherstep, with the exact derivatives.
+    #[test]
+    fn the_blend_is_the_smootherstep_with_its_derivatives() {
+        let old = PlatformCommand::default();
+        let new = PlatformCommand {
+            pose: Vector6::repeat(1.0),
+            ..Default::default()
+        };
+        let mut b = Blend::new(2.0);
+        assert_eq!(b.mix(&new, &new), new);
+        assert_eq!(b.mix(&old, &new).pose, Vector6::zeros());
+        for _ in 0..100 {
+            b.advance(0.01);
+        }
+        // Half-way: w = 1/2, ẇ = 30/16 / T, ẅ = 0.
+        let m = b.mix(&old, &new);
+        assert!((m.pose[0] - 0.5).abs() < 1e-12);
+        assert!((m.velocity[0] - 1.875 / 2.0).abs() < 1e-12);
+        assert!(m.acceleration[0].abs() < 1e-9);
+        for _ in 0..100 {
+            b.advance(0.01);
+        }
+        assert!(b.done());
+        assert_eq!(b.mix(&old, &new).pose, new.pose);
+    }
+}

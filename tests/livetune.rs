@@ -1,0 +1,350 @@
+//! Tuning while a pilot flies (issue 36), end to end: `hexcue live --headless --foxglove`
+//! driven by a JSBSim stand-in streaming the shipped steep turn in real time; a Foxglove
+//! client (tungstenite, loopback) lists the parameters, is refused `motion_gain` = 2, then
+//! sets it to 0 mid-flight while the input keeps manoeuvring. The JSON commands of a `udp://`
+//! output must reach neutral (1 mm, 0.05°) within 5 s and stay there, with no acceleration
+//! beyond 2 m/s² or 30 °/s² on the way (second difference of the poses and the command's own
+//! field); the change is on the recording's `/events` and in the summary, the refused one in
+//! neither. Every wait is on a condition with a generous bound.
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::net::UdpSocket;
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use ::foxglove::Decode;
+use common::*;
+use serde_json::{json, Value};
+use tungstenite::client::IntoClientRequest;
+use tungstenite::stream::MaybeTlsStream;
+use tungstenite::Message;
+
+const DT_S: f64 = 0.01;
+const PATIENCE: Duration = Duration::from_secs(60);
+const AXIS_MPS2: f64 = 2.0;
+const ANGLE_DPS2: f64 = 30.0;
+
+type Commands = Arc<Mutex<Vec<Value>>>;
+type Socket = tungstenite::WebSocket<MaybeTlsStream<std::net::TcpStream>>;
+
+/// Collects the JSON commands sent to the returned port until `stop`.
+fn listen(stop: Arc<AtomicBool>) -> (u16, Commands, std::thread::JoinHandle<()>) {
+    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let port = socket.local_addr().unwrap().port();
+    socket
+        .set_read_timeout(Some(Duration::from_millis(20)))
+        .unwrap();
+    let commands: Commands = Arc::default();
+    let into = commands.clone();
+    let handle = std::thread::spawn(move || {
+        let mut buf = [0u8; 65536];
+        loop {
+            let stopping = stop.load(Ordering::Relaxed);
+            match socket.recv_from(&mut buf) {
+                Ok((n, _)) => into
+                    .lock()
+                    .unwrap()
+                    .push(serde_json::from_slice(&buf[..n]).expect("a JSON command")),
+                Err(_) if stopping => break,
+                Err(_) => {}
+            }
+        }
+    });
+    (port, commands, handle)
+}
+
+fn wait_for(commands: &Commands, what: &str, ready: impl Fn(&[Value]) -> bool) {
+    let start = Instant::now();
+    while !ready(&commands.lock().unwrap()) {
+        assert!(start.elapsed() < PATIENCE, "no {what} after {PATIENCE:?}");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+fn vec6(c: &Value, key: &str) -> [f64; 6] {
+    std::array::from_fn(|i| c[key][i].as_f64().unwrap_or_else(|| panic!("{key}: {c}")))
+}
+
+fn connect(addr: &str) -> Socket {
+    let mut request = format!("ws://{addr}").into_client_request().unwrap();
+    request
+        .headers_mut()
+        .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
+    let (socket, _) = tungstenite::connect(request).expect("the server accepts a client");
+    if let MaybeTlsStream::Plain(tcp) = socket.get_ref() {
+        tcp.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    }
+    socket
+}
+
+/// Reads the server's text messages until one satisfies `wanted`; returns it and every text
+/// message read before it.
+fn read_until(socket: &mut Socket, wanted: impl Fn(&Value) -> bool) -> (Value, Vec<Value>) {
+    let until = Instant::now() + PATIENCE;
+    let mut before = Vec::new();
+    loop {
+        assert!(Instant::now() < until, "not answered: {before:?}");
+        let Message::Text(text) = socket.read().expect("the server talks") else {
+            continue;
+        };
+        let v: Value = serde_json::from_str(&text).unwrap();
+        if wanted(&v) {
+            return (v, before);
+        }
+        before.push(v);
+    }
+}
+
+fn send(socket: &mut Socket, v: Value) {
+    socket.send(Message::Text(v.to_string().into())).unwrap();
+}
+
+/// The value of `name` in a `parameterValues` message.
+fn parameter(msg: &Value, name: &str) -> Option<f64> {
+    msg["parameters"]
+        .as_array()?
+        .iter()
+        .find(|p| p["name"] == name)
+        .and_then(|p| p["value"].as_f64())
+}
+
+/// The texts of the `/events` messages (`foxglove.Log`) of a recording.
+fn recorded_events(path: &std::path::Path) -> Vec<String> {
+    let bytes = std::fs::read(path).unwrap();
+    mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(Result::unwrap)
+        .filter(|m| m.channel.topic == "/events")
+        .map(|m| {
+            ::foxglove::messages::Log::decode(&m.data[..])
+                .unwrap()
+                .message
+        })
+        .collect()
+}
+
+fn spawn(in_port: u16, out_port: u16, dir: &std::path::Path) -> (Child, mpsc::Receiver<String>) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_hexcue"))
+        .args([
+            "live",
+            "--headless",
+            "--input",
+            &format!("jsbsim://127.0.0.1:{in_port}"),
+            "--output",
+            &format!("udp://127.0.0.1:{out_port}"),
+            "--algorithms",
+            "cwf",
+            "--drive",
+            "cwf",
+            "--foxglove",
+            "127.0.0.1:0",
+            "--record",
+        ])
+        .arg(dir.join("live.mcap"))
+        .arg("--summary")
+        .arg(dir.join("summary.json"))
+        .current_dir(repo())
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the hexcue binary runs");
+    let (tx, rx) = mpsc::channel();
+    let err = child.stderr.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(err).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    (child, rx)
+}
+
+/// "foxglove: serving ws://ADDR …" from stderr.
+fn serving(stderr: &mpsc::Receiver<String>, seen: &mut Vec<String>) -> String {
+    let until = Instant::now() + PATIENCE;
+    while let Some(left) = until.checked_duration_since(Instant::now()) {
+        let Ok(line) = stderr.recv_timeout(left) else {
+            break;
+        };
+        if let Some(rest) = line.strip_prefix("foxglove: serving ws://") {
+            return rest.split_whitespace().next().unwrap().to_string();
+        }
+        seen.push(line);
+    }
+    panic!("hexcue never said where it serves: {seen:?}");
+}
+
+#[test]
+fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt() {
+    let dir = tempfile::tempdir().unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let (out_port, commands, listener) = listen(stop.clone());
+    let in_port = free_udp_port();
+    let (mut child, stderr) = spawn(in_port, out_port, dir.path());
+    let mut lines = Vec::new();
+    let addr = serving(&stderr, &mut lines);
+    let mut socket = connect(&addr);
+    let (info, _) = read_until(&mut socket, |v| v["op"] == "serverInfo");
+    assert!(
+        info["capabilities"]
+            .as_array()
+            .unwrap()
+            .contains(&json!("parameters")),
+        "{info}"
+    );
+    wait_for(&commands, "first command", |c| !c.is_empty());
+    // The steep turn from its roll-in: 25 s of manoeuvring, more than the session needs.
+    let rows: Vec<Vec<f64>> = trace_rows("steep-turn.csv")
+        .into_iter()
+        .skip(2500)
+        .take(2500)
+        .collect();
+    let sim = replay_jsbsim(in_port, rows);
+    // A second of flight after the fade-in.
+    wait_for(&commands, "a second running", |c| {
+        c.iter().filter(|c| c["state"] == "running").count() >= 100
+    });
+
+    send(
+        &mut socket,
+        json!({"op": "getParameters", "parameterNames": [], "id": "list"}),
+    );
+    let (list, _) = read_until(&mut socket, |v| {
+        v["op"] == "parameterValues" && v["id"] == "list"
+    });
+    assert_eq!(parameter(&list, "motion_gain"), Some(1.0), "{list}");
+    assert!(parameter(&list, "cwf.specific_force_scale[0]").is_some());
+    assert!(parameter(&list, "gain.roll").is_some());
+
+    // 2.0 is refused, with the range, and changes nothing.
+    send(
+        &mut socket,
+        json!({"op": "setParameters", "id": "bad",
+               "parameters": [{"name": "motion_gain", "value": 2.0, "type": "float64"}]}),
+    );
+    let (answer, before) = read_until(&mut socket, |v| {
+        v["op"] == "parameterValues" && v["id"] == "bad"
+    });
+    assert_eq!(parameter(&answer, "motion_gain"), Some(1.0), "{answer}");
+    let refusal = before
+        .iter()
+        .find(|v| v["op"] == "status")
+        .unwrap_or_else(|| panic!("no status: {before:?}"));
+    let message = refusal["message"].as_str().unwrap();
+    assert!(
+        message.contains("motion_gain") && message.contains("[0, 1]"),
+        "{message}"
+    );
+
+    // Mid-flight: the gain to 0.
+    let k0 = commands.lock().unwrap().len();
+    send(
+        &mut socket,
+        json!({"op": "setParameters", "id": "zero",
+               "parameters": [{"name": "motion_gain", "value": 0.0, "type": "float64"}]}),
+    );
+    let (answer, _) = read_until(&mut socket, |v| {
+        v["op"] == "parameterValues" && v["id"] == "zero"
+    });
+    assert_eq!(parameter(&answer, "motion_gain"), Some(0.0), "{answer}");
+    // 7 s more: the 5 s allowed and 2 s of staying there, the input still manoeuvring.
+    wait_for(&commands, "7 s after the change", |c| c.len() >= k0 + 700);
+    assert!(!sim.is_finished(), "the stand-in ran out before the check");
+    signal_int(&child);
+    let status = wait_child(&mut child);
+    stop.store(true, Ordering::Relaxed);
+    listener.join().unwrap();
+    lines.extend(stderr.try_iter());
+    assert!(status.success(), "{status}: {lines:?}");
+    let commands = commands.lock().unwrap();
+
+    let poses: Vec<[f64; 6]> = commands.iter().map(|c| vec6(c, "pose")).collect();
+    let near = |p: &[f64; 6]| {
+        (0..3).all(|i| p[i].abs() <= 1e-3) && (3..6).all(|i| p[i].abs().to_degrees() <= 0.05)
+    };
+    let window = k0..k0 + 700;
+    // Moving before the change: the test means something.
+    assert!(!near(&poses[k0]), "{:?}", poses[k0]);
+    let reached = window
+        .clone()
+        .find(|k| poses[*k..k0 + 700].iter().all(near))
+        .expect("at neutral and staying there");
+    let reached_s = (reached - k0) as f64 * DT_S;
+    let (mut worst, mut worst_field) = ([0.0f64; 6], [0.0f64; 6]);
+    for k in window.clone() {
+        let field = vec6(&commands[k], "acceleration");
+        for i in 0..6 {
+            let unit = if i < 3 { 1.0 } else { 1f64.to_degrees() };
+            let a = (poses[k][i] - 2.0 * poses[k - 1][i] + poses[k - 2][i]) / (DT_S * DT_S);
+            worst[i] = worst[i].max(a.abs() * unit);
+            worst_field[i] = worst_field[i].max(field[i].abs() * unit);
+        }
+    }
+    eprintln!(
+        "motion_gain 1 → 0: at neutral {reached_s:.2} s after the request; worst |a| \
+         {worst:.3?} (poses) {worst_field:.3?} (field) (m/s², °/s²)"
+    );
+    assert!(reached_s <= 5.0, "{reached_s} s");
+    for i in 0..6 {
+        let bound = if i < 3 { AXIS_MPS2 } else { ANGLE_DPS2 };
+        assert!(
+            worst[i] <= bound && worst_field[i] <= bound,
+            "DoF {i}: {worst:?} {worst_field:?}"
+        );
+    }
+
+    // On /events, and in the summary; the refused 2.0 in neither.
+    let events = recorded_events(&dir.path().join("live.mcap"));
+    let changes: Vec<&String> = events
+        .iter()
+        .filter(|e| e.starts_with("parameter "))
+        .collect();
+    assert_eq!(changes.len(), 1, "{events:?}");
+    eprintln!("event: {}", changes[0]);
+    assert!(
+        changes[0].starts_with("parameter motion_gain set: 1 → 0"),
+        "{}",
+        changes[0]
+    );
+    let summary = read_json(&dir.path().join("summary.json"));
+    let tuning = &summary["tuning"];
+    assert_eq!(
+        tuning["final_parameter_values"]["motion_gain"], 0.0,
+        "{tuning}"
+    );
+    let logged = tuning["changes"].as_array().unwrap();
+    assert_eq!(logged.len(), 1, "{tuning}");
+    assert_eq!(logged[0]["name"], "motion_gain");
+    assert_eq!(
+        (logged[0]["from"].as_f64(), logged[0]["to"].as_f64()),
+        (Some(1.0), Some(0.0))
+    );
+    let t_s = logged[0]["t_s"].as_f64().unwrap();
+    assert!(t_s > 3.0, "{t_s}");
+}
+
+fn signal_int(child: &Child) {
+    // SAFETY: kill(2) on the pid of the child this test spawned and has not reaped.
+    let rc = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
+    assert_eq!(rc, 0);
+}
+
+fn wait_child(child: &mut Child) -> std::process::ExitStatus {
+    let until = Instant::now() + PATIENCE;
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            return status;
+        }
+        if Instant::now() > until {
+            let _ = child.kill();
+            panic!("hexcue live did not stop on SIGINT");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
