@@ -267,7 +267,8 @@ impl LiveSession {
         Ok(LiveSession {
             engine,
             held,
-            safety: Safety::new(profile.safety.params(&profile.limits.si(), dt)),
+            safety: Safety::new(profile.safety.params(&profile.limits.si(), dt))
+                .with_legs(profile.stewart(), profile.limiter.leg_margin_m),
             limiter: WorkspaceLimiter::new(
                 profile.stewart(),
                 profile.limits.si(),
@@ -637,6 +638,10 @@ impl LiveSession {
                 Escalation::Inherited => {
                     "its acceleration at the hand-over was above the gentle limit, too much to \
                      ramp down gently"
+                }
+                Escalation::Legs => {
+                    "the DoFs move back together to keep every leg inside its stroke, and \
+                     that needed more than the gentle limits"
                 }
             };
             self.events.push(Event {
