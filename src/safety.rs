@@ -85,6 +85,11 @@ impl SafetySettings {
         };
         TransitionLimits {
             gentle_acceleration: join(self.acceleration_mps2, self.angular_acceleration_dps2),
+            bound_acceleration: join(
+                self.handover_acceleration_mps2,
+                self.handover_angular_acceleration_dps2,
+            )
+            .zip_map(&limits.acceleration, f64::min),
             gentle_jerk: join(self.jerk_mps3, self.angular_jerk_dps3),
             return_time_s: self.return_time_s,
             limits: *limits,
@@ -102,12 +107,14 @@ impl SafetySettings {
             fade_in_s: self.fade_in_s,
             input_timeout_s: self.input_timeout_s,
             transitions: self.transition_limits(limits, dt_s),
-            // Never beyond the platform's own.
+            // Never beyond the platform's own; a hair inside the bound, so that rounding at it
+            // does not read as above it.
             handover_acceleration: join(
                 self.handover_acceleration_mps2,
                 self.handover_angular_acceleration_dps2,
             )
-            .zip_map(&limits.acceleration, f64::min),
+            .zip_map(&limits.acceleration, f64::min)
+                * (1.0 - 1e-9),
             handover_jerk: join(self.handover_jerk_mps3, self.handover_angular_jerk_dps3),
         }
     }
@@ -1106,7 +1113,7 @@ mod tests {
         let (a_h, j_h) = (p.handover_acceleration, p.handover_jerk);
         // The defaults, within the full-flight profile's own limits: 2 m/s², 20 m/s³,
         // 30 °/s², 300 °/s³.
-        assert!((a_h[1] - 2.0).abs() < 1e-12 && (a_h[3].to_degrees() - 30.0).abs() < 1e-9);
+        assert!((a_h[1] - 2.0).abs() < 1e-6 && (a_h[3].to_degrees() - 30.0).abs() < 1e-6);
         let mut s = Safety::new(p.clone());
         let smooth_from = 1500;
         let mut poses = vec![Vector6::zeros(); 3];

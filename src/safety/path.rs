@@ -342,6 +342,9 @@ impl Escalation {
 #[derive(Clone, Debug, PartialEq)]
 pub struct TransitionLimits {
     pub gentle_acceleration: Vector6<f64>,
+    /// The acceleration the hard rungs try not to pass before they must (the hand-over's
+    /// bound, issue 34's 2 m/s² and 30 °/s² by default).
+    pub bound_acceleration: Vector6<f64>,
     pub gentle_jerk: Vector6<f64>,
     pub return_time_s: f64,
     pub limits: DofLimits,
@@ -395,6 +398,41 @@ impl TransitionLimits {
         }
     }
 
+    /// The rung `k` of DoF `i` starting with |acceleration| `a0`. Beyond the gentle limits
+    /// the first [`HARD_RUNGS`] raise the jerk and the acceleration as [`Self::rung`] does,
+    /// but the acceleration capped at the larger of the bound (`bound_acceleration`) and
+    /// `a0` (the driving algorithm's, inherited at the hand-over, which the hand-over stage
+    /// keeps within the bound): the way back ramps an inherited acceleration down faster,
+    /// or brakes harder, without going beyond the bound. Only then come the ordinary hard
+    /// rungs, up to the DoF's own limit.
+    fn rung_from(&self, i: usize, k: f64, a0: f64) -> Bounds {
+        let top = 1.0 + HARD_RUNGS as f64;
+        if k <= 1.0 {
+            return self.rung(i, k);
+        }
+        if k <= top {
+            let b = self.rung(i, k);
+            let cap = self.bound_acceleration[i]
+                .max(a0)
+                .max(self.gentle_acceleration[i]);
+            Bounds {
+                acceleration: b.acceleration.min(cap),
+                ..b
+            }
+        } else {
+            self.rung(i, k - HARD_RUNGS as f64)
+        }
+    }
+
+    /// The ladder's rungs: the gentle ones, then the hard ones within the bound, then the
+    /// hard ones beyond it ([`Self::rung_from`]).
+    fn ladder() -> impl Iterator<Item = f64> {
+        GENTLE_RUNGS
+            .iter()
+            .copied()
+            .chain((1..=2 * HARD_RUNGS).map(|n| 1.0 + n as f64))
+    }
+
     /// What is wrong with `path` for DoF `i` (started at `from`), if anything.
     fn fault(&self, i: usize, from: DofState, path: &DofPath) -> Option<Escalation> {
         let e = self.limits.excursion[i].max(from.p.abs());
@@ -415,13 +453,9 @@ impl TransitionLimits {
     /// the hardest rung when none does.
     pub fn plan_dof(&self, i: usize, from: DofState) -> DofPlan {
         let mut escalation = None;
-        let rungs = GENTLE_RUNGS
-            .iter()
-            .copied()
-            .chain((1..=HARD_RUNGS).map(|n| 1.0 + n as f64));
         let mut last = None;
-        for k in rungs {
-            let bounds = self.rung(i, k);
+        for k in Self::ladder() {
+            let bounds = self.rung_from(i, k, from.a.abs());
             let path = DofPath::plan(from, &bounds);
             let fault = self.fault(i, from, &path);
             if k == 1.0 {
@@ -468,12 +502,8 @@ impl TransitionLimits {
         alone: &[DofPlan; 6],
         fits: impl Fn(&[DofPlan; 6]) -> bool,
     ) -> [DofPlan; 6] {
-        let rungs = GENTLE_RUNGS
-            .iter()
-            .copied()
-            .chain((1..=HARD_RUNGS).map(|n| 1.0 + n as f64));
         let mut last = *alone;
-        for k in rungs {
+        for k in Self::ladder() {
             let plans = self.together_at(from, alone, k);
             let faults = (0..6).any(|i| self.fault(i, from[i], &plans[i].path).is_some());
             last = plans;
@@ -487,7 +517,8 @@ impl TransitionLimits {
     /// [`Self::plan_together`] at common rung `k`.
     fn together_at(&self, from: &[DofState; 6], alone: &[DofPlan; 6], k: f64) -> [DofPlan; 6] {
         let rung_of = |i: usize| k.max(alone[i].rung);
-        let bounds: [Bounds; 6] = std::array::from_fn(|i| self.rung(i, rung_of(i)));
+        let bounds: [Bounds; 6] =
+            std::array::from_fn(|i| self.rung_from(i, rung_of(i), from[i].a.abs()));
         let mut paths: [DofPath; 6] =
             std::array::from_fn(|i| DofPath::plan_stop(from[i], &bounds[i]));
         let stopped_s = paths.iter().map(|p| p.duration_s()).fold(0.0, f64::max);
