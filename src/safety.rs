@@ -89,7 +89,8 @@ impl SafetySettings {
                 self.handover_acceleration_mps2,
                 self.handover_angular_acceleration_dps2,
             )
-            .zip_map(&limits.acceleration, f64::min),
+            .zip_map(&limits.acceleration, f64::min)
+                * (1.0 - 1e-6),
             gentle_jerk: join(self.jerk_mps3, self.angular_jerk_dps3),
             return_time_s: self.return_time_s,
             limits: *limits,
@@ -114,7 +115,7 @@ impl SafetySettings {
                 self.handover_angular_acceleration_dps2,
             )
             .zip_map(&limits.acceleration, f64::min)
-                * (1.0 - 1e-9),
+                * (1.0 - 1e-6),
             handover_jerk: join(self.handover_jerk_mps3, self.handover_angular_jerk_dps3),
         }
     }
@@ -1113,7 +1114,7 @@ mod tests {
         let (a_h, j_h) = (p.handover_acceleration, p.handover_jerk);
         // The defaults, within the full-flight profile's own limits: 2 m/s², 20 m/s³,
         // 30 °/s², 300 °/s³.
-        assert!((a_h[1] - 2.0).abs() < 1e-6 && (a_h[3].to_degrees() - 30.0).abs() < 1e-6);
+        assert!((a_h[1] - 2.0).abs() < 1e-5 && (a_h[3].to_degrees() - 30.0).abs() < 1e-4);
         let mut s = Safety::new(p.clone());
         let smooth_from = 1500;
         let mut poses = vec![Vector6::zeros(); 3];
