@@ -19,6 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::mca::PlatformCommand;
 use crate::model::platform::DofLimits;
+use crate::model::stewart::Stewart;
 use crate::vocab::{positive, ProfileError};
 use path::{DofPlan, DofState, TransitionLimits};
 
@@ -42,6 +43,16 @@ pub struct SafetySettings {
     pub angular_acceleration_dps2: [f64; 3],
     /// Gentle angular jerk of a transition, roll / pitch / yaw (deg/s³).
     pub angular_jerk_dps3: [f64; 3],
+    /// While engaging and running, the command the platform gets keeps its acceleration
+    /// within this, surge / sway / heave (m/s²), so that a transition, which starts from it,
+    /// never starts above it (docs/live.md, *The hand-over*).
+    pub handover_acceleration_mps2: [f64; 3],
+    /// ... and its jerk within this (m/s³).
+    pub handover_jerk_mps3: [f64; 3],
+    /// The same for roll / pitch / yaw (deg/s²).
+    pub handover_angular_acceleration_dps2: [f64; 3],
+    /// (deg/s³).
+    pub handover_angular_jerk_dps3: [f64; 3],
 }
 
 impl Default for SafetySettings {
@@ -54,6 +65,10 @@ impl Default for SafetySettings {
             jerk_mps3: [1.0; 3],
             angular_acceleration_dps2: [10.0; 3],
             angular_jerk_dps3: [20.0; 3],
+            handover_acceleration_mps2: [2.0; 3],
+            handover_jerk_mps3: [20.0; 3],
+            handover_angular_acceleration_dps2: [30.0; 3],
+            handover_angular_jerk_dps3: [300.0; 3],
         }
     }
 }
@@ -70,6 +85,12 @@ impl SafetySettings {
         };
         TransitionLimits {
             gentle_acceleration: join(self.acceleration_mps2, self.angular_acceleration_dps2),
+            bound_acceleration: join(
+                self.handover_acceleration_mps2,
+                self.handover_angular_acceleration_dps2,
+            )
+            .zip_map(&limits.acceleration, f64::min)
+                * (1.0 - 1e-6),
             gentle_jerk: join(self.jerk_mps3, self.angular_jerk_dps3),
             return_time_s: self.return_time_s,
             limits: *limits,
@@ -79,10 +100,23 @@ impl SafetySettings {
 
     /// What the safety stage runs on.
     pub fn params(&self, limits: &DofLimits, dt_s: f64) -> SafetyParams {
+        let join = |t: [f64; 3], r: [f64; 3]| {
+            let r = Vector3::from(r).map(f64::to_radians);
+            Vector6::new(t[0], t[1], t[2], r[0], r[1], r[2])
+        };
         SafetyParams {
             fade_in_s: self.fade_in_s,
             input_timeout_s: self.input_timeout_s,
             transitions: self.transition_limits(limits, dt_s),
+            // Never beyond the platform's own; a hair inside the bound, so that rounding at it
+            // does not read as above it.
+            handover_acceleration: join(
+                self.handover_acceleration_mps2,
+                self.handover_angular_acceleration_dps2,
+            )
+            .zip_map(&limits.acceleration, f64::min)
+                * (1.0 - 1e-6),
+            handover_jerk: join(self.handover_jerk_mps3, self.handover_angular_jerk_dps3),
         }
     }
 
@@ -110,6 +144,26 @@ impl SafetySettings {
             (self.acceleration_mps2, self.jerk_mps3),
             (self.angular_acceleration_dps2, self.angular_jerk_dps3),
         ];
+        let handover = [
+            (
+                "handover_acceleration_mps2",
+                self.handover_acceleration_mps2,
+                "handover_jerk_mps3",
+                self.handover_jerk_mps3,
+            ),
+            (
+                "handover_angular_acceleration_dps2",
+                self.handover_angular_acceleration_dps2,
+                "handover_angular_jerk_dps3",
+                self.handover_angular_jerk_dps3,
+            ),
+        ];
+        for (acc_key, acc, jerk_key, jerk) in handover {
+            for k in 0..3 {
+                positive(&format!("safety.{acc_key}[{k}]"), acc[k])?;
+                positive(&format!("safety.{jerk_key}[{k}]"), jerk[k])?;
+            }
+        }
         for (g, ((acc_key, jerk_key, limit_key, unit), (acc, jerk))) in
             keys.iter().zip(values).enumerate()
         {
@@ -175,6 +229,10 @@ pub struct SafetyParams {
     pub input_timeout_s: f64,
     /// What every transition to neutral may use.
     pub transitions: TransitionLimits,
+    /// Per DoF, the acceleration and jerk of the command while engaging and running (SI):
+    /// the hand-over's bounds.
+    pub handover_acceleration: Vector6<f64>,
+    pub handover_jerk: Vector6<f64>,
 }
 
 /// The state of a live session, as sent with every command.
@@ -236,6 +294,9 @@ pub fn fade_in_gain(x: f64) -> f64 {
 #[derive(Clone, Debug)]
 pub struct NeutralReturn {
     limits: TransitionLimits,
+    /// The platform's legs and the margin they keep from their end stops, when known: the
+    /// DoFs' paths are checked against them.
+    legs: Option<(Stewart, f64)>,
     plans: [DofPlan; 6],
     /// Steps taken since the start.
     k: u64,
@@ -246,15 +307,32 @@ impl NeutralReturn {
         let plans = limits.plan(&[DofState::default(); 6]);
         NeutralReturn {
             limits,
+            legs: None,
             plans,
             k: 0,
         }
     }
 
-    /// Starts from the platform's state, each DoF's [`DofState`].
+    /// Every way back keeps the legs of `stewart` `margin_m` inside their stroke (the
+    /// workspace limiter's margin), not only each DoF inside its excursion.
+    pub fn with_legs(mut self, stewart: Stewart, margin_m: f64) -> Self {
+        self.legs = Some((stewart, margin_m));
+        self
+    }
+
+    /// Starts from the platform's state, each DoF's [`DofState`]: each DoF on its own path
+    /// ([`TransitionLimits::plan`]), or, when together these would take a leg out of its
+    /// stroke, all moving together ([`TransitionLimits::plan_together`]).
     pub fn start(&mut self, from: &[DofState; 6]) {
         self.plans = self.limits.plan(from);
         self.k = 0;
+        if let Some((stewart, margin_m)) = &self.legs {
+            let dt_s = self.limits.dt_s;
+            let fits = |plans: &[DofPlan; 6]| legs_fit(stewart, *margin_m, plans, dt_s);
+            if !fits(&self.plans) {
+                self.plans = self.limits.plan_together(from, &self.plans, fits);
+            }
+        }
     }
 
     /// What was planned at the start, per DoF.
@@ -288,6 +366,35 @@ impl NeutralReturn {
         }
         c
     }
+}
+
+/// Whether every pose of `plans`, sampled every step as sent, keeps each leg `margin_m`
+/// inside its stroke. At most the return time's steps of six legs' lengths, once per
+/// transition.
+fn legs_fit(stewart: &Stewart, margin_m: f64, plans: &[DofPlan; 6], dt_s: f64) -> bool {
+    let end_s = plans
+        .iter()
+        .map(|p| p.path.duration_s())
+        .fold(0.0, f64::max);
+    let steps = (end_s / dt_s).ceil() as u64;
+    (1..=steps).all(|k| {
+        let t_s = k as f64 * dt_s;
+        let pose = Vector6::from_fn(|i, _| plans[i].path.at(t_s).p);
+        stewart.fits(&pose, margin_m)
+    })
+}
+
+/// The hand-over stage's velocity time constant (s); its position one is 4× (critical
+/// damping). Of the order of the ramp from zero to the bound at the jerk (0.1 s at the
+/// defaults), so that the jerk's lag does not make it overshoot.
+const HANDOVER_TAU_S: f64 = 0.1;
+
+/// Largest closing speed from which a DoF stops within `distance` decelerating at `a_max`,
+/// the deceleration ramped in at `j_max`, in steps of `dt`: the stop covers
+/// w²/(2A) + w·(A/(2J) + dt), solved for w.
+fn closing_speed(distance: f64, a_max: f64, j_max: f64, dt: f64) -> f64 {
+    let c = a_max / (2.0 * j_max) + dt;
+    a_max * (-c + (c * c + 2.0 * distance / a_max).sqrt())
 }
 
 /// The platform's state from the last three poses sent (oldest first), one step apart:
@@ -332,6 +439,8 @@ pub struct Safety {
     last_sent: PlatformCommand,
     /// The last three poses sent, oldest first: the platform's velocity and acceleration.
     sent_poses: [Vector6<f64>; 3],
+    /// The driving algorithm's last two poses, oldest first (the hand-over stage's target).
+    algorithm_poses: [Vector6<f64>; 2],
     platform: PlatformReadiness,
 }
 
@@ -348,12 +457,20 @@ impl Safety {
             new_transition: false,
             last_sent: PlatformCommand::default(),
             sent_poses: [Vector6::zeros(); 3],
+            algorithm_poses: [Vector6::zeros(); 2],
             platform: PlatformReadiness::Ready,
         }
     }
 
     pub fn params(&self) -> &SafetyParams {
         &self.params
+    }
+
+    /// Every way back keeps the legs of `stewart` `margin_m` inside their stroke
+    /// ([`NeutralReturn::with_legs`]).
+    pub fn with_legs(mut self, stewart: Stewart, margin_m: f64) -> Self {
+        self.neutral = self.neutral.with_legs(stewart, margin_m);
+        self
     }
 
     pub fn state(&self) -> SafetyState {
@@ -409,6 +526,8 @@ impl Safety {
             _ if self.platform == PlatformReadiness::Fault => self.enter(Fault),
             _ if self.estop && !matches!(self.state, Estop | Parked) => self.enter(Estop),
             Parked if input_ok && platform_ready && !self.estop => {
+                // The algorithms restart at rest on neutral, where the platform is.
+                self.algorithm_poses = [Vector6::zeros(); 2];
                 self.enter(Engaging);
                 reset_algorithms = true;
             }
@@ -433,7 +552,7 @@ impl Safety {
     /// last pose at rest in a fault, else the way back to (or rest at) neutral.
     pub fn command(&mut self, algorithm: &PlatformCommand) -> PlatformCommand {
         match self.state {
-            SafetyState::Engaging | SafetyState::Running => *algorithm,
+            SafetyState::Engaging | SafetyState::Running => self.hand_over(algorithm),
             SafetyState::Washout | SafetyState::Estop => self.neutral.step(),
             SafetyState::Parked => PlatformCommand::default(),
             SafetyState::Fault => PlatformCommand {
@@ -441,6 +560,75 @@ impl Safety {
                 ..Default::default()
             },
         }
+    }
+
+    /// The driving algorithm's command as the platform gets it while engaging and running:
+    /// unchanged where the poses sent can follow it with their acceleration (second
+    /// difference) within the hand-over's bound and their jerk (third difference) within its
+    /// jerk; else, per DoF, a step toward it that keeps both. A transition starts from the
+    /// poses sent, so it never inherits more than that bound (docs/live.md, *The
+    /// hand-over*).
+    ///
+    /// In the error e = sent − algorithm (poses, step k), the new second difference is the
+    /// algorithm's own plus u, and e_{k+1} = 2e_k − e_{k−1} + u·dt². The stage puts both poles
+    /// of that at λ = exp(−dt/[`HANDOVER_TAU_S`]) (critically damped: e_{k+1} = 2λe_k −
+    /// λ²e_{k−1}), with the error's closing speed capped where a stop at the bound, ramped in
+    /// at the jerk, would no longer end on the command; u then goes through the bounds. Being
+    /// linear near the command, it converges without the chatter of a bang-bang law in
+    /// discrete steps; once the last two errors are below what the jerk bound could absorb
+    /// in a step (J·dt³/8), the command goes out unchanged.
+    fn hand_over(&mut self, algorithm: &PlatformCommand) -> PlatformCommand {
+        let dt = self.dt_s;
+        let [p2, p1, p0] = self.sent_poses;
+        let [x2, x1] = self.algorithm_poses;
+        let x0 = Vector6::from_fn(|i, _| {
+            let x = algorithm.pose[i];
+            if x.is_finite() {
+                x
+            } else {
+                p0[i]
+            }
+        });
+        self.algorithm_poses = [x1, x0];
+        let lambda = (-dt / HANDOVER_TAU_S).exp();
+        let mut out = *algorithm;
+        for i in 0..6 {
+            let (a_max, j_max) = (
+                self.params.handover_acceleration[i],
+                self.params.handover_jerk[i],
+            );
+            let v = (p0[i] - p1[i]) / dt;
+            let a_prev = (p0[i] - 2.0 * p1[i] + p2[i]) / (dt * dt);
+            let (mut lo, mut hi) = (
+                (a_prev - j_max * dt).max(-a_max),
+                (a_prev + j_max * dt).min(a_max),
+            );
+            if lo > hi {
+                // Beyond the bound (the limiter's doing): back toward it at the jerk bound.
+                let a = a_prev - a_prev.signum() * j_max * dt;
+                (lo, hi) = (a, a);
+            }
+            let (e0, e1) = (p0[i] - x1[i], p1[i] - x2[i]);
+            let direct = (x0[i] - 2.0 * p0[i] + p1[i]) / (dt * dt);
+            let tol = j_max * dt * dt * dt / 8.0;
+            if algorithm.pose[i].is_finite()
+                && e0.abs() <= tol
+                && e1.abs() <= tol
+                && (lo..=hi).contains(&direct)
+            {
+                continue;
+            }
+            let a_alg = (x0[i] - 2.0 * x1[i] + x2[i]) / (dt * dt);
+            let closing = closing_speed(e0.abs(), a_max, j_max, dt);
+            let e_rate = ((2.0 * lambda - 1.0) * e0 - lambda * lambda * e1) / dt;
+            let e_next = e0 + e_rate.clamp(-closing, closing) * dt;
+            let u = (e_next - 2.0 * e0 + e1) / (dt * dt);
+            let a = (a_alg + u).clamp(lo, hi);
+            out.velocity[i] = v + a * dt;
+            out.pose[i] = p0[i] + out.velocity[i] * dt;
+            out.acceleration[i] = a;
+        }
+        out
     }
 
     /// What was actually sent (after the limiter): a washout starts from there.
@@ -887,5 +1075,227 @@ mod tests {
         s.estop();
         assert_eq!(s.begin_step(true).state, SafetyState::Parked);
         assert!(s.is_stopped());
+    }
+
+    /// A command with more acceleration than the hand-over allows: sway and roll weaving at
+    /// 0.5 Hz (2.96 m/s² and 85 °/s² peaks) with a bump every 5th step (a 120 Hz simulator
+    /// sampled at 100 Hz, as JSBSim's stream is: 0.5 mm and 0.03°, some 5 m/s² and 290 °/s²
+    /// in the second difference), until `smooth_from`, then a slow weave well within the
+    /// bounds and no bumps.
+    fn reversing(k: usize, smooth_from: usize) -> PlatformCommand {
+        let t = k as f64 * DT;
+        let w = 2.0 * std::f64::consts::PI * 0.5;
+        let (sway, roll) = if k < smooth_from {
+            let bump = if k.is_multiple_of(5) { 1.0 } else { 0.0 };
+            (
+                0.3 * (w * t).sin() + 5e-4 * bump,
+                0.15 * (w * t).sin() + 5e-4 * bump,
+            )
+        } else {
+            let w = 2.0 * std::f64::consts::PI * 0.1;
+            (0.05 * (w * t).sin(), 0.02 * (w * t).sin())
+        };
+        PlatformCommand {
+            pose: Vector6::new(0.0, sway, 0.0, roll, 0.0, 0.0),
+            ..Default::default()
+        }
+    }
+
+    /// Second and third differences of the last four poses of `poses`, DoF `i`.
+    fn diffs(poses: &[Vector6<f64>], i: usize) -> (f64, f64) {
+        let n = poses.len();
+        let a = |k: usize| (poses[k][i] - 2.0 * poses[k - 1][i] + poses[k - 2][i]) / (DT * DT);
+        (a(n - 1), (a(n - 1) - a(n - 2)) / DT)
+    }
+
+    #[test]
+    fn the_hand_over_bounds_the_running_command_and_lets_a_smooth_one_through() {
+        let p = params();
+        let (a_h, j_h) = (p.handover_acceleration, p.handover_jerk);
+        // The defaults, within the full-flight profile's own limits: 2 m/s², 20 m/s³,
+        // 30 °/s², 300 °/s³.
+        assert!((a_h[1] - 2.0).abs() < 1e-5 && (a_h[3].to_degrees() - 30.0).abs() < 1e-4);
+        let mut s = Safety::new(p.clone());
+        let smooth_from = 1500;
+        let mut poses = vec![Vector6::zeros(); 3];
+        let (mut bound_steps, mut passed_from) = (0, None);
+        for k in 0..3000 {
+            s.begin_step(true);
+            let wanted = reversing(k, smooth_from);
+            let out = s.command(&wanted);
+            s.sent(&out);
+            poses.push(out.pose);
+            for i in 0..6 {
+                let (a, j) = diffs(&poses, i);
+                assert!(
+                    a.abs() <= a_h[i] * (1.0 + 1e-9) + 1e-12,
+                    "k {k} dof {i}: a {a}"
+                );
+                assert!(
+                    j.abs() <= j_h[i] * (1.0 + 1e-9) + 1e-9,
+                    "k {k} dof {i}: jerk {j}"
+                );
+                // The command's own fields are those of the poses sent.
+                if out.pose[i] != wanted.pose[i] {
+                    assert!((out.acceleration[i] - a).abs() < 1e-6 * (1.0 + a.abs()));
+                }
+                if a.abs() >= 0.99 * a_h[i] {
+                    bound_steps += 1;
+                }
+            }
+            if out == wanted && passed_from.is_none() && k >= smooth_from {
+                passed_from = Some(k);
+            }
+            if out != wanted {
+                passed_from = None;
+            }
+        }
+        // The weave is beyond the bounds (the stage acted), and once the command is smooth
+        // it goes out unchanged within 3 s: it has caught up without a lasting oscillation.
+        assert!(bound_steps > 100, "{bound_steps}");
+        let passed_from = passed_from.expect("the smooth weave goes out unchanged");
+        eprintln!(
+            "the hand-over stage lets the smooth weave through {:.2} s after it begins",
+            (passed_from - smooth_from) as f64 * DT
+        );
+        assert!(passed_from - smooth_from <= 300, "{passed_from}");
+    }
+
+    /// The stop comes when the running command is at the hand-over's bound (a condition on
+    /// the poses sent, not a time): the way back starts from it and never goes beyond the
+    /// issue's 2 m/s² and 30 °/s², with the jerk within the rung it takes, and is at rest on
+    /// neutral within the return time. Without the stage the stop inherited the weave's
+    /// own 85 °/s² and its bumps' 290 °/s².
+    #[test]
+    fn a_stop_at_the_hand_over_bound_stays_within_the_issues_bounds() {
+        let p = params();
+        let a_h = p.handover_acceleration;
+        for (dof, stop_on) in [(3usize, 0.95), (1, 0.95), (3, 0.5)] {
+            let mut s = Safety::new(p.clone());
+            let mut poses = vec![Vector6::zeros(); 3];
+            let mut stop_k = None;
+            for k in 0..4000 {
+                let plan = s.begin_step(true);
+                if plan.state == SafetyState::Parked && stop_k.is_some() {
+                    break;
+                }
+                let out = s.command(&reversing(k, usize::MAX));
+                s.sent(&out);
+                poses.push(out.pose);
+                let (a, _) = diffs(&poses, dof);
+                if stop_k.is_none()
+                    && plan.state == SafetyState::Running
+                    && a.abs() >= stop_on * a_h[dof]
+                {
+                    s.estop();
+                    stop_k = Some(poses.len());
+                }
+            }
+            let stop_k = stop_k.expect("the weave reaches the bound");
+            let plans = *s.neutral_return().plans();
+            let took_s = (poses.len() - stop_k) as f64 * DT;
+            assert!(took_s <= p.transitions.return_time_s + DT, "{took_s} s");
+            assert_eq!(*poses.last().unwrap(), Vector6::zeros());
+            for (i, plan) in plans.iter().enumerate() {
+                let bound = if i < 3 { 2.0 } else { 30f64.to_radians() };
+                let j_bound = plan.bounds.jerk.max(p.handover_jerk[i]);
+                for k in stop_k + 1..poses.len() {
+                    let (a, j) = diffs(&poses[..=k], i);
+                    assert!(
+                        a.abs() <= bound * (1.0 + 1e-9),
+                        "dof {dof} stop: {i} at {k}: {a}"
+                    );
+                    assert!(
+                        j.abs() <= j_bound * (1.0 + 1e-6) + 1e-9,
+                        "{i} at {k}: jerk {j}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The state of issue 34's real-JSBSim CWF session on profiles/hobby-linear.toml at its
+    /// SIGINT (the last three poses sent, leg 5 at its margin): each DoF's own path back would
+    /// take leg 5 out of its stroke (the limiter then froze the pose for 1.5 s and caught up
+    /// at 300 °/s²); the way back moves them together, every step keeps every leg inside, at
+    /// the gentle limits, sampled as sent.
+    #[test]
+    fn on_the_hobby_rig_the_way_back_keeps_the_legs_inside() {
+        let profile = crate::formats::profile::parse_profile(
+            include_str!("../profiles/hobby-linear.toml"),
+            "hobby-linear.toml",
+        )
+        .unwrap();
+        let limits = profile.limits.si();
+        let margin = profile.limiter.leg_margin_m;
+        let stewart = profile.stewart();
+        let sent = [
+            [
+                0.008958667665058621,
+                -0.04996243392940127,
+                0.007358889798973275,
+                -0.05311238594400669,
+                0.1509864274304652,
+                0.0777125817545322,
+            ],
+            [
+                0.009071185130668164,
+                -0.049907949386427904,
+                0.007258378822518859,
+                -0.05491118451869313,
+                0.15074875727980522,
+                0.0782581693032418,
+            ],
+            [
+                0.00917985645070414,
+                -0.04984595525231456,
+                0.007166146559714018,
+                -0.05669051537400542,
+                0.15050871115861114,
+                0.07880156189441093,
+            ],
+        ]
+        .map(Vector6::from);
+        assert!(stewart.fits(&sent[2], margin));
+        let from = state_from_poses(&sent, DT);
+        let t = profile.safety.transition_limits(&limits, DT);
+        // Each DoF on its own: a leg leaves the margin somewhere on the way.
+        let alone = t.plan(&from);
+        assert!(
+            !legs_fit(&stewart, margin, &alone, DT),
+            "the case no longer reproduces"
+        );
+        let mut n = NeutralReturn::new(t.clone()).with_legs(stewart.clone(), margin);
+        n.start(&from);
+        let plans = *n.plans();
+        assert!(legs_fit(&stewart, margin, &plans, DT));
+        let mut poses = sent.to_vec();
+        while !n.at_neutral() {
+            poses.push(n.step().pose);
+            let pose = poses.last().unwrap();
+            assert!(stewart.fits(pose, margin), "{pose:?}");
+            for i in 0..6 {
+                let (a, j) = diffs(&poses, i);
+                let a_bound = plans[i].bounds.acceleration.max(from[i].a.abs());
+                assert!(a.abs() <= a_bound * (1.0 + 1e-6) + 1e-9, "{i}: {a}");
+                assert!(
+                    j.abs() <= plans[i].bounds.jerk * (1.0 + 1e-6) + 1e-6,
+                    "{i}: {j}"
+                );
+            }
+            assert!(poses.len() < 1000);
+        }
+        let took_s = (poses.len() - 3) as f64 * DT;
+        assert!(took_s <= t.return_time_s, "{took_s}");
+        let worst_dps2 = (3..6)
+            .flat_map(|i| (3..poses.len()).map(move |k| (i, k)))
+            .map(|(i, k)| diffs(&poses[..=k], i).0.abs().to_degrees())
+            .fold(0.0, f64::max);
+        eprintln!(
+            "hobby-linear, together: rungs {:?}, escalations {:?}, at rest in {took_s:.2} s, \
+             worst angular |a| {worst_dps2:.2} °/s²",
+            plans.map(|p| p.rung),
+            plans.map(|p| p.escalation)
+        );
     }
 }

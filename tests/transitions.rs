@@ -386,3 +386,165 @@ fn sigint_mid_manoeuvre_returns_to_neutral_without_a_jolt() {
     assert!(err.contains("stopping: return to neutral"), "{err}");
     check_summary(&read_json(&summary), 1);
 }
+
+/// A roll reversal as the real JSBSim flew it for issue 34's check
+/// (scripts/live-transitions-jsbsim.py: the c172p rolling between ±45° at about 56 °/s): the
+/// roll rate reverses between +0.9 and −0.9 rad/s every 1.5 s within 0.1 s (some 1000 °/s²
+/// of the aircraft's roll acceleration), level otherwise, as rows of a trace.
+fn reversals(rate_hz: f64, seconds: f64) -> Vec<Vec<f64>> {
+    let n = (seconds * rate_hz) as usize;
+    let mut phi = 0.0;
+    (0..n)
+        .map(|k| {
+            let t = k as f64 / rate_hz;
+            // Half-period 1.5 s, first reversal at 0.75 s so the bank swings about level.
+            let phase = ((t + 0.75) / 1.5).floor();
+            let into = (t + 0.75) - phase * 1.5;
+            let sign = if phase as i64 % 2 == 0 { 1.0 } else { -1.0 };
+            let ramp = (into / 0.1).min(1.0);
+            let p = 0.9 * sign * (2.0 * ramp - 1.0);
+            phi += p / rate_hz;
+            vec![t, 0.0, 0.0, -9.80665, p, 0.0, 0.0, phi, 0.0, 0.0]
+        })
+        .collect()
+}
+
+/// Streams `rows` at `rate_hz` in real time until they end or `stop` is set.
+fn stream_at(
+    to: String,
+    rows: Vec<Vec<f64>>,
+    rate_hz: f64,
+    stop: Arc<AtomicBool>,
+) -> std::thread::JoinHandle<usize> {
+    std::thread::spawn(move || {
+        let sender = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let start = Instant::now();
+        let mut sent = 0;
+        for (k, row) in rows.iter().enumerate() {
+            if stop.load(Ordering::Relaxed) {
+                break;
+            }
+            let due = start + Duration::from_secs_f64(k as f64 / rate_hz);
+            std::thread::sleep(due.saturating_duration_since(Instant::now()));
+            sender
+                .send_to(jsbsim_line(row[0], row).as_bytes(), &to)
+                .unwrap();
+            sent += 1;
+        }
+        sent
+    })
+}
+
+/// Whether the newest running command's roll acceleration (second difference of the poses)
+/// is at least `at_least_dps2`: the moment of the stop, a condition on what hexcue sends.
+fn rolling_hard(c: &[Value], at_least_dps2: f64) -> bool {
+    let n = c.len();
+    n > 3
+        && c[n - 3..].iter().all(|c| c["state"] == "running")
+        && (vec6(&c[n - 1], "pose")[3] - 2.0 * vec6(&c[n - 2], "pose")[3]
+            + vec6(&c[n - 3], "pose")[3])
+            .abs()
+            / (DT_S * DT_S)
+            >= at_least_dps2.to_radians()
+}
+
+/// Issue 34's inherited-acceleration case, replayed: the roll reversals streamed at 120 Hz
+/// (JSBSim's rate; hexcue steps at 100 Hz), the stop (SIGINT, or the input's end) as soon as
+/// a running command's roll acceleration is at 24 °/s² or more, in the middle of a reversal.
+/// Before the hand-over stage the CWF's running roll acceleration reached the profile's
+/// 200 °/s² there and the way back started from it; now the running command stays within
+/// 30 °/s² and the way back within the issue's bounds.
+fn stop_mid_reversal(sigint: bool) -> (Measured, Value) {
+    let dir = tempfile::tempdir().unwrap();
+    let summary = dir.path().join("live.json");
+    let stop = Arc::new(AtomicBool::new(false));
+    let (out_port, commands, listener) = listen(stop.clone());
+    let in_port = free_udp_port();
+    let child = hexcue_live(in_port, out_port, &summary);
+    wait_for(&commands, Duration::from_secs(60), "first command", |c| {
+        !c.is_empty()
+    });
+    let end_input = Arc::new(AtomicBool::new(false));
+    let sender = stream_at(
+        format!("127.0.0.1:{in_port}"),
+        reversals(120.0, 40.0),
+        120.0,
+        end_input.clone(),
+    );
+    wait_for(
+        &commands,
+        Duration::from_secs(60),
+        "a running roll acceleration of 24 °/s²",
+        |c| rolling_hard(c, 24.0),
+    );
+    let state = if sigint {
+        signal(&child, libc::SIGINT);
+        "estop"
+    } else {
+        end_input.store(true, Ordering::Relaxed);
+        wait_for(
+            &commands,
+            Duration::from_secs(60),
+            "parked after the washout",
+            |c| {
+                c.iter()
+                    .skip_while(|c| c["state"] != "washout")
+                    .filter(|c| c["state"] == "parked")
+                    .count()
+                    > 100
+            },
+        );
+        signal(&child, libc::SIGTERM);
+        "washout"
+    };
+    let err = wait_exit(child, Duration::from_secs(60));
+    end_input.store(true, Ordering::Relaxed);
+    sender.join().unwrap();
+    stop.store(true, Ordering::Relaxed);
+    listener.join().unwrap();
+    let commands = commands.lock().unwrap();
+    // While running, the commands' roll acceleration stays within the hand-over's 30 °/s².
+    let roll: Vec<f64> = commands.iter().map(|c| vec6(c, "pose")[3]).collect();
+    let first = commands.iter().position(|c| c["state"] == state).unwrap();
+    let worst_running = (2..first)
+        .filter(|k| commands[*k]["state"] == "running" && commands[k - 2]["state"] == "running")
+        .map(|k| (roll[k] - 2.0 * roll[k - 1] + roll[k - 2]).abs() / (DT_S * DT_S))
+        .fold(0.0, f64::max)
+        .to_degrees();
+    assert!(
+        worst_running <= 30.0 + 1e-6,
+        "running roll |a| {worst_running} °/s²"
+    );
+    let m = check_transition(&commands, state, return_time_s());
+    report(&format!("{state} mid-reversal"), &m);
+    eprintln!("  (running: worst roll |a| {worst_running:.2} °/s²)");
+    assert!(
+        m.speed_at_start[3] > 3.0,
+        "the stop found roll moving: {m:?}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    (m, read_json(&summary))
+}
+
+#[test]
+fn sigint_mid_reversal_inherits_no_more_than_the_hand_over_bound() {
+    let (_, summary) = stop_mid_reversal(true);
+    // A hard brake, if any, is the inherited acceleration's, within the issue's bounds.
+    for b in summary["live"]["transitions"]["hard_brakes"]
+        .as_array()
+        .unwrap()
+    {
+        assert_eq!(b["why"], "inherited_acceleration", "{b}");
+    }
+}
+
+#[test]
+fn input_lost_mid_reversal_inherits_no_more_than_the_hand_over_bound() {
+    let (_, summary) = stop_mid_reversal(false);
+    for b in summary["live"]["transitions"]["hard_brakes"]
+        .as_array()
+        .unwrap()
+    {
+        assert_eq!(b["why"], "inherited_acceleration", "{b}");
+    }
+}

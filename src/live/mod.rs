@@ -275,7 +275,8 @@ impl LiveSession {
             retune_blend_s: profile.safety.fade_in_s,
             engine,
             held,
-            safety: Safety::new(profile.safety.params(&profile.limits.si(), dt)),
+            safety: Safety::new(profile.safety.params(&profile.limits.si(), dt))
+                .with_legs(profile.stewart(), profile.limiter.leg_margin_m),
             limiter: WorkspaceLimiter::new(
                 profile.stewart(),
                 profile.limits.si(),
@@ -665,6 +666,10 @@ impl LiveSession {
                 Escalation::Inherited => {
                     "its acceleration at the hand-over was above the gentle limit, too much to \
                      ramp down gently"
+                }
+                Escalation::Legs => {
+                    "the DoFs move back together to keep every leg inside its stroke, and \
+                     that needed more than the gentle limits"
                 }
             };
             self.events.push(Event {

@@ -39,8 +39,8 @@ pub struct Bounds {
     pub velocity: f64,
 }
 
-/// Stop (3) and return (7) phases.
-const MAX_SEGMENTS: usize = 10;
+/// Stop (3), a hold at rest (1, when the DoFs move together) and return (7) phases.
+const MAX_SEGMENTS: usize = 11;
 
 /// One DoF's path: constant-jerk segments from a start state; at rest on neutral from
 /// [`DofPath::duration_s`] on.
@@ -86,6 +86,36 @@ impl DofPath {
         path.stop(b);
         path.go_to_neutral(b);
         path
+    }
+
+    /// Phase 1 only: from `from` to rest where it stops, within `b`.
+    pub fn plan_stop(from: DofState, b: &Bounds) -> Self {
+        let mut path = DofPath {
+            end: from,
+            ..DofPath::at_rest()
+        };
+        path.stop(b);
+        path.end.v = 0.0;
+        path.end.a = 0.0;
+        path
+    }
+
+    /// Where the path ends (at rest after [`DofPath::plan_stop`]).
+    pub fn end(&self) -> DofState {
+        self.end
+    }
+
+    /// Held at rest until `t_s` from the start, then `scale` × `shape` (a path from rest at 1
+    /// to rest at 0): the way back of DoFs that move together, each on the same normalised
+    /// S-curve, so that the pose goes along the straight line to neutral.
+    fn hold_then_follow(&mut self, t_s: f64, shape: &DofPath) {
+        self.push(0.0, t_s - self.duration_s);
+        let q = self.end.p;
+        for (_, jerk, dur) in shape.segments() {
+            self.push(q * jerk, dur);
+        }
+        // The shape ends on neutral to rounding; so does its scaled copy.
+        self.end = DofState::default();
     }
 
     fn push(&mut self, jerk: f64, duration_s: f64) {
@@ -289,6 +319,10 @@ pub enum Escalation {
     /// above: the cause is the hand-over, not where the DoF is (found against a real JSBSim
     /// in roll reversals, docs/live.md "Against a real JSBSim").
     Inherited,
+    /// The DoFs' own paths, each inside its excursion, would together have taken a leg out of
+    /// its stroke (legs are not boxes); they move together instead, at the gentlest common
+    /// rung whose path keeps every leg inside, and this one was beyond the gentle limits.
+    Legs,
 }
 
 impl Escalation {
@@ -298,6 +332,7 @@ impl Escalation {
             Escalation::Velocity => "velocity",
             Escalation::ReturnTime => "return_time",
             Escalation::Inherited => "inherited_acceleration",
+            Escalation::Legs => "legs",
         }
     }
 }
@@ -307,6 +342,9 @@ impl Escalation {
 #[derive(Clone, Debug, PartialEq)]
 pub struct TransitionLimits {
     pub gentle_acceleration: Vector6<f64>,
+    /// The acceleration the hard rungs try not to pass before they must (the hand-over's
+    /// bound, issue 34's 2 m/s² and 30 °/s² by default).
+    pub bound_acceleration: Vector6<f64>,
     pub gentle_jerk: Vector6<f64>,
     pub return_time_s: f64,
     pub limits: DofLimits,
@@ -332,6 +370,8 @@ pub struct DofPlan {
     pub path: DofPath,
     /// The (A, J) it uses.
     pub bounds: Bounds,
+    /// Its rung: a fraction of the gentle limits up to 1, above 1 the hard rungs.
+    pub rung: f64,
     pub escalation: Option<Escalation>,
 }
 
@@ -358,6 +398,41 @@ impl TransitionLimits {
         }
     }
 
+    /// The rung `k` of DoF `i` starting with |acceleration| `a0`. Beyond the gentle limits
+    /// the first [`HARD_RUNGS`] raise the jerk and the acceleration as [`Self::rung`] does,
+    /// but the acceleration capped at the larger of the bound (`bound_acceleration`) and
+    /// `a0` (the driving algorithm's, inherited at the hand-over, which the hand-over stage
+    /// keeps within the bound): the way back ramps an inherited acceleration down faster,
+    /// or brakes harder, without going beyond the bound. Only then come the ordinary hard
+    /// rungs, up to the DoF's own limit.
+    fn rung_from(&self, i: usize, k: f64, a0: f64) -> Bounds {
+        let top = 1.0 + HARD_RUNGS as f64;
+        if k <= 1.0 {
+            return self.rung(i, k);
+        }
+        if k <= top {
+            let b = self.rung(i, k);
+            let cap = self.bound_acceleration[i]
+                .max(a0)
+                .max(self.gentle_acceleration[i]);
+            Bounds {
+                acceleration: b.acceleration.min(cap),
+                ..b
+            }
+        } else {
+            self.rung(i, k - HARD_RUNGS as f64)
+        }
+    }
+
+    /// The ladder's rungs: the gentle ones, then the hard ones within the bound, then the
+    /// hard ones beyond it ([`Self::rung_from`]).
+    fn ladder() -> impl Iterator<Item = f64> {
+        GENTLE_RUNGS
+            .iter()
+            .copied()
+            .chain((1..=2 * HARD_RUNGS).map(|n| 1.0 + n as f64))
+    }
+
     /// What is wrong with `path` for DoF `i` (started at `from`), if anything.
     fn fault(&self, i: usize, from: DofState, path: &DofPath) -> Option<Escalation> {
         let e = self.limits.excursion[i].max(from.p.abs());
@@ -378,30 +453,117 @@ impl TransitionLimits {
     /// the hardest rung when none does.
     pub fn plan_dof(&self, i: usize, from: DofState) -> DofPlan {
         let mut escalation = None;
-        let rungs = GENTLE_RUNGS
-            .iter()
-            .copied()
-            .chain((1..=HARD_RUNGS).map(|n| 1.0 + n as f64));
         let mut last = None;
-        for k in rungs {
-            let bounds = self.rung(i, k);
+        for k in Self::ladder() {
+            let bounds = self.rung_from(i, k, from.a.abs());
             let path = DofPath::plan(from, &bounds);
             let fault = self.fault(i, from, &path);
             if k == 1.0 {
-                let inherited = from.a.abs() > self.gentle_acceleration[i] * (1.0 + 1e-9);
-                escalation = fault.map(|f| if inherited { Escalation::Inherited } else { f });
+                escalation = fault.map(|f| self.named(i, from, f));
             }
-            last = Some((path, bounds));
+            last = Some((path, bounds, k));
             if fault.is_none() {
                 break;
             }
         }
-        let (path, bounds) = last.expect("the ladder has rungs");
+        let (path, bounds, rung) = last.expect("the ladder has rungs");
         DofPlan {
             path,
             bounds,
+            rung,
             escalation,
         }
+    }
+
+    /// A fault of the gentle rung named by its cause: the inherited acceleration when the
+    /// start's own was above the gentle limit.
+    fn named(&self, i: usize, from: DofState, fault: Escalation) -> Escalation {
+        if from.a.abs() > self.gentle_acceleration[i] * (1.0 + 1e-9) {
+            Escalation::Inherited
+        } else {
+            fault
+        }
+    }
+
+    /// Every DoF's way back moving together, for when their own paths ([`Self::plan`],
+    /// `alone`) would together leave a leg's stroke (`fits` says whether a plan keeps the
+    /// legs inside, sampled as sent). Each DoF stops as on its own, waits at rest for the last
+    /// to have stopped, and then all follow one normalised S-curve, so that the pose goes
+    /// along the straight line from where they stopped to neutral (which keeps the legs
+    /// inside wherever the stroke is star-shaped about neutral along that line, as the
+    /// limiter's own scaling into the legs assumes). The common rung is taken up the ladder
+    /// from the gentlest, each DoF at least at its own rung, until the path keeps the legs
+    /// inside, every DoF inside its excursion and velocity limit, and is back within the
+    /// return time; the hardest when none does. A DoF beyond its gentle rung because of the
+    /// legs says so ([`Escalation::Legs`]).
+    pub fn plan_together(
+        &self,
+        from: &[DofState; 6],
+        alone: &[DofPlan; 6],
+        fits: impl Fn(&[DofPlan; 6]) -> bool,
+    ) -> [DofPlan; 6] {
+        let mut last = *alone;
+        for k in Self::ladder() {
+            let plans = self.together_at(from, alone, k);
+            let faults = (0..6).any(|i| self.fault(i, from[i], &plans[i].path).is_some());
+            last = plans;
+            if !faults && fits(&plans) {
+                break;
+            }
+        }
+        last
+    }
+
+    /// [`Self::plan_together`] at common rung `k`.
+    fn together_at(&self, from: &[DofState; 6], alone: &[DofPlan; 6], k: f64) -> [DofPlan; 6] {
+        let rung_of = |i: usize| k.max(alone[i].rung);
+        let bounds: [Bounds; 6] =
+            std::array::from_fn(|i| self.rung_from(i, rung_of(i), from[i].a.abs()));
+        let mut paths: [DofPath; 6] =
+            std::array::from_fn(|i| DofPath::plan_stop(from[i], &bounds[i]));
+        let stopped_s = paths.iter().map(|p| p.duration_s()).fold(0.0, f64::max);
+        // The normalised S-curve from 1 to 0 within every DoF's bounds scaled by its distance.
+        let mut shape_bounds = Bounds {
+            acceleration: f64::INFINITY,
+            jerk: f64::INFINITY,
+            velocity: f64::INFINITY,
+        };
+        for (p, b) in paths.iter().zip(&bounds) {
+            let d = p.end().p.abs();
+            if d > 0.0 {
+                shape_bounds.acceleration = shape_bounds.acceleration.min(b.acceleration / d);
+                shape_bounds.jerk = shape_bounds.jerk.min(b.jerk / d);
+                shape_bounds.velocity = shape_bounds.velocity.min(b.velocity / d);
+            }
+        }
+        let shape = if shape_bounds.acceleration.is_finite() {
+            DofPath::plan(
+                DofState {
+                    p: 1.0,
+                    ..Default::default()
+                },
+                &shape_bounds,
+            )
+        } else {
+            DofPath::at_rest()
+        };
+        for p in &mut paths {
+            p.hold_then_follow(stopped_s, &shape);
+        }
+        std::array::from_fn(|i| {
+            let rung = rung_of(i);
+            let moves = from[i] != DofState::default();
+            DofPlan {
+                path: paths[i],
+                bounds: bounds[i],
+                rung,
+                escalation: if rung > 1.0 && moves {
+                    alone[i].escalation.or(Some(Escalation::Legs))
+                } else {
+                    None
+                },
+            }
+        })
     }
 
     /// Every DoF's way back.
