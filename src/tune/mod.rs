@@ -167,6 +167,9 @@ pub struct Evaluator {
     pub keys: Vec<TunableKey>,
     pub base: DocumentMut,
     pub traces: Vec<Arc<Trace>>,
+    /// Per trace, what is subtracted from the score (`tune --objective cueable`: the bound's
+    /// `lower.total`, the error no motion can avoid on that flight); empty: nothing.
+    pub floors: Vec<f64>,
     /// Set to abandon the evaluations under way (Ctrl-C).
     pub stop: Arc<AtomicBool>,
 }
@@ -196,7 +199,8 @@ impl Evaluator {
         let outcomes: Vec<Result<Option<TraceOutcome>>> = self
             .traces
             .par_iter()
-            .map(|trace| self.run_trace(profile, trace))
+            .enumerate()
+            .map(|(i, trace)| self.run_trace(profile, i, trace))
             .collect();
         let mut out = Vec::with_capacity(outcomes.len());
         for o in outcomes {
@@ -212,8 +216,8 @@ impl Evaluator {
     /// candidates in parallel.
     fn run_sequential(&self, profile: &Profile) -> Result<Option<Vec<TraceOutcome>>> {
         let mut out = Vec::with_capacity(self.traces.len());
-        for trace in &self.traces {
-            match self.run_trace(profile, trace)? {
+        for (i, trace) in self.traces.iter().enumerate() {
+            match self.run_trace(profile, i, trace)? {
                 Some(o) => out.push(o),
                 None => return Ok(None),
             }
@@ -221,7 +225,12 @@ impl Evaluator {
         Ok(Some(out))
     }
 
-    fn run_trace(&self, profile: &Profile, trace: &Arc<Trace>) -> Result<Option<TraceOutcome>> {
+    fn run_trace(
+        &self,
+        profile: &Profile,
+        index: usize,
+        trace: &Arc<Trace>,
+    ) -> Result<Option<TraceOutcome>> {
         let mut engine = Engine::new(profile, trace.clone(), &[self.algorithm])?;
         let mut summary = SummaryBuilder::new(profile, &trace.name);
         while let Some(frame) = engine.step() {
@@ -236,7 +245,7 @@ impl Evaluator {
             .get(self.algorithm.key())
             .ok_or_else(|| anyhow!("{}: no summary of {}", trace.name, self.algorithm))?;
         Ok(Some(TraceOutcome {
-            score: a.score,
+            score: a.score - self.floors.get(index).copied().unwrap_or(0.0),
             limiter_fraction: a.limiter_fraction,
             leg_violations: a.leg_violations,
         }))
@@ -486,6 +495,7 @@ mod tests {
             keys: keys::CWF_KEYS.to_vec(),
             base: DEFAULT_PROFILE_TOML.parse().unwrap(),
             traces,
+            floors: Vec::new(),
             stop: Arc::new(AtomicBool::new(false)),
         }
     }
@@ -527,6 +537,31 @@ mod tests {
             info: None,
             notices: vec![],
         })
+    }
+
+    #[test]
+    fn a_cueable_objective_subtracts_each_flights_floor() {
+        // `--objective cueable`: every outcome is the score less that flight's floor (the
+        // bound's lower total), so the ranking is on what a motion can change.
+        let plain = evaluator(vec![short_manoeuvre()]);
+        let mut floored = evaluator(vec![short_manoeuvre()]);
+        let floor = crate::bound::relaxed(
+            &crate::bound::Setup::new(&full_flight(), &short_manoeuvre()).unwrap(),
+            [false; 6],
+        )
+        .unwrap()
+        .total;
+        assert!(floor >= 0.0, "{floor}");
+        floored.floors = vec![floor];
+        let p = full_flight();
+        let a = plain.run(&p).unwrap().unwrap();
+        let b = floored.run(&p).unwrap().unwrap();
+        assert!(
+            (a[0].score - floor - b[0].score).abs() < 1e-12,
+            "{a:?} {b:?}"
+        );
+        // The floor bounds the score's error part: the cueable score is not negative.
+        assert!(b[0].score >= 0.0, "{b:?}");
     }
 
     #[test]
