@@ -126,8 +126,8 @@ impl HeadRows {
                     }
                 }
                 let (u1, u2) = (inputs(&p1, &v1, &a1), inputs(&p2, &v2, &a2));
-                for c in 0..6 {
-                    jac[c][d][what] = (u1[c] - u2[c]) / (2.0 * H);
+                for (c, row) in jac.iter_mut().enumerate() {
+                    row[d][what] = (u1[c] - u2[c]) / (2.0 * H);
                 }
             }
         }

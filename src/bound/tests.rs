@@ -206,12 +206,11 @@ fn the_head_linearised_at_neutral_is_the_relaxations_model() {
             assert!(h.offset[c].abs() < 1e-9, "{c}: {}", h.offset[c]);
             for d in 0..6 {
                 let w = input_coefficients(c, d, &eye);
-                for what in 0..3 {
+                for (what, expected) in w.iter().enumerate() {
+                    let got = h.jac[c][d][what];
                     assert!(
-                        (h.jac[c][d][what] - w[what]).abs() < 1e-6,
-                        "eye {eye:?}, channel {c}, dof {d}, {what}: {} vs {}",
-                        h.jac[c][d][what],
-                        w[what]
+                        (got - expected).abs() < 1e-6,
+                        "eye {eye:?}, channel {c}, dof {d}, {what}: {got} vs {expected}"
                     );
                 }
             }
