@@ -243,6 +243,12 @@ pub struct CompareArgs {
     /// before it is read. Default: 256 (about 7.5 h at 100 Hz).
     #[arg(long, value_name = "MB", value_parser = parse_trace_mb)]
     pub max_trace_mb: Option<f64>,
+    /// Compute the yardstick of every trace (docs/bound.md): the bound's lower and achieved
+    /// errors beside the algorithms', each algorithm's cueable error (above the bound) and the
+    /// share of the CWF's it removes; the verdicts then judge the cueable felt error and, when
+    /// no motion can be nowhere worse than the CWF, do not call its binding channels losses.
+    #[arg(long)]
+    pub bound: bool,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -266,6 +272,9 @@ pub struct BoundArgs {
     /// dominance test needs it).
     #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = DEFAULT_ALGORITHMS)]
     pub algorithms: Vec<String>,
+    /// Bound only the flight's first S seconds (a slice: quick checks, the README's figures).
+    #[arg(long, value_name = "S")]
+    pub duration: Option<f64>,
     /// Write the figures as JSON to this file (refused if it exists, unless --force).
     #[arg(long, value_name = "FILE.json")]
     pub json: Option<PathBuf>,
@@ -344,6 +353,11 @@ pub struct TuneArgs {
     /// and smpc (docs/tuning.md).
     #[arg(long, value_name = "STEP")]
     pub step: Option<f64>,
+    /// What a candidate is ranked on: `score` (the cueing score of docs/tuning.md) or
+    /// `cueable` (the score less, per flight, the bound's lower total: the error no motion
+    /// can avoid on it, docs/bound.md; computed once per flight with the base profile).
+    #[arg(long, value_name = "OBJ", default_value = "score")]
+    pub objective: String,
     /// Where to write the tuned profile (refused if it exists, unless --force).
     #[arg(long, value_name = "TUNED.toml")]
     pub out: PathBuf,

@@ -69,6 +69,24 @@ pub fn channel_errors(summary: &Summary, id: AlgorithmId) -> Option<[f64; 6]> {
     }))
 }
 
+/// The yardstick of a flight already run, with the CWF's errors from that run when the CWF
+/// was in it (otherwise from a CWF run of its own): `play --headless --bound`, `compare
+/// --bound`.
+pub fn bound_of_summary(
+    profile: &Profile,
+    trace: &Arc<Trace>,
+    summary: &Summary,
+) -> Result<(Bound, BoundDetails)> {
+    let cwf = match channel_errors(summary, AlgorithmId::Cwf) {
+        Some(e) => e,
+        None => {
+            let run = run_algorithms(profile, trace, &[AlgorithmId::Cwf])?;
+            channel_errors(&run, AlgorithmId::Cwf).context("the CWF did not run")?
+        }
+    };
+    Ok(crate::bound::bound(profile, trace, &cwf, [true; 6])?)
+}
+
 /// The yardstick on a loaded trace: the CWF first (dominance needs its errors), then the
 /// programmes beside the other algorithms.
 pub fn bound_with_algorithms(
@@ -117,7 +135,15 @@ pub fn run(args: &BoundArgs) -> Result<()> {
         ]);
         check_output_of(path, args.force, "--json", &inputs)?;
     }
-    let trace = Arc::new(load_trace_within(&args.trace, profile.rate_hz, args.max_trace_mb)?.trace);
+    let mut trace = load_trace_within(&args.trace, profile.rate_hz, args.max_trace_mb)?.trace;
+    if let Some(s) = args.duration {
+        if !(s.is_finite() && s > 0.0) {
+            anyhow::bail!("--duration: expected a positive number of seconds, got {s}");
+        }
+        let keep = ((s * profile.rate_hz).round() as usize).max(2);
+        trace.samples.truncate(keep);
+    }
+    let trace = Arc::new(trace);
     let (bound, details, summary, bound_time_s) =
         bound_with_algorithms(&profile, &trace, &algorithms, alone)?;
     let wall_time_s = started.elapsed().as_secs_f64();
@@ -245,6 +271,20 @@ pub fn render(
         100.0 * bound.achieved.limiter_fraction,
         bound.achieved.leg_violations
     );
+    if let Some(g) = &details.gap {
+        let _ = writeln!(
+            out,
+            "the gap: lower {:.3}; relaxed on the achieved grid {:.3}; achieved under the linear \
+             model {:.3} (grid and legs), through the exact head motion {:.3} (linearisation), \
+             with the limiter {:.3}; the relaxed optimum through the exact head motion {:.3}",
+            bound.lower.total,
+            g.relaxed_on_grid,
+            g.linear_model,
+            g.unlimited,
+            g.replayed,
+            g.relaxed_unlimited
+        );
+    }
     let d = &bound.dominance;
     let _ = writeln!(
         out,

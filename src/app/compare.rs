@@ -124,6 +124,12 @@ pub fn run(args: &CompareArgs) -> Result<()> {
                     .insert(format!("{key}{PREVIEW_SUFFIX}"), a);
             }
         }
+        if args.bound {
+            bar.set_message(format!("{}: the bound", trace.name));
+            let (bound, _) = crate::app::bound::bound_of_summary(&profile, &trace, &summary)
+                .with_context(|| format!("{}: the bound", trace.name))?;
+            summary.bound = Some(bound);
+        }
         done += trace.len();
         let wall = started.elapsed().as_secs_f64();
         progress_line(
@@ -150,7 +156,8 @@ pub fn run(args: &CompareArgs) -> Result<()> {
     }
     bar.finish_and_clear();
     let command = format!(
-        "hexcue compare{}{}{}",
+        "hexcue compare{}{}{}{}",
+        if args.bound { " --bound" } else { "" },
         args.traces
             .as_ref()
             .map(|t| format!(" --traces {}", t.display()))

@@ -4,7 +4,7 @@
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 use crate::app::common::{
     check_session_outputs, headless_or_console, inputs, progress_bar, stop_flag,
@@ -209,15 +209,7 @@ fn bound_of(args: &PlayArgs, profile: &Profile, summary: &Summary) -> Result<cra
         None => default_trace(profile.rate_hz).trace,
     };
     let trace = Arc::new(trace);
-    let cwf = match crate::app::bound::channel_errors(summary, AlgorithmId::Cwf) {
-        Some(e) => e,
-        None => {
-            let run = crate::app::bound::run_algorithms(profile, &trace, &[AlgorithmId::Cwf])?;
-            crate::app::bound::channel_errors(&run, AlgorithmId::Cwf)
-                .context("the CWF did not run")?
-        }
-    };
-    let (bound, _) = crate::bound::bound(profile, &trace, &cwf, [true; 6])?;
+    let (bound, _) = crate::app::bound::bound_of_summary(profile, &trace, summary)?;
     Ok(bound)
 }
 

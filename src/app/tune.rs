@@ -147,7 +147,11 @@ fn command_line(args: &TuneArgs, algorithm: AlgorithmId, budget: usize, step: f6
             .unwrap_or_default(),
         args.seed,
         args.out.display()
-    )
+    ) + if args.objective == "score" {
+        ""
+    } else {
+        " --objective cueable"
+    }
 }
 
 /// Puts `line` after the `# tuned:` lines already at the top of a profile (or first), so
@@ -230,12 +234,36 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         );
     }
 
+    let cueable = match args.objective.as_str() {
+        "score" => false,
+        "cueable" => true,
+        other => bail!("--objective: expected score or cueable, got `{other}`"),
+    };
+    let floors_of = |traces: &[Arc<Trace>]| -> Result<Vec<f64>> {
+        if !cueable {
+            return Ok(Vec::new());
+        }
+        traces
+            .iter()
+            .map(|t| {
+                eprintln!("the bound of {} (what no motion can cue)", t.name);
+                let setup = crate::bound::Setup::new(&profile, t)
+                    .with_context(|| format!("{}: the bound", t.name))?;
+                let r = crate::bound::relaxed(&setup, [false; 6])
+                    .with_context(|| format!("{}: the bound", t.name))?;
+                Ok(r.total)
+            })
+            .collect()
+    };
+    let floors = floors_of(&traces)?;
+    let validation_floors = floors_of(&validation_traces)?;
     let stop = stop_flag()?;
     let validator = (!validation_traces.is_empty()).then(|| Evaluator {
         algorithm,
         keys: keys.clone(),
         base: base.clone(),
         traces: validation_traces,
+        floors: validation_floors,
         stop: stop.clone(),
     });
     let evaluator = Evaluator {
@@ -243,6 +271,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         keys: keys.clone(),
         base,
         traces,
+        floors,
         stop: stop.clone(),
     };
     eprintln!(

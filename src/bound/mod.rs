@@ -17,7 +17,7 @@ use nalgebra::{Vector3, Vector6};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-pub use programme::{channel_dofs, input_coefficients, LegRows, Programme, Solution};
+pub use programme::{channel_dofs, input_coefficients, HeadRows, LegRows, Programme, Solution};
 
 use crate::engine::perceive_command;
 use crate::mca::limiter::WorkspaceLimiter;
@@ -47,12 +47,16 @@ pub struct Bound {
     pub dominance: Dominance,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Lower {
     /// Each channel's own optimum (only that channel's error minimised).
     pub channel: BTreeMap<String, f64>,
     /// The joint optimum: the weighted sum of the channels' errors, as `score_terms.error`.
     pub total: f64,
+    /// Each channel's own optimum of the felt error (`score_terms.felt`: the mean of
+    /// max(|u| − 1, 0), unweighted), what `compare`'s verdicts judge on.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub felt: BTreeMap<String, f64>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -88,6 +92,29 @@ pub struct BoundDetails {
     pub largest_rows: usize,
     /// Any programme that did not end `Solved` (what it ended as).
     pub unsolved: Vec<String>,
+    /// Where the gap between `achieved` and `lower` comes from.
+    pub gap: Option<GapParts>,
+}
+
+/// The gap between `achieved` and `lower` taken apart (docs/bound.md, "The gap"). Totals of
+/// the weighted error, as `score_terms.error` sums them.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct GapParts {
+    /// The relaxation's optimum (no legs) solved on the achieved programme's grid and
+    /// expanded to the full rate, charged by the linear model at the full rate: `lower` plus
+    /// what the coarse grid alone costs.
+    pub relaxed_on_grid: f64,
+    /// The achieved commands charged by the relaxation's linear model at the full rate:
+    /// `lower` plus what the grid and the legs cost.
+    pub linear_model: f64,
+    /// The same commands through the pipeline (exact head motion) without the limiter: the
+    /// difference to `linear_model` is what the linearisation leaves out.
+    pub unlimited: f64,
+    /// Through the pipeline with the limiter: `achieved.total`.
+    pub replayed: f64,
+    /// The relaxation's own optimum through the pipeline without the limiter (legs or not):
+    /// against `lower`, what the exact head motion charges the relaxed motion.
+    pub relaxed_unlimited: f64,
 }
 
 /// Errors of the yardstick (no I/O: only inputs that cannot be bounded).
@@ -260,9 +287,49 @@ impl Setup {
             filters: &self.filters,
             caps,
             legs: None,
+            head: None,
             pose_cost: 0.0,
         }
     }
+}
+
+/// Each channel's own optimum of the felt error (the soft dead zone with nothing charged
+/// below the threshold, unweighted: `score_terms.felt`), for the channels of `alone`; `NAN`
+/// for the others.
+pub fn felt_lower(setup: &Setup, alone: [bool; 6]) -> Result<[f64; 6], BoundError> {
+    let felt = Setup {
+        dt_s: setup.dt_s,
+        reference: setup.reference.clone(),
+        thresholds: setup.thresholds,
+        below_threshold_weight: 0.0,
+        score_weights: [1.0; 6],
+        limits: setup.limits,
+        eye_m: setup.eye_m,
+        filters: setup.filters.clone(),
+    };
+    let solved: Vec<(usize, Solution)> = (0..6)
+        .filter(|&c| alone[c])
+        .collect::<Vec<_>>()
+        .par_iter()
+        .map(|&c| {
+            let ds = channel_dofs(c, &felt.eye_m);
+            (c, felt.programme(&[c], &ds, &[c], None).solve())
+        })
+        .collect();
+    let mut out = [f64::NAN; 6];
+    for (c, sol) in solved {
+        if !matches!(
+            sol.status,
+            SolverStatus::Solved | SolverStatus::AlmostSolved
+        ) {
+            return Err(BoundError::Unsolved(
+                format!("{} (felt)", Channel::ALL[c].key()),
+                sol.status,
+            ));
+        }
+        out[c] = sol.error[c];
+    }
+    Ok(out)
 }
 
 /// The relaxation's optima: per channel alone and jointly (one solution per block).
@@ -376,11 +443,24 @@ pub struct Replayed {
     pub score: f64,
     /// The commands as issued (after the limiter).
     pub issued: Vec<PlatformCommand>,
+    /// The commands as given (before the limiter).
+    pub commands: Vec<PlatformCommand>,
 }
 
 /// Replays `commands` (one per sample) like an algorithm's output: the workspace limiter,
 /// the perception at the pilot's head and the score, with the engine's own code.
 pub fn replay(profile: &Profile, trace: &Trace, commands: &[PlatformCommand]) -> Replayed {
+    replay_with(profile, trace, commands, true)
+}
+
+/// [`replay`], with the limiter left out when `limit` is false (to measure what it costs: the
+/// commands then reach the perception as they are, legs or not).
+pub fn replay_with(
+    profile: &Profile,
+    trace: &Trace,
+    commands: &[PlatformCommand],
+    limit: bool,
+) -> Replayed {
     let dt = profile.dt_s();
     let stewart = profile.stewart();
     let eye = profile.eye_point();
@@ -397,7 +477,14 @@ pub fn replay(profile: &Profile, trace: &Trace, commands: &[PlatformCommand]) ->
     let mut issued = Vec::with_capacity(commands.len());
     for (s, raw) in trace.samples.iter().zip(commands) {
         let x = reference.step(&s.delta_f_mps2(), &s.angular_velocity_radps);
-        let limited = limiter.apply(raw);
+        let limited = if limit {
+            limiter.apply(raw)
+        } else {
+            crate::mca::limiter::Limited {
+                command: *raw,
+                acted: false,
+            }
+        };
         let (perceived, legs) = perceive_command(&limited.command, &stewart, &eye, &mut vestibular);
         let usage = stewart.usage(&legs.length_m).max();
         score.push(&x.channels(), &perceived.channels(), limited.acted, usage);
@@ -421,6 +508,7 @@ pub fn replay(profile: &Profile, trace: &Trace, commands: &[PlatformCommand]) ->
         leg_violations: violations,
         score: total_score,
         issued,
+        commands: commands.to_vec(),
     }
 }
 
@@ -449,15 +537,34 @@ pub fn linear_error(setup: &Setup, commands: &[PlatformCommand]) -> [f64; 6] {
     })
 }
 
-/// The legs of every step linearised about a pose sequence.
-fn leg_rows(profile: &Profile, poses: &[Vector6<f64>]) -> Vec<LegRows> {
+/// The legs of every step linearised about a pose sequence, and, given velocities, at the
+/// point where braking would stop (`LegRows::stop_gain`).
+fn leg_rows(
+    profile: &Profile,
+    poses: &[Vector6<f64>],
+    velocities: Option<&[Vector6<f64>]>,
+    limits: &DofLimits,
+) -> Vec<LegRows> {
     let stewart = profile.stewart();
     poses
         .iter()
-        .map(|p| LegRows {
-            pose: *p,
-            length_m: stewart.leg_lengths(p),
-            jacobian: stewart.jacobian(p),
+        .enumerate()
+        .map(|(k, p)| {
+            let (mut gain, mut offset) = (Vector6::zeros(), Vector6::zeros());
+            if let Some(v) = velocities {
+                for d in 0..6 {
+                    let (vd, a) = (v[k][d], limits.acceleration[d].max(1e-9));
+                    gain[d] = vd.abs() / a;
+                    offset[d] = vd * vd.abs() / (2.0 * a) - gain[d] * vd;
+                }
+            }
+            LegRows {
+                pose: *p,
+                length_m: stewart.leg_lengths(p),
+                jacobian: stewart.jacobian(p),
+                stop_gain: gain,
+                stop_offset: offset,
+            }
         })
         .collect()
 }
@@ -506,17 +613,30 @@ pub fn achieved_with_legs(
     trace: &Trace,
     setup: &Setup,
 ) -> Vec<(String, Replayed, Solution)> {
-    LEG_INSETS_M
+    ACHIEVED_SEQUENCES
         .par_iter()
-        .flat_map_iter(|&inset| legs_sequence(profile, trace, setup, inset))
+        .flat_map_iter(|&(inset, head, braking)| {
+            legs_sequence(profile, trace, setup, inset, head, braking)
+        })
         .collect()
 }
+
+/// The sequences of the achieved programme: (leg inset, whether the head's inputs are
+/// re-linearised about the previous answer too, the sequential programme of docs/bound.md,
+/// whether the legs are held in the stroke at the braking stop point too).
+pub const ACHIEVED_SEQUENCES: [(f64, bool, bool); 3] = [
+    (LEG_INSETS_M[0], true, false),
+    (LEG_INSETS_M[1], true, false),
+    (LEG_INSETS_M[0], true, true),
+];
 
 fn legs_sequence(
     profile: &Profile,
     trace: &Trace,
     setup: &Setup,
     inset_m: f64,
+    relinearise_head: bool,
+    braking: bool,
 ) -> Vec<(String, Replayed, Solution)> {
     let g = &profile.geometry;
     let margin = profile.limiter.leg_margin_m + inset_m;
@@ -525,14 +645,33 @@ fn legs_sequence(
     let coarse = setup.coarse(profile, ACHIEVED_GRID);
     let nc = coarse.reference[0].len();
     let mut poses: Vec<Vector6<f64>> = vec![Vector6::zeros(); nc];
+    let mut velocities: Option<Vec<Vector6<f64>>> = None;
+    let mut head: Option<Vec<HeadRows>> = None;
     let mut out = Vec::new();
-    let label = |i: usize| format!("legs linearised {i}× at {:.0} mm inset", inset_m * 1000.0);
+    let label = |i: usize| {
+        format!(
+            "legs{}{} linearised {i}× at {:.0} mm inset",
+            if braking && i > 1 { " (braking)" } else { "" },
+            if relinearise_head && i > 1 {
+                " and head"
+            } else {
+                ""
+            },
+            inset_m * 1000.0
+        )
+    };
     for iteration in 1..=LEG_ITERATIONS {
-        let rows = leg_rows(profile, &poses);
+        let rows = leg_rows(
+            profile,
+            &poses,
+            if braking { velocities.as_deref() } else { None },
+            &coarse.limits,
+        );
         let mut prog = coarse.programme(&all, &all, &all, None);
         // A hair inside the boxes, so that rounding never makes the limiter act.
         prog.box_scale = 1.0 - 1e-6;
         prog.legs = Some((&rows, lo, hi));
+        prog.head = head.as_deref();
         let sol = prog.solve();
         if !matches!(
             sol.status,
@@ -545,9 +684,61 @@ fn legs_sequence(
         let cmds = clamp_commands(&steps, &setup.limits);
         let r = replay(profile, trace, &cmds);
         poses = sol.pose.clone();
+        velocities = Some(sol.velocity.clone());
+        if relinearise_head {
+            head = Some(
+                (0..nc)
+                    .map(|k| {
+                        HeadRows::about(
+                            &sol.pose[k],
+                            &sol.velocity[k],
+                            &sol.acceleration[k],
+                            &setup.eye_m,
+                        )
+                    })
+                    .collect(),
+            );
+        }
         out.push((label(iteration), r, sol));
     }
     out
+}
+
+/// [`GapParts`] of an achieved motion, given the relaxed optimum's commands.
+pub fn gap_parts(
+    profile: &Profile,
+    trace: &Trace,
+    setup: &Setup,
+    relaxed_commands: &[PlatformCommand],
+    achieved: &Replayed,
+) -> GapParts {
+    let coarse = setup.coarse(profile, ACHIEVED_GRID);
+    let relaxed_on_grid = match relaxed(&coarse, [false; 6]) {
+        Ok(r) => {
+            let mut steps =
+                vec![(Vector6::zeros(), Vector6::zeros(), Vector6::zeros()); trace.len()];
+            for sol in &r.joint {
+                for (k, (p, v, a)) in expand(sol, ACHIEVED_GRID, trace.len(), setup.dt_s)
+                    .into_iter()
+                    .enumerate()
+                {
+                    steps[k].0 += p;
+                    steps[k].1 += v;
+                    steps[k].2 += a;
+                }
+            }
+            let cmds = clamp_commands(&steps, &setup.limits);
+            linear_error(setup, &cmds).iter().sum()
+        }
+        Err(_) => f64::NAN,
+    };
+    GapParts {
+        relaxed_on_grid,
+        linear_model: linear_error(setup, &achieved.commands).iter().sum(),
+        unlimited: replay_with(profile, trace, &achieved.commands, false).total,
+        replayed: achieved.total,
+        relaxed_unlimited: replay_with(profile, trace, relaxed_commands, false).total,
+    }
 }
 
 fn by_channel(values: &[f64; 6]) -> BTreeMap<String, f64> {
@@ -568,10 +759,11 @@ pub fn bound(
     alone: [bool; 6],
 ) -> Result<(Bound, BoundDetails), BoundError> {
     let setup = Setup::new(profile, trace)?;
-    let relaxed = relaxed(&setup, alone)?;
+    let (relaxed, felt) = rayon::join(|| relaxed(&setup, alone), || felt_lower(&setup, alone));
+    let (relaxed, felt) = (relaxed?, felt?);
     let cmds = commands_of(&relaxed.joint, &setup.limits);
     let first = replay(profile, trace, &cmds);
-    let mut programmes = relaxed.programmes.len();
+    let mut programmes = relaxed.programmes.len() + alone.iter().filter(|&&a| a).count();
     let mut largest = relaxed
         .programmes
         .iter()
@@ -599,6 +791,7 @@ pub fn bound(
         .into_iter()
         .min_by(|a, b| a.1.total.total_cmp(&b.1.total))
         .unwrap_or_else(|| unreachable!("the relaxed candidate is always there"));
+    let gap = Some(gap_parts(profile, trace, &setup, &cmds, &achieved));
     // Dominance: every channel held at or below the CWF's, per block.
     let cwf_total: f64 = cwf_error.iter().sum();
     let caps = Some(*cwf_error);
@@ -617,6 +810,7 @@ pub fn bound(
         lower: Lower {
             channel: by_channel(&relaxed.channel),
             total: relaxed.total,
+            felt: by_channel(&felt),
         },
         achieved: Achieved {
             error: by_channel(&achieved.error),
@@ -640,6 +834,7 @@ pub fn bound(
         largest_variables: largest.0,
         largest_rows: largest.1,
         unsolved,
+        gap,
     };
     Ok((bound, details))
 }

@@ -68,6 +68,77 @@ pub struct LegRows {
     pub pose: Vector6<f64>,
     pub length_m: Vector6<f64>,
     pub jacobian: Matrix6<f64>,
+    /// The point where braking every DoF at its acceleration limit would stop, q = p + s(v)
+    /// with s_d = v_d·|v_d|/(2·A_d), linearised about a velocity v̄: q ≈ p + G·v + o with
+    /// G_d = |v̄_d|/A_d and o = s(v̄) − G·v̄. The legs at q are held in the stroke too (the
+    /// workspace limiter's look-ahead, `mca::limiter`, brakes that way). G = 0: no such rows.
+    pub stop_gain: Vector6<f64>,
+    pub stop_offset: Vector6<f64>,
+}
+
+/// The head's inputs of one step linearised about a motion (p̄, v̄, ā): per channel
+/// u_c ≈ offset_c + Σ_d (jac_c,d,0·p_d + jac_c,d,1·v_d + jac_c,d,2·a_d), the exact
+/// `head_motion` to first order there (the sequential programme of the achieved motion).
+#[derive(Clone, Debug)]
+pub struct HeadRows {
+    pub jac: [[[f64; 3]; 6]; 6],
+    pub offset: [f64; 6],
+}
+
+impl HeadRows {
+    /// `model::stewart::head_motion` linearised about (p̄, v̄, ā) by central differences.
+    pub fn about(
+        pose: &Vector6<f64>,
+        vel: &Vector6<f64>,
+        acc: &Vector6<f64>,
+        eye_m: &Vector3<f64>,
+    ) -> HeadRows {
+        let inputs = |p: &Vector6<f64>, v: &Vector6<f64>, a: &Vector6<f64>| -> [f64; 6] {
+            let h = crate::model::stewart::head_motion(p, v, a, eye_m);
+            [
+                h.delta_f_mps2.x,
+                h.delta_f_mps2.y,
+                h.delta_f_mps2.z,
+                h.angular_velocity_radps.x,
+                h.angular_velocity_radps.y,
+                h.angular_velocity_radps.z,
+            ]
+        };
+        let at = inputs(pose, vel, acc);
+        let mut jac = [[[0.0; 3]; 6]; 6];
+        const H: f64 = 1e-6;
+        for d in 0..6 {
+            for what in 0..3 {
+                let (mut p1, mut v1, mut a1) = (*pose, *vel, *acc);
+                let (mut p2, mut v2, mut a2) = (*pose, *vel, *acc);
+                match what {
+                    0 => {
+                        p1[d] += H;
+                        p2[d] -= H;
+                    }
+                    1 => {
+                        v1[d] += H;
+                        v2[d] -= H;
+                    }
+                    _ => {
+                        a1[d] += H;
+                        a2[d] -= H;
+                    }
+                }
+                let (u1, u2) = (inputs(&p1, &v1, &a1), inputs(&p2, &v2, &a2));
+                for (c, row) in jac.iter_mut().enumerate() {
+                    row[d][what] = (u1[c] - u2[c]) / (2.0 * H);
+                }
+            }
+        }
+        let mut offset = at;
+        for (c, o) in offset.iter_mut().enumerate() {
+            for d in 0..6 {
+                *o -= jac[c][d][0] * pose[d] + jac[c][d][1] * vel[d] + jac[c][d][2] * acc[d];
+            }
+        }
+        HeadRows { jac, offset }
+    }
 }
 
 /// What one programme models and minimises.
@@ -97,6 +168,9 @@ pub struct Programme<'a> {
     pub caps: Option<[f64; 6]>,
     /// Optional linearised legs per grid step, and the stroke they must keep, [lo, hi] (m).
     pub legs: Option<(&'a [LegRows], f64, f64)>,
+    /// Optional head inputs linearised per grid step about a motion (`None`: about neutral,
+    /// `input_coefficients`).
+    pub head: Option<&'a [HeadRows]>,
     /// Cost of the mean excursion Σ_d |p_d|/P_d (0: none). A small one picks, among the
     /// motions of (nearly) equal error, one near neutral, which the legs can make.
     pub pose_cost: f64,
@@ -236,13 +310,20 @@ impl Programme<'_> {
                         for q in 0..ns {
                             entries.push((state_col(k - 1, ci, q), -f.a[(r, q)]));
                         }
+                        let mut rhs = 0.0;
                         for (j, &d) in self.dofs.iter().enumerate() {
-                            let coef = input_coefficients(c, d, &self.eye_m);
+                            let coef = match self.head {
+                                Some(h) => h[k - 1].jac[c][d],
+                                None => input_coefficients(c, d, &self.eye_m),
+                            };
                             for (what, cf) in coef.iter().enumerate() {
                                 entries.push((dof_col(k - 1, j, what), -f.b[(r, 0)] * cf));
                             }
                         }
-                        eq.row(&entries, 0.0);
+                        if let Some(h) = self.head {
+                            rhs = f.b[(r, 0)] * h[k - 1].offset[c];
+                        }
+                        eq.row(&entries, rhs);
                     }
                 }
                 // e ≥ s·u, e ≥ −s·u, e ≥ u − (1 − s), e ≥ −u − (1 − s), u = (C s − x)/τ.
@@ -272,6 +353,19 @@ impl Programme<'_> {
                     ineq.row(&entries, hi - base);
                     let neg: Vec<(usize, f64)> = entries.iter().map(|&(j, v)| (j, -v)).collect();
                     ineq.row(&neg, base - lo);
+                    if leg.stop_gain.iter().any(|g| *g != 0.0) {
+                        // The same leg at the stopping point q = p + G·v + o.
+                        let mut base = base;
+                        for (j, &d) in self.dofs.iter().enumerate() {
+                            let jd = leg.jacobian[(i, d)];
+                            entries.push((dof_col(k, j, 1), jd * leg.stop_gain[d]));
+                            base += jd * leg.stop_offset[d];
+                        }
+                        ineq.row(&entries, hi - base);
+                        let neg: Vec<(usize, f64)> =
+                            entries.iter().map(|&(j, v)| (j, -v)).collect();
+                        ineq.row(&neg, base - lo);
+                    }
                 }
             }
         }

@@ -193,3 +193,76 @@ fn a_sustained_heave_is_cued_at_onset_and_the_rest_is_uncueable() {
         r.joint_error[2]
     );
 }
+
+#[test]
+fn the_head_linearised_at_neutral_is_the_relaxations_model() {
+    // An independent derivation of the relaxation's input rows: `head_motion` differentiated
+    // numerically at rest must give `input_coefficients`, at the shipped eye point and one
+    // off the vertical axis.
+    for eye in [Vector3::new(0.0, 0.0, -1.2), Vector3::new(0.4, -0.3, -1.0)] {
+        let z = Vector6::zeros();
+        let h = HeadRows::about(&z, &z, &z, &eye);
+        for c in 0..6 {
+            assert!(h.offset[c].abs() < 1e-9, "{c}: {}", h.offset[c]);
+            for d in 0..6 {
+                let w = input_coefficients(c, d, &eye);
+                for (what, expected) in w.iter().enumerate() {
+                    let got = h.jac[c][d][what];
+                    assert!(
+                        (got - expected).abs() < 1e-6,
+                        "eye {eye:?}, channel {c}, dof {d}, {what}: {got} vs {expected}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_head_linearised_about_a_tilt_predicts_the_exact_head_to_second_order() {
+    // Linearised about a pitched, rolling, accelerating pose, the rows reproduce the exact
+    // head motion there and its change to first order; about neutral they miss the tilt's
+    // loss of vertical force g(1 − cos θ cos φ), which the sequential programme corrects.
+    let eye = Vector3::new(0.0, 0.0, -1.2);
+    let p = Vector6::new(0.3, -0.2, 0.1, 0.15, -0.25, 0.1);
+    let v = Vector6::new(0.2, 0.1, -0.1, 0.1, 0.05, -0.1);
+    let a = Vector6::new(1.0, -0.5, 0.8, 0.3, -0.4, 0.2);
+    let h = HeadRows::about(&p, &v, &a, &eye);
+    let predict = |h: &HeadRows, p: &Vector6<f64>, v: &Vector6<f64>, a: &Vector6<f64>| {
+        std::array::from_fn::<f64, 6, _>(|c| {
+            h.offset[c]
+                + (0..6)
+                    .map(|d| h.jac[c][d][0] * p[d] + h.jac[c][d][1] * v[d] + h.jac[c][d][2] * a[d])
+                    .sum::<f64>()
+        })
+    };
+    let exact = |p: &Vector6<f64>, v: &Vector6<f64>, a: &Vector6<f64>| {
+        let m = crate::model::stewart::head_motion(p, v, a, &eye);
+        [
+            m.delta_f_mps2.x,
+            m.delta_f_mps2.y,
+            m.delta_f_mps2.z,
+            m.angular_velocity_radps.x,
+            m.angular_velocity_radps.y,
+            m.angular_velocity_radps.z,
+        ]
+    };
+    let (e0, l0) = (exact(&p, &v, &a), predict(&h, &p, &v, &a));
+    for c in 0..6 {
+        assert!((e0[c] - l0[c]).abs() < 1e-8, "{c}: {} vs {}", e0[c], l0[c]);
+    }
+    let dp = Vector6::from_element(1e-3);
+    let (e1, l1) = (
+        exact(&(p + dp), &(v + dp), &(a + dp)),
+        predict(&h, &(p + dp), &(v + dp), &(a + dp)),
+    );
+    for c in 0..6 {
+        assert!((e1[c] - l1[c]).abs() < 1e-4, "{c}: {} vs {}", e1[c], l1[c]);
+    }
+    // At that tilt the neutral model misses about g(1 − cos θ cos φ) of Δf_z.
+    let z = Vector6::zeros();
+    let neutral = HeadRows::about(&z, &z, &z, &eye);
+    let loss = G_MPS2 * (1.0 - p[3].cos() * p[4].cos());
+    let miss = (e0[2] - predict(&neutral, &p, &v, &a)[2]).abs();
+    assert!(miss > 0.5 * loss, "{miss} vs {loss}");
+}

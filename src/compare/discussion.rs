@@ -124,7 +124,7 @@ pub(super) fn channels_discussion(results: &[TraceResult]) -> String {
                         "{} on {} ({})",
                         label(k),
                         s.trace,
-                        loss_detail(c, m, cwf)
+                        loss_detail_in(&v, c, m, cwf)
                     ));
                 }
             }

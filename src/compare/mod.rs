@@ -288,6 +288,58 @@ mod tests {
         assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Felt)]);
     }
 
+    fn with_bound(r: &mut TraceResult, felt_floor: f64, possible: bool, binding: &[&str]) {
+        let mut lower = crate::bound::Lower::default();
+        for c in CHANNELS {
+            lower.felt.insert(c.to_string(), felt_floor);
+        }
+        r.summary.bound = Some(crate::bound::Bound {
+            lower,
+            achieved: crate::bound::Achieved {
+                error: BTreeMap::new(),
+                total: 0.0,
+                limiter_fraction: 0.0,
+                leg_violations: 0,
+            },
+            dominance: crate::bound::Dominance {
+                possible,
+                binding: binding.iter().map(|s| s.to_string()).collect(),
+            },
+        });
+    }
+
+    #[test]
+    fn with_a_bound_the_verdicts_judge_the_cueable_felt_error() {
+        // Felt 1.00 against the CWF's 0.95: within 5 % + 0.01 of it, level. With a bound whose
+        // felt optimum is 0.9, the cueable parts are 0.10 and 0.05: the MPC leaves twice the
+        // CWF's cueable error, and loses.
+        let mut r = result(0.2, 0.28, 0.32);
+        set(&mut r, "smpc", "wz", 0.95, 0.9, 0.0);
+        set(&mut r, "mpc", "wz", 1.00, 0.9, 0.0);
+        set(&mut r, "cwf", "wz", 0.95, 0.9, 0.0);
+        assert_eq!(verdict(&r.summary, "wz").worse_than_cwf(), vec![]);
+        with_bound(&mut r, 0.9, true, &["wz"]);
+        let v = verdict(&r.summary, "wz");
+        // Dominance possible: a binding cap excuses nothing.
+        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Felt)]);
+        assert!(
+            v.worse_than_cwf_sentences().contains(
+                &"MPC is worse than the CWF (cueable felt error 0.100 against 0.050)".to_string()
+            ),
+            "{:?}",
+            v.worse_than_cwf_sentences()
+        );
+        // Dominance impossible with wz binding: the loss is a trade every better motion makes.
+        with_bound(&mut r, 0.9, false, &["wz"]);
+        assert_eq!(verdict(&r.summary, "wz").worse_than_cwf(), vec![]);
+        // ... but only on the binding channel.
+        with_bound(&mut r, 0.9, false, &["fx"]);
+        assert_eq!(
+            verdict(&r.summary, "wz").worse_than_cwf(),
+            vec![("mpc", Criterion::Felt)]
+        );
+    }
+
     #[test]
     fn cues_that_differ_only_below_the_threshold_are_not_worse() {
         let mut r = result(0.2, 0.28, 0.32);

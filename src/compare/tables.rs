@@ -186,9 +186,97 @@ pub fn render_markdown(
             );
         }
         let _ = writeln!(out);
+        if let Some(b) = &s.bound {
+            out.push_str(&bound_table(s, b));
+        }
         out.push_str(&verdict_table(s));
     }
     out.push_str(&discussion(results, profile));
+    out
+}
+
+/// The yardstick of a trace (`compare --bound`, docs/bound.md): per channel the bound's lower
+/// and achieved errors beside each algorithm's error with its cueable part (error − lower) in
+/// brackets, the totals, the share of the CWF's cueable error each algorithm removes, and the
+/// dominance answer.
+pub fn bound_table(s: &Summary, b: &crate::bound::Bound) -> String {
+    let mut out = String::new();
+    let algs = ordered(s);
+    let head: Vec<String> = algs
+        .iter()
+        .map(|(k, _)| format!("{} (cueable)", label(k)))
+        .collect();
+    let _ = writeln!(
+        out,
+        "The bound (`hexcue bound`, docs/bound.md): the threshold-aware error no motion can          beat (lower), one the platform makes (achieved), and each algorithm's error with its          cueable part, the error above lower, in brackets.\n"
+    );
+    let _ = writeln!(out, "| channel | lower | achieved | {} |", head.join(" | "));
+    let _ = writeln!(out, "|---|---:|---:|{}", "---:|".repeat(head.len()));
+    let err = |a: &crate::summary::AlgorithmSummary, c: &str| a.score_terms.error.get(c).copied();
+    for c in CHANNELS {
+        let lower = b.lower.channel.get(c).copied();
+        let cells: Vec<String> = algs
+            .iter()
+            .map(|(_, a)| match (err(a, c), lower) {
+                (Some(e), Some(l)) => format!("{e:.3} ({:.3})", e - l),
+                (Some(e), None) => format!("{e:.3}"),
+                _ => "–".to_string(),
+            })
+            .collect();
+        let num = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.3}"));
+        let _ = writeln!(
+            out,
+            "| {c} | {} | {} | {} |",
+            num(lower),
+            num(b.achieved.error.get(c).copied()),
+            cells.join(" | ")
+        );
+    }
+    let total = |a: &crate::summary::AlgorithmSummary| -> f64 {
+        CHANNELS.iter().filter_map(|c| err(a, c)).sum()
+    };
+    let cells: Vec<String> = algs
+        .iter()
+        .map(|(_, a)| {
+            let t = total(a);
+            format!("{t:.3} ({:.3})", t - b.lower.total)
+        })
+        .collect();
+    let _ = writeln!(
+        out,
+        "| total | {:.3} | {:.3} | {} |\n",
+        b.lower.total,
+        b.achieved.total,
+        cells.join(" | ")
+    );
+    let cwf_cueable = s.algorithms.get("cwf").map(|a| total(a) - b.lower.total);
+    let mut shares = Vec::new();
+    if let Some(cwf) = cwf_cueable.filter(|c| *c > 0.0) {
+        for (k, a) in algs.iter().filter(|(k, _)| *k != "cwf") {
+            let removed = (cwf - (total(a) - b.lower.total)) / cwf;
+            shares.push(format!("{} {:.0} %", label(k), 100.0 * removed));
+        }
+    }
+    if !shares.is_empty() {
+        let _ = writeln!(
+            out,
+            "Share of the CWF's cueable error removed: {}.",
+            shares.join(", ")
+        );
+    }
+    let d = &b.dominance;
+    let _ = writeln!(
+        out,
+        "A motion nowhere worse than the CWF and better in total: {}{}. Achieved: limiter {:.2} %          of the steps, {} leg violations.\n",
+        if d.possible { "possible" } else { "impossible" },
+        if d.binding.is_empty() {
+            String::new()
+        } else {
+            format!(" (binding: {})", d.binding.join(", "))
+        },
+        100.0 * b.achieved.limiter_fraction,
+        b.achieved.leg_violations
+    );
     out
 }
 
@@ -213,7 +301,11 @@ pub(super) fn verdict_rule() -> String {
          also loses to it head to head (false cues, jolts, then felt error, as above). Caveats \
          on the best: PC < 0 (its cue runs against the aircraft's motion more than with it) \
          and RAE ≥ 1 (its cue is no closer to the aircraft's motion than a platform at rest, \
-         which gives RAE 1 and no false cue).\n\n",
+         which gives RAE 1 and no false cue). With `--bound`, the felt error compared is the \
+         cueable one, the felt error above the bound's own felt optimum for the channel (what \
+         no motion can cue decides nothing), and where the bound finds no motion nowhere worse \
+         than the CWF and better in total, an MPC is not called worse than the CWF on the \
+         channels that bind in that test.\n\n",
         100.0 * FALSE_CUE_MARGIN,
         JOLT_MARGIN,
         1.0 + ERROR_TOLERANCE_REL,

@@ -106,6 +106,11 @@ pub(super) struct Verdict<'a> {
     /// Indices into `algorithms` of the best: one, several level at the top, or none when each
     /// algorithm at the top loses to another (close numbers: no clear best).
     pub(super) unbeaten: Vec<usize>,
+    /// The felt errors are cueable ones (above the bound's felt optimum).
+    pub(super) cueable: bool,
+    /// The bound says dominance over the CWF is impossible and this channel is where a better
+    /// motion gives way (`forced_against_cwf`): a loss to the CWF here is not flagged.
+    pub(super) forced: bool,
 }
 
 /// How the best of a channel is named.
@@ -154,7 +159,11 @@ pub(super) fn verdict<'a>(summary: &'a Summary, ch: &str) -> Verdict<'a> {
         .into_iter()
         .filter_map(|(k, a)| {
             a.metrics.get(ch).map(|m| {
-                let felt = a.score_terms.felt.get(ch).copied().unwrap_or(f64::NAN);
+                // With a bound, the felt error above the bound's own felt optimum for the
+                // channel (what no motion can cue is no one's loss): the tolerance's relative
+                // part then applies to what an algorithm can change.
+                let floor = felt_floor(summary, ch);
+                let felt = a.score_terms.felt.get(ch).copied().unwrap_or(f64::NAN) - floor;
                 (k, Judged { metrics: *m, felt })
             })
         })
@@ -191,7 +200,30 @@ pub(super) fn verdict<'a>(summary: &'a Summary, ch: &str) -> Verdict<'a> {
         margin_s,
         rank,
         unbeaten: unbeaten.unwrap_or_default(),
+        cueable: summary.bound.is_some(),
+        forced: forced_against_cwf(summary, ch),
     }
+}
+
+/// The bound's own optimum of the felt error on a channel (0 without a bound).
+pub(super) fn felt_floor(summary: &Summary, ch: &str) -> f64 {
+    summary
+        .bound
+        .as_ref()
+        .and_then(|b| b.lower.felt.get(ch).copied())
+        .unwrap_or(0.0)
+}
+
+/// Whether the bound says that dominance over the CWF is impossible and this channel is one
+/// where a motion better in total must give way: no motion is nowhere worse than the CWF and
+/// better in total, and the channel's cap binds in the dominance programme (or no cap is named,
+/// when the capped programme has no solution at all). Where dominance is possible, nothing is
+/// excused: a binding cap then only shapes the capped optimum.
+pub(super) fn forced_against_cwf(summary: &Summary, ch: &str) -> bool {
+    summary.bound.as_ref().is_some_and(|b| {
+        !b.dominance.possible
+            && (b.dominance.binding.is_empty() || b.dominance.binding.iter().any(|c| c == ch))
+    })
 }
 
 /// "17.8 s of false cues against 0.3 s", "3 jolts against 0", "felt error 0.467 against
@@ -209,6 +241,16 @@ pub(super) fn loss_detail(c: Criterion, a: &Judged, b: &Judged) -> String {
             b.jolts()
         ),
         Criterion::Felt => format!("felt error {:.3} against {:.3}", a.felt, b.felt),
+    }
+}
+
+/// [`loss_detail`], naming the felt error cueable when the verdict judges it above the bound.
+pub(super) fn loss_detail_in(v: &Verdict<'_>, c: Criterion, a: &Judged, b: &Judged) -> String {
+    match (c, v.cueable) {
+        (Criterion::Felt, true) => {
+            format!("cueable felt error {:.3} against {:.3}", a.felt, b.felt)
+        }
+        _ => loss_detail(c, a, b),
     }
 }
 
@@ -242,6 +284,9 @@ impl<'a> Verdict<'a> {
         let Some(c) = self.algorithms.iter().position(|(k, _)| *k == "cwf") else {
             return Vec::new();
         };
+        if self.forced {
+            return Vec::new();
+        }
         let cwf = &self.algorithms[c].1;
         self.algorithms
             .iter()
@@ -266,7 +311,7 @@ impl<'a> Verdict<'a> {
                 Some(format!(
                     "{} is worse than the CWF ({})",
                     label(k),
-                    loss_detail(c, m, cwf)
+                    loss_detail_in(self, c, m, cwf)
                 ))
             })
             .collect()
@@ -306,7 +351,7 @@ impl<'a> Verdict<'a> {
                     "{} loses to {}: {}",
                     label(k),
                     label(ok),
-                    loss_detail(c, m, om)
+                    loss_detail_in(self, c, m, om)
                 ))
             })
             .collect()

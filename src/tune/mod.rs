@@ -196,6 +196,9 @@ pub struct Evaluator {
     pub keys: Vec<TunableKey>,
     pub base: DocumentMut,
     pub traces: Vec<Arc<Trace>>,
+    /// Per trace, what is subtracted from the score (`tune --objective cueable`: the bound's
+    /// `lower.total`, the error no motion can avoid on that flight); empty: nothing.
+    pub floors: Vec<f64>,
     /// Set to abandon the evaluations under way (Ctrl-C).
     pub stop: Arc<AtomicBool>,
 }
@@ -222,9 +225,12 @@ impl Evaluator {
 
     /// Runs one profile on every trace, in parallel; `None` once stopped.
     pub fn run(&self, profile: &Profile) -> Result<Option<Vec<TraceOutcome>>> {
-        Ok(self
-            .run_summaries(profile)?
-            .map(|s| s.iter().map(TraceOutcome::from).collect()))
+        Ok(self.run_summaries(profile)?.map(|s| {
+            s.iter()
+                .enumerate()
+                .map(|(i, a)| self.outcome(i, a))
+                .collect()
+        }))
     }
 
     /// [`Evaluator::run`] with each trace's whole summary of the algorithm (`hexcue eval`
@@ -249,8 +255,8 @@ impl Evaluator {
     /// candidates in parallel.
     fn run_sequential(&self, profile: &Profile) -> Result<Option<Vec<TraceOutcome>>> {
         let mut out = Vec::with_capacity(self.traces.len());
-        for trace in &self.traces {
-            match self.run_trace(profile, trace)? {
+        for (i, trace) in self.traces.iter().enumerate() {
+            match self.run_trace(profile, i, trace)? {
                 Some(o) => out.push(o),
                 None => return Ok(None),
             }
@@ -258,11 +264,23 @@ impl Evaluator {
         Ok(Some(out))
     }
 
-    fn run_trace(&self, profile: &Profile, trace: &Arc<Trace>) -> Result<Option<TraceOutcome>> {
+    fn run_trace(
+        &self,
+        profile: &Profile,
+        index: usize,
+        trace: &Arc<Trace>,
+    ) -> Result<Option<TraceOutcome>> {
         Ok(self
             .run_summary(profile, trace)?
-            .as_ref()
-            .map(TraceOutcome::from))
+            .map(|a| self.outcome(index, &a)))
+    }
+
+    /// What the search ranks of trace `index`'s summary: its score less the trace's floor
+    /// (`--objective cueable`; no floor otherwise).
+    fn outcome(&self, index: usize, a: &AlgorithmSummary) -> TraceOutcome {
+        let mut o = TraceOutcome::from(a);
+        o.score -= self.floors.get(index).copied().unwrap_or(0.0);
+        o
     }
 
     /// One trace's run of the algorithm under `profile`, summarised as `play --headless`'s
@@ -676,6 +694,7 @@ mod tests {
             keys: keys::CWF_KEYS.to_vec(),
             base: DEFAULT_PROFILE_TOML.parse().unwrap(),
             traces,
+            floors: Vec::new(),
             stop: Arc::new(AtomicBool::new(false)),
         }
     }
@@ -717,6 +736,31 @@ mod tests {
             info: None,
             notices: vec![],
         })
+    }
+
+    #[test]
+    fn a_cueable_objective_subtracts_each_flights_floor() {
+        // `--objective cueable`: every outcome is the score less that flight's floor (the
+        // bound's lower total), so the ranking is on what a motion can change.
+        let plain = evaluator(vec![short_manoeuvre()]);
+        let mut floored = evaluator(vec![short_manoeuvre()]);
+        let floor = crate::bound::relaxed(
+            &crate::bound::Setup::new(&full_flight(), &short_manoeuvre()).unwrap(),
+            [false; 6],
+        )
+        .unwrap()
+        .total;
+        assert!(floor >= 0.0, "{floor}");
+        floored.floors = vec![floor];
+        let p = full_flight();
+        let a = plain.run(&p).unwrap().unwrap();
+        let b = floored.run(&p).unwrap().unwrap();
+        assert!(
+            (a[0].score - floor - b[0].score).abs() < 1e-12,
+            "{a:?} {b:?}"
+        );
+        // The floor bounds the score's error part: the cueable score is not negative.
+        assert!(b[0].score >= 0.0, "{b:?}");
     }
 
     #[test]
