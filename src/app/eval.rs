@@ -504,6 +504,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         keys: keys.clone(),
         base: base_doc.clone(),
         traces: flights.iter().map(|f| f.trace.clone()).collect(),
+        // eval reports plain scores; `tune --objective cueable` is tune's alone.
+        floors: Vec::new(),
         stop: stop.clone(),
     };
     let interrupted = || anyhow::anyhow!("interrupted by a signal; nothing written");

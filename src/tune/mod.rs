@@ -593,6 +593,12 @@ pub fn cross_validated_tune(
         keys: evaluator.keys.clone(),
         base: evaluator.base.clone(),
         traces: idx.iter().map(|&i| evaluator.traces[i].clone()).collect(),
+        // Each flight keeps its own floor (`--objective cueable`) in whichever fold it falls.
+        floors: if evaluator.floors.is_empty() {
+            Vec::new()
+        } else {
+            idx.iter().map(|&i| evaluator.floors[i]).collect()
+        },
         stop: evaluator.stop.clone(),
     };
     let folds = folds_by_flight(n);
@@ -1001,6 +1007,7 @@ mod tests {
             keys: keys::MPC_KEYS.to_vec(),
             base: DEFAULT_PROFILE_TOML.parse().unwrap(),
             traces: vec![Arc::new(hard)],
+            floors: Vec::new(),
             stop: Arc::new(AtomicBool::new(false)),
         };
         let base_values: Vec<f64> = ev.keys.iter().map(|k| k.get(&ev.base).unwrap()).collect();
