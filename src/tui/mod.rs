@@ -14,6 +14,7 @@ pub mod app;
 mod gauges;
 mod help;
 pub mod live;
+mod overlay;
 pub mod params;
 pub mod state;
 pub mod terminal;

@@ -548,7 +548,7 @@ fn v_overlays_the_algorithms_on_one_chart_per_channel() {
     // The band: the chart's range holds the reference ± its threshold.
     for ch in 0..6 {
         let scale = crate::vocab::Channel::ALL[ch].display_scale();
-        let (lo, hi) = view::overlay_range(&s, &[0, 1, 2], ch, app.thresholds[ch]);
+        let (lo, hi) = overlay::overlay_range(&s, &[0, 1, 2], ch, app.thresholds[ch]);
         for r in &s.window {
             let x = f64::from(r.reference[ch]) * scale;
             let band = app.thresholds[ch] * scale;

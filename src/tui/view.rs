@@ -22,7 +22,7 @@ use super::Theme;
 /// Narrowest useful algorithm column; narrower terminals show fewer columns.
 const MIN_COLUMN_W: u16 = 18;
 /// Rows a chart needs to be worth a second one below it.
-const CHART_ROWS_EACH: usize = 8;
+pub(super) const CHART_ROWS_EACH: usize = 8;
 
 pub fn render(app: &App, f: &mut ratatui::Frame, now: Instant) {
     let area = f.area();
@@ -54,7 +54,7 @@ pub fn render(app: &App, f: &mut ratatui::Frame, now: Instant) {
     let head: Vec<Line> = head.into_iter().map(|l| fit(l, w)).collect();
     f.render_widget(Paragraph::new(head), header);
     if app.overlay {
-        render_overlay(app, f, body);
+        super::overlay::render_overlay(app, f, body);
     } else {
         render_columns(app, f, body);
     }
@@ -66,7 +66,7 @@ pub fn render(app: &App, f: &mut ratatui::Frame, now: Instant) {
 
 /// Cuts a line to `width` cells, ending it with `…` where something was cut, so that a
 /// narrow terminal shows that there is more rather than a word cut short.
-fn fit(line: Line<'static>, width: usize) -> Line<'static> {
+pub(super) fn fit(line: Line<'static>, width: usize) -> Line<'static> {
     if line.width() <= width {
         return line;
     }
@@ -106,7 +106,7 @@ fn unicode_width(c: char) -> usize {
 
 /// How a channel is named on screen: fz is shown as its change from 1 g, as the algorithms
 /// and the metrics use it (0 in level flight).
-fn channel_label(ch: usize) -> &'static str {
+pub(super) fn channel_label(ch: usize) -> &'static str {
     match CHANNELS[ch % CHANNELS.len()] {
         "fz" => "Δfz",
         other => other,
@@ -416,7 +416,7 @@ fn footer_line(app: &App, now: Instant, width: usize) -> Line<'static> {
 }
 
 /// Lanes in display order: the order of [`AlgorithmId::ALL`], whatever order the engine holds.
-fn display_order(algs: &[AlgorithmId]) -> Vec<usize> {
+pub(super) fn display_order(algs: &[AlgorithmId]) -> Vec<usize> {
     let rank = |id: &AlgorithmId| {
         AlgorithmId::ALL
             .iter()
@@ -724,17 +724,17 @@ fn truncate(s: &str, n: usize) -> String {
 /// The selected channel's running numbers of one lane, when known: what `compare` decides by
 /// (false cues, jolts beyond the aircraft's, the felt error, and the score) and what it shows.
 #[derive(Clone, Copy, Debug)]
-struct LaneNumbers {
+pub(super) struct LaneNumbers {
     felt: f64,
     false_cue_s: f64,
     jolts: u64,
-    score: f64,
+    pub(super) score: f64,
     rae: f64,
     pc: f64,
     limiter: f64,
 }
 
-fn lane_metrics(app: &App, lane: usize) -> Option<LaneNumbers> {
+pub(super) fn lane_metrics(app: &App, lane: usize) -> Option<LaneNumbers> {
     let s = &app.snapshot;
     let id = s.algorithms.get(lane)?;
     let sum = s.summary.as_ref()?;
@@ -761,7 +761,12 @@ fn first_fitting(texts: Vec<String>, w: usize) -> String {
         .unwrap_or(last)
 }
 
-fn metric_lines(app: &App, lane: usize, frame: Option<&LaneFrame>, w: usize) -> Vec<Line<'static>> {
+pub(super) fn metric_lines(
+    app: &App,
+    lane: usize,
+    frame: Option<&LaneFrame>,
+    w: usize,
+) -> Vec<Line<'static>> {
     let th = &app.theme;
     let ch = channel_label(app.channel);
     let active = frame.is_some_and(|l| l.limiter_active);
@@ -870,7 +875,7 @@ fn compact_metrics(app: &App, lane: usize, frame: Option<&LaneFrame>, w: usize) 
 }
 
 /// Perceived channels are shown in m/s² and °/s.
-fn channel_scale(ch: usize) -> (f64, &'static str) {
+pub(super) fn channel_scale(ch: usize) -> (f64, &'static str) {
     let channel = Channel::ALL[ch];
     (channel.display_scale(), channel.unit())
 }
@@ -964,7 +969,7 @@ fn render_chart(
     f.render_widget(chart, plot);
 }
 
-fn fmt_axis(v: f64) -> String {
+pub(super) fn fmt_axis(v: f64) -> String {
     if v.abs() >= 100.0 {
         format!("{v:.0}")
     } else if v.abs() >= 10.0 {
@@ -974,188 +979,14 @@ fn fmt_axis(v: f64) -> String {
     }
 }
 
-fn line_of(marker: Marker, style: ratatui::style::Style, data: &[(f64, f64)]) -> Dataset<'_> {
+pub(super) fn line_of(
+    marker: Marker,
+    style: ratatui::style::Style,
+    data: &[(f64, f64)],
+) -> Dataset<'_> {
     Dataset::default()
         .marker(marker)
         .graph_type(GraphType::Line)
         .style(style)
         .data(data)
-}
-
-/// Each algorithm's marker in the overlaid view, so that the lines tell apart without colour.
-fn algorithm_marker(id: AlgorithmId) -> (Marker, &'static str) {
-    match id {
-        AlgorithmId::Smpc => (Marker::Braille, "⣿"),
-        AlgorithmId::Mpc => (Marker::Quadrant, "▞"),
-        AlgorithmId::Cwf => (Marker::Dot, "•"),
-    }
-}
-
-/// The overlaid view (`v`): one chart per channel, the selected one first, with the
-/// reference, the band of ± the perception threshold around it, and every algorithm's
-/// perceived signal; below, one line per algorithm with what `compare` decides by.
-fn render_overlay(app: &App, f: &mut ratatui::Frame, area: Rect) {
-    if area.height == 0 || area.width == 0 {
-        return;
-    }
-    let s = &app.snapshot;
-    let order = display_order(&s.algorithms);
-    if order.is_empty() {
-        f.render_widget(Paragraph::new("no algorithms"), area);
-        return;
-    }
-    // The numbers give way when there is no room for them and a chart.
-    let numbers_h = if usize::from(area.height) >= order.len() + 5 {
-        order.len()
-    } else {
-        0
-    };
-    let [charts_a, numbers_a] =
-        Layout::vertical([Constraint::Min(0), Constraint::Length(numbers_h as u16)]).areas(area);
-    let charts = (usize::from(charts_a.height) / (CHART_ROWS_EACH - 1)).clamp(1, CHANNELS.len());
-    let areas = Layout::vertical(vec![Constraint::Fill(1); charts]).split(charts_a);
-    for (i, &a) in areas.iter().enumerate() {
-        let ch = (app.channel + i) % CHANNELS.len();
-        render_overlay_chart(app, f, a, &order, ch);
-    }
-    let w = usize::from(area.width);
-    let lines: Vec<Line<'static>> = order
-        .iter()
-        .map(|&lane| {
-            let id = s.algorithms[lane];
-            let frame_lane = s.last.as_ref().and_then(|fr| fr.lanes.get(lane));
-            let mut spans = vec![Span::styled(
-                format!("{}{:<6}", algorithm_marker(id).1, id.label()),
-                app.theme.algorithm(id).add_modifier(Modifier::BOLD),
-            )];
-            spans.extend(
-                metric_lines(app, lane, frame_lane, w.saturating_sub(7))[0]
-                    .spans
-                    .clone(),
-            );
-            if let Some(n) = lane_metrics(app, lane) {
-                spans.push(Span::styled(
-                    format!("  score {:.2}", n.score),
-                    app.theme.text(),
-                ));
-            }
-            fit(Line::from(spans), w)
-        })
-        .collect();
-    f.render_widget(Paragraph::new(lines), numbers_a);
-}
-
-/// The y range of an overlaid chart (in the unit shown): the reference with its band and
-/// every lane's signal over the window.
-pub(crate) fn overlay_range(
-    s: &Snapshot,
-    lanes: &[usize],
-    ch: usize,
-    threshold: f64,
-) -> (f64, f64) {
-    let (scale, _) = channel_scale(ch);
-    let band = threshold.abs() * scale;
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for row in &s.window {
-        let r = f64::from(row.reference[ch]) * scale;
-        let lane_values = lanes
-            .iter()
-            .filter_map(|&l| row.lanes.get(l).map(|v| f64::from(v[ch]) * scale));
-        for v in [r - band, r + band].into_iter().chain(lane_values) {
-            if v.is_finite() {
-                lo = lo.min(v);
-                hi = hi.max(v);
-            }
-        }
-    }
-    if !lo.is_finite() || !hi.is_finite() {
-        (lo, hi) = (-1.0, 1.0);
-    }
-    let mid = 0.5 * (lo + hi);
-    let half = (0.5 * (hi - lo)).max(1e-6) * 1.1;
-    (mid - half, mid + half)
-}
-
-fn render_overlay_chart(app: &App, f: &mut ratatui::Frame, area: Rect, lanes: &[usize], ch: usize) {
-    let th = &app.theme;
-    let s = &app.snapshot;
-    let (scale, unit) = channel_scale(ch);
-    let band = app.thresholds[ch].abs() * scale;
-    let (lo, hi) = overlay_range(s, lanes, ch, app.thresholds[ch]);
-    let [caption, plot] = Layout::vertical([Constraint::Length(1), Constraint::Min(0)]).areas(area);
-    let series = |f: &dyn Fn(&super::player::WindowRow) -> Option<f64>| -> Vec<(f64, f64)> {
-        s.window
-            .iter()
-            .filter_map(|r| f(r).map(|v| (r.t_s, v)))
-            .collect()
-    };
-    let reference = series(&|r| Some(f64::from(r.reference[ch]) * scale));
-    let upper = series(&|r| Some(f64::from(r.reference[ch]) * scale + band));
-    let lower = series(&|r| Some(f64::from(r.reference[ch]) * scale - band));
-    let sims: Vec<(AlgorithmId, Vec<(f64, f64)>)> = lanes
-        .iter()
-        .map(|&l| {
-            let id = s.algorithms[l];
-            (
-                id,
-                series(&|r| r.lanes.get(l).map(|v| f64::from(v[ch]) * scale)),
-            )
-        })
-        .collect();
-    let t_end = s.window.last().map_or(0.0, |r| r.t_s).max(WINDOW_S);
-    // The band and the reference below, the algorithms drawn over them, the S-MPC last.
-    let mut datasets = vec![
-        line_of(Marker::Braille, th.band(), &upper),
-        line_of(Marker::Braille, th.band(), &lower),
-        line_of(Marker::Braille, th.reference(), &reference),
-    ];
-    for (id, data) in sims.iter().rev() {
-        datasets.push(line_of(algorithm_marker(*id).0, th.algorithm(*id), data));
-    }
-    let wide = plot.width >= 40;
-    let mut cap = vec![Span::styled(channel_label(ch).to_string(), th.key())];
-    if !wide {
-        cap.push(Span::styled(
-            format!(" {}…{}", fmt_axis(lo), fmt_axis(hi)),
-            th.dim(),
-        ));
-    }
-    cap.push(Span::styled(format!(" {unit} {WINDOW_S:.0} s"), th.dim()));
-    let mut legend = vec![
-        Span::styled(" ⣿ref", th.reference()),
-        Span::styled(" ⣀band", th.band()),
-    ];
-    for (id, _) in &sims {
-        legend.push(Span::styled(
-            format!(" {}{}", algorithm_marker(*id).1, id.label()),
-            th.algorithm(*id),
-        ));
-    }
-    cap.extend(legend);
-    f.render_widget(
-        Paragraph::new(fit(Line::from(cap), usize::from(caption.width))),
-        caption,
-    );
-    if plot.height < 2 || plot.width < 8 {
-        return;
-    }
-    let y_labels = if wide {
-        vec![Span::raw(fmt_axis(lo)), Span::raw(fmt_axis(hi))]
-    } else {
-        vec![]
-    };
-    let chart = Chart::new(datasets)
-        .x_axis(
-            Axis::default()
-                .bounds([t_end - WINDOW_S, t_end])
-                .style(th.dim()),
-        )
-        .y_axis(
-            Axis::default()
-                .bounds([lo, hi])
-                .labels(y_labels)
-                .style(th.dim()),
-        )
-        .legend_position(None);
-    f.render_widget(chart, plot);
 }
