@@ -137,7 +137,7 @@ impl App {
     }
 
     pub fn render(&self, frame: &mut ratatui::Frame) {
-        super::view::render(self, frame, Instant::now());
+        super::screen::render(self, frame, Instant::now());
     }
 }
 

@@ -16,6 +16,7 @@ mod help;
 pub mod live;
 mod overlay;
 pub mod params;
+mod screen;
 pub mod state;
 pub mod terminal;
 pub mod theme;

@@ -176,7 +176,7 @@ fn the_saved_recordings_path_is_on_screen_at_80x24() {
     let mut app = App::new(Arc::new(info), &profile, Theme::ANSI16);
     app.snapshot = Arc::new(s.clone());
     let mut t = Terminal::new(TestBackend::new(80, 24)).unwrap();
-    t.draw(|f| view::render(&app, f, now)).unwrap();
+    t.draw(|f| super::screen::render(&app, f, now)).unwrap();
     let text = screen(&t);
     let footer = rows(&text).pop().unwrap();
     assert!(

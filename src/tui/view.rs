@@ -1,5 +1,5 @@
-//! Drawing: header, one column per algorithm, footer, help overlay. Every size is handled by
-//! dropping detail (rows, then columns, then words), never by assuming room.
+//! Drawing: header, one column per algorithm, footer. Every size is handled by dropping
+//! detail (rows, then columns, then words), never by assuming room.
 
 use std::time::Instant;
 
@@ -23,46 +23,6 @@ use super::Theme;
 const MIN_COLUMN_W: u16 = 18;
 /// Rows a chart needs to be worth a second one below it.
 pub(super) const CHART_ROWS_EACH: usize = 8;
-
-pub fn render(app: &App, f: &mut ratatui::Frame, now: Instant) {
-    let area = f.area();
-    if area.width == 0 || area.height == 0 {
-        return;
-    }
-    if area.height < 5 || area.width < 20 {
-        // Room for a status line only: what is playing and where.
-        let w = usize::from(area.width);
-        let lines: Vec<Line> = vec![fit(status_line(app), w), fit(header_line2(app, w), w)];
-        f.render_widget(Paragraph::new(lines), area);
-        return;
-    }
-    let header_h = if area.height >= 12 { 2 } else { 1 };
-    let [header, body, footer] = Layout::vertical([
-        Constraint::Length(header_h),
-        Constraint::Min(0),
-        Constraint::Length(1),
-    ])
-    .areas(area);
-    let w = usize::from(area.width);
-    let mut head = vec![status_line(app)];
-    if header_h > 1 {
-        head.push(header_line2(app, w));
-    } else {
-        let room = w.saturating_sub(head[0].width());
-        head[0].spans.extend(header_line2(app, room).spans);
-    }
-    let head: Vec<Line> = head.into_iter().map(|l| fit(l, w)).collect();
-    f.render_widget(Paragraph::new(head), header);
-    if app.overlay {
-        super::overlay::render_overlay(app, f, body);
-    } else {
-        render_columns(app, f, body);
-    }
-    f.render_widget(Paragraph::new(fit(footer_line(app, now, w), w)), footer);
-    if app.help {
-        super::help::render_help(app, f, area);
-    }
-}
 
 /// Cuts a line to `width` cells, ending it with `…` where something was cut, so that a
 /// narrow terminal shows that there is more rather than a word cut short.
@@ -113,7 +73,7 @@ pub(super) fn channel_label(ch: usize) -> &'static str {
     }
 }
 
-fn status_line(app: &App) -> Line<'static> {
+pub(super) fn status_line(app: &App) -> Line<'static> {
     if let Some(live) = &app.live {
         return super::live::status_line(app, live);
     }
@@ -243,7 +203,7 @@ fn prioritised(mut items: Vec<Item>, width: usize) -> Line<'static> {
 /// The least of a file name worth showing: "…053800Z.mcap", the recording's time stamp.
 const MIN_TAIL: usize = 14;
 
-fn header_line2(app: &App, width: usize) -> Line<'static> {
+pub(super) fn header_line2(app: &App, width: usize) -> Line<'static> {
     if let Some(live) = &app.live {
         return super::live::header_line2(app, live);
     }
@@ -355,7 +315,7 @@ fn short_path(p: &str) -> &str {
     p.rsplit(['/', '\\']).next().unwrap_or(p)
 }
 
-fn footer_line(app: &App, now: Instant, width: usize) -> Line<'static> {
+pub(super) fn footer_line(app: &App, now: Instant, width: usize) -> Line<'static> {
     if let Some(live) = &app.live {
         return super::live::footer_line(app, live);
     }
@@ -428,7 +388,7 @@ pub(super) fn display_order(algs: &[AlgorithmId]) -> Vec<usize> {
     idx
 }
 
-fn render_columns(app: &App, f: &mut ratatui::Frame, area: Rect) {
+pub(super) fn render_columns(app: &App, f: &mut ratatui::Frame, area: Rect) {
     if area.height == 0 || area.width == 0 {
         return;
     }
