@@ -374,8 +374,10 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
         "cwf",
         "--drive",
         "cwf",
+        // The return after the loss takes up to the profile's 4.5 s and the session then
+        // engages again: 12 s leaves the stop to find it moving (at 8 s it raced the return).
         "--duration",
-        "8",
+        "12",
         "--record",
         mcap.to_str().unwrap(),
         "--foxglove",

@@ -11,7 +11,7 @@
 mod common;
 
 use std::net::UdpSocket;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -253,35 +253,9 @@ fn live_session_against_a_replayed_trace() {
     check_recording(dir.path(), commands.len());
 }
 
-/// target/jsbsim-venv with PyPI's `jsbsim`, made once; `None` where pip cannot install it.
-fn jsbsim_python() -> Option<PathBuf> {
-    let venv = repo().join("target/jsbsim-venv");
-    let python = venv.join("bin/python");
-    let ok = |c: &mut Command| {
-        c.stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .status()
-            .is_ok_and(|s| s.success())
-    };
-    if ok(Command::new(&python).args(["-c", "import jsbsim"])) {
-        return Some(python);
-    }
-    let made = ok(Command::new("python3").args(["-m", "venv"]).arg(&venv))
-        && ok(Command::new(venv.join("bin/pip")).args(["install", "--quiet", "jsbsim"]));
-    if made && ok(Command::new(&python).args(["-c", "import jsbsim"])) {
-        Some(python)
-    } else {
-        eprintln!(
-            "SKIPPED live_session_against_jsbsim: `python3 -m venv target/jsbsim-venv && \
-             target/jsbsim-venv/bin/pip install jsbsim` failed (no Python venv or no PyPI here)"
-        );
-        None
-    }
-}
-
 #[test]
 fn live_session_against_jsbsim() {
-    let Some(python) = jsbsim_python() else {
+    let Some(python) = python_venv("jsbsim-venv", &["jsbsim"], "import jsbsim") else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();

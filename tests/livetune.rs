@@ -10,10 +10,9 @@
 mod common;
 
 use std::io::{BufRead, BufReader};
-use std::net::UdpSocket;
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc, Mutex};
+use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 
 use ::foxglove::Decode;
@@ -28,42 +27,7 @@ const PATIENCE: Duration = Duration::from_secs(60);
 const AXIS_MPS2: f64 = 2.0;
 const ANGLE_DPS2: f64 = 30.0;
 
-type Commands = Arc<Mutex<Vec<Value>>>;
 type Socket = tungstenite::WebSocket<MaybeTlsStream<std::net::TcpStream>>;
-
-/// Collects the JSON commands sent to the returned port until `stop`.
-fn listen(stop: Arc<AtomicBool>) -> (u16, Commands, std::thread::JoinHandle<()>) {
-    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
-    let port = socket.local_addr().unwrap().port();
-    socket
-        .set_read_timeout(Some(Duration::from_millis(20)))
-        .unwrap();
-    let commands: Commands = Arc::default();
-    let into = commands.clone();
-    let handle = std::thread::spawn(move || {
-        let mut buf = [0u8; 65536];
-        loop {
-            let stopping = stop.load(Ordering::Relaxed);
-            match socket.recv_from(&mut buf) {
-                Ok((n, _)) => into
-                    .lock()
-                    .unwrap()
-                    .push(serde_json::from_slice(&buf[..n]).expect("a JSON command")),
-                Err(_) if stopping => break,
-                Err(_) => {}
-            }
-        }
-    });
-    (port, commands, handle)
-}
-
-fn wait_for(commands: &Commands, what: &str, ready: impl Fn(&[Value]) -> bool) {
-    let start = Instant::now();
-    while !ready(&commands.lock().unwrap()) {
-        assert!(start.elapsed() < PATIENCE, "no {what} after {PATIENCE:?}");
-        std::thread::sleep(Duration::from_millis(5));
-    }
-}
 
 fn vec6(c: &Value, key: &str) -> [f64; 6] {
     std::array::from_fn(|i| c[key][i].as_f64().unwrap_or_else(|| panic!("{key}: {c}")))
@@ -184,7 +148,7 @@ fn serving(stderr: &mpsc::Receiver<String>, seen: &mut Vec<String>) -> String {
 fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt() {
     let dir = tempfile::tempdir().unwrap();
     let stop = Arc::new(AtomicBool::new(false));
-    let (out_port, commands, listener) = listen(stop.clone());
+    let (out_port, commands, listener) = command_listener(stop.clone());
     let in_port = free_udp_port();
     let (mut child, stderr) = spawn(in_port, out_port, dir.path());
     let mut lines = Vec::new();
@@ -198,7 +162,7 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
             .contains(&json!("parameters")),
         "{info}"
     );
-    wait_for(&commands, "first command", |c| !c.is_empty());
+    wait_for_commands(&commands, PATIENCE, "first command", |c| !c.is_empty());
     // The steep turn from its roll-in: 25 s of manoeuvring, more than the session needs.
     let rows: Vec<Vec<f64>> = trace_rows("steep-turn.csv")
         .into_iter()
@@ -207,7 +171,7 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
         .collect();
     let sim = replay_jsbsim(in_port, rows);
     // A second of flight after the fade-in.
-    wait_for(&commands, "a second running", |c| {
+    wait_for_commands(&commands, PATIENCE, "a second running", |c| {
         c.iter().filter(|c| c["state"] == "running").count() >= 100
     });
 
@@ -254,7 +218,9 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
     });
     assert_eq!(parameter(&answer, "motion_gain"), Some(0.0), "{answer}");
     // 7 s more: the 5 s allowed and 2 s of staying there, the input still manoeuvring.
-    wait_for(&commands, "7 s after the change", |c| c.len() >= k0 + 700);
+    wait_for_commands(&commands, PATIENCE, "7 s after the change", |c| {
+        c.len() >= k0 + 700
+    });
     assert!(!sim.is_finished(), "the stand-in ran out before the check");
     signal_int(&child);
     let status = wait_child(&mut child);

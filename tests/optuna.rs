@@ -19,39 +19,16 @@ use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use common::{repo, stderr};
+use common::{python_venv, repo, stderr};
 use serde_json::Value;
 
 /// The venv's Python with Optuna, made once per test run: the tests run in parallel and must
 /// not both create the venv.
 fn optuna_python() -> Option<PathBuf> {
     static PYTHON: OnceLock<Option<PathBuf>> = OnceLock::new();
-    PYTHON.get_or_init(make_optuna_python).clone()
-}
-
-fn make_optuna_python() -> Option<PathBuf> {
-    let venv = repo().join("target/optuna-venv");
-    let python = venv.join("bin/python");
-    let ok = |c: &mut Command| {
-        c.stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .status()
-            .is_ok_and(|s| s.success())
-    };
-    if ok(Command::new(&python).args(["-c", "import optuna, cmaes"])) {
-        return Some(python);
-    }
-    let made = ok(Command::new("python3").args(["-m", "venv"]).arg(&venv))
-        && ok(Command::new(venv.join("bin/pip")).args(["install", "--quiet", "optuna", "cmaes"]));
-    if made && ok(Command::new(&python).args(["-c", "import optuna, cmaes"])) {
-        Some(python)
-    } else {
-        eprintln!(
-            "SKIPPED: `python3 -m venv target/optuna-venv && target/optuna-venv/bin/pip install \
-             optuna cmaes` failed (no Python venv or no PyPI here)"
-        );
-        None
-    }
+    PYTHON
+        .get_or_init(|| python_venv("optuna-venv", &["optuna", "cmaes"], "import optuna, cmaes"))
+        .clone()
 }
 
 struct Campaign {

@@ -14,7 +14,7 @@ use std::io::{BufRead, BufReader};
 use std::net::UdpSocket;
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use common::*;
@@ -24,49 +24,6 @@ const DT_S: f64 = 0.01;
 /// The bounds on the commanded acceleration during a transition.
 const AXIS_MPS2: f64 = 2.0;
 const ANGLE_DPS2: f64 = 30.0;
-
-/// The JSON commands received so far, shared with the listening thread.
-type Commands = Arc<Mutex<Vec<Value>>>;
-
-/// Collects the JSON commands sent to the returned port until `stop`.
-fn listen(stop: Arc<AtomicBool>) -> (u16, Commands, std::thread::JoinHandle<()>) {
-    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
-    let port = socket.local_addr().unwrap().port();
-    socket
-        .set_read_timeout(Some(Duration::from_millis(20)))
-        .unwrap();
-    let commands: Commands = Arc::default();
-    let into = commands.clone();
-    let handle = std::thread::spawn(move || {
-        let mut buf = [0u8; 65536];
-        loop {
-            let stopping = stop.load(Ordering::Relaxed);
-            match socket.recv_from(&mut buf) {
-                Ok((n, _)) => into
-                    .lock()
-                    .unwrap()
-                    .push(serde_json::from_slice(&buf[..n]).expect("a JSON command")),
-                // Stopped and nothing more on its way.
-                Err(_) if stopping => break,
-                Err(_) => {}
-            }
-        }
-    });
-    (port, commands, handle)
-}
-
-/// Waits until `ready` holds for the commands received, at most `bound`.
-fn wait_for(commands: &Commands, bound: Duration, what: &str, ready: impl Fn(&[Value]) -> bool) {
-    let start = Instant::now();
-    while !ready(&commands.lock().unwrap()) {
-        assert!(
-            start.elapsed() < bound,
-            "no {what} after {bound:?} ({} commands)",
-            commands.lock().unwrap().len()
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    }
-}
 
 /// The steep turn's roll reversal (37.5 s on: rates of 0.27 rad/s, load factor from 1.5 g
 /// to 0.9 g and back up to 2.2 g).
@@ -283,11 +240,11 @@ fn input_lost_mid_manoeuvre_returns_to_neutral_without_a_jolt() {
     let dir = tempfile::tempdir().unwrap();
     let summary = dir.path().join("live.json");
     let stop = Arc::new(AtomicBool::new(false));
-    let (out_port, commands, listener) = listen(stop.clone());
+    let (out_port, commands, listener) = command_listener(stop.clone());
     let in_port = free_udp_port();
     let child = hexcue_live(in_port, out_port, &summary);
     // It is up once its first command arrives (one leaves every step from the start).
-    wait_for(&commands, Duration::from_secs(60), "first command", |c| {
+    wait_for_commands(&commands, Duration::from_secs(60), "first command", |c| {
         !c.is_empty()
     });
     // 3 s of fade-in, then 3 s into the reversal, and silence.
@@ -297,11 +254,11 @@ fn input_lost_mid_manoeuvre_returns_to_neutral_without_a_jolt() {
         600,
         Arc::new(AtomicBool::new(false)),
     );
-    wait_for(&commands, Duration::from_secs(60), "washout", |c| {
+    wait_for_commands(&commands, Duration::from_secs(60), "washout", |c| {
         c.iter().any(|c| c["state"] == "washout")
     });
     // Parked, and a second more of commands at neutral.
-    wait_for(
+    wait_for_commands(
         &commands,
         Duration::from_secs(60),
         "parked after the washout",
@@ -345,10 +302,10 @@ fn sigint_mid_manoeuvre_returns_to_neutral_without_a_jolt() {
     let dir = tempfile::tempdir().unwrap();
     let summary = dir.path().join("live.json");
     let stop = Arc::new(AtomicBool::new(false));
-    let (out_port, commands, listener) = listen(stop.clone());
+    let (out_port, commands, listener) = command_listener(stop.clone());
     let in_port = free_udp_port();
     let child = hexcue_live(in_port, out_port, &summary);
-    wait_for(&commands, Duration::from_secs(60), "first command", |c| {
+    wait_for_commands(&commands, Duration::from_secs(60), "first command", |c| {
         !c.is_empty()
     });
     // The input keeps arriving throughout: the stop is the operator's, not the input's.
@@ -360,7 +317,7 @@ fn sigint_mid_manoeuvre_returns_to_neutral_without_a_jolt() {
         sending.clone(),
     );
     // 3 s of running after the fade-in: into the reversal.
-    wait_for(&commands, Duration::from_secs(60), "3 s of running", |c| {
+    wait_for_commands(&commands, Duration::from_secs(60), "3 s of running", |c| {
         c.iter().filter(|c| c["state"] == "running").count() >= 300
     });
     signal(&child, libc::SIGINT);
@@ -458,10 +415,10 @@ fn stop_mid_reversal(sigint: bool) -> (Measured, Value) {
     let dir = tempfile::tempdir().unwrap();
     let summary = dir.path().join("live.json");
     let stop = Arc::new(AtomicBool::new(false));
-    let (out_port, commands, listener) = listen(stop.clone());
+    let (out_port, commands, listener) = command_listener(stop.clone());
     let in_port = free_udp_port();
     let child = hexcue_live(in_port, out_port, &summary);
-    wait_for(&commands, Duration::from_secs(60), "first command", |c| {
+    wait_for_commands(&commands, Duration::from_secs(60), "first command", |c| {
         !c.is_empty()
     });
     let end_input = Arc::new(AtomicBool::new(false));
@@ -471,7 +428,7 @@ fn stop_mid_reversal(sigint: bool) -> (Measured, Value) {
         120.0,
         end_input.clone(),
     );
-    wait_for(
+    wait_for_commands(
         &commands,
         Duration::from_secs(60),
         "a running roll acceleration of 24 °/s²",
@@ -482,7 +439,7 @@ fn stop_mid_reversal(sigint: bool) -> (Measured, Value) {
         "estop"
     } else {
         end_input.store(true, Ordering::Relaxed);
-        wait_for(
+        wait_for_commands(
             &commands,
             Duration::from_secs(60),
             "parked after the washout",

@@ -5,7 +5,7 @@ use ratatui::layout::{Constraint, Layout, Rect};
 use ratatui::style::Modifier;
 use ratatui::symbols::Marker;
 use ratatui::text::{Line, Span};
-use ratatui::widgets::{Axis, Chart, Paragraph};
+use ratatui::widgets::Paragraph;
 
 use crate::mca::AlgorithmId;
 use crate::metrics::CHANNELS;
@@ -13,8 +13,8 @@ use crate::metrics::CHANNELS;
 use super::player::{Snapshot, WINDOW_S};
 use super::state::App;
 use super::view::{
-    channel_label, channel_scale, display_order, fit, fmt_axis, lane_metrics, line_of,
-    metric_lines, CHART_ROWS_EACH,
+    channel_label, channel_scale, display_order, draw_chart, fit, fmt_axis, lane_metrics, line_of,
+    metric_lines, ChartAreas, CHART_ROWS_EACH,
 };
 
 /// Each algorithm's marker in the overlaid view, so that the lines tell apart without colour.
@@ -167,30 +167,13 @@ fn render_overlay_chart(app: &App, f: &mut ratatui::Frame, area: Rect, lanes: &[
         ));
     }
     cap.extend(legend);
-    f.render_widget(
-        Paragraph::new(fit(Line::from(cap), usize::from(caption.width))),
-        caption,
+    draw_chart(
+        f,
+        th,
+        ChartAreas { caption, plot },
+        cap,
+        datasets,
+        (t_end, lo, hi),
+        wide,
     );
-    if plot.height < 2 || plot.width < 8 {
-        return;
-    }
-    let y_labels = if wide {
-        vec![Span::raw(fmt_axis(lo)), Span::raw(fmt_axis(hi))]
-    } else {
-        vec![]
-    };
-    let chart = Chart::new(datasets)
-        .x_axis(
-            Axis::default()
-                .bounds([t_end - WINDOW_S, t_end])
-                .style(th.dim()),
-        )
-        .y_axis(
-            Axis::default()
-                .bounds([lo, hi])
-                .labels(y_labels)
-                .style(th.dim()),
-        )
-        .legend_position(None);
-    f.render_widget(chart, plot);
 }

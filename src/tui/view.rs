@@ -901,6 +901,35 @@ fn render_chart(
     if cap_w + legend.iter().map(Span::width).sum::<usize>() <= usize::from(caption.width) {
         cap.extend(legend);
     }
+    draw_chart(
+        f,
+        th,
+        ChartAreas { caption, plot },
+        cap,
+        datasets,
+        (t_end, lo, hi),
+        wide,
+    );
+}
+
+/// Where a chart goes: its caption line and the plot under it.
+pub(super) struct ChartAreas {
+    pub caption: Rect,
+    pub plot: Rect,
+}
+
+/// Draws a chart's caption and, where there is room, its plot over the window ending at
+/// `t_end` with the y range `lo..hi` (labelled when `wide`). Both views draw their charts so.
+pub(super) fn draw_chart(
+    f: &mut ratatui::Frame,
+    th: &Theme,
+    areas: ChartAreas,
+    cap: Vec<Span<'static>>,
+    datasets: Vec<Dataset<'_>>,
+    (t_end, lo, hi): (f64, f64, f64),
+    wide: bool,
+) {
+    let ChartAreas { caption, plot } = areas;
     f.render_widget(
         Paragraph::new(fit(Line::from(cap), usize::from(caption.width))),
         caption,

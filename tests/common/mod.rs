@@ -338,3 +338,85 @@ pub fn write_trace(path: &Path, rate_hz: f64, duration_s: f64, sample: impl Fn(f
 pub fn quiet_sample() -> [f64; 9] {
     [0.0, 0.0, -9.81, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
 }
+
+/// A live session's JSON commands as they arrive, shared with the listening thread.
+pub type Commands = std::sync::Arc<std::sync::Mutex<Vec<serde_json::Value>>>;
+
+/// Collects the JSON commands sent to the returned port, readable while they come, until
+/// `stop` is set and nothing more is on its way.
+pub fn command_listener(
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> (u16, Commands, std::thread::JoinHandle<()>) {
+    let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let port = socket.local_addr().unwrap().port();
+    socket
+        .set_read_timeout(Some(std::time::Duration::from_millis(20)))
+        .unwrap();
+    let commands: Commands = std::sync::Arc::default();
+    let into = commands.clone();
+    let handle = std::thread::spawn(move || {
+        let mut buf = [0u8; 65536];
+        loop {
+            let stopping = stop.load(std::sync::atomic::Ordering::Relaxed);
+            match socket.recv_from(&mut buf) {
+                Ok((n, _)) => into
+                    .lock()
+                    .unwrap()
+                    .push(serde_json::from_slice(&buf[..n]).expect("a JSON command")),
+                // Stopped and nothing more on its way.
+                Err(_) if stopping => break,
+                Err(_) => {}
+            }
+        }
+    });
+    (port, commands, handle)
+}
+
+/// Waits until `ready` holds for the commands received, at most `bound`.
+pub fn wait_for_commands(
+    commands: &Commands,
+    bound: std::time::Duration,
+    what: &str,
+    ready: impl Fn(&[serde_json::Value]) -> bool,
+) {
+    let start = std::time::Instant::now();
+    while !ready(&commands.lock().unwrap()) {
+        assert!(
+            start.elapsed() < bound,
+            "no {what} after {bound:?} ({} commands)",
+            commands.lock().unwrap().len()
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+}
+
+/// The Python of a venv at target/`name` with `packages` from PyPI, made where it is missing;
+/// `None`, with the reason printed, where no venv or no PyPI is to be had. `import` is the
+/// statement that proves the venv is whole.
+pub fn python_venv(name: &str, packages: &[&str], import: &str) -> Option<PathBuf> {
+    let venv = repo().join("target").join(name);
+    let python = venv.join("bin/python");
+    let ok = |c: &mut Command| {
+        c.stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success())
+    };
+    if ok(Command::new(&python).args(["-c", import])) {
+        return Some(python);
+    }
+    let made = ok(Command::new("python3").args(["-m", "venv"]).arg(&venv))
+        && ok(Command::new(venv.join("bin/pip"))
+            .args(["install", "--quiet"])
+            .args(packages));
+    if made && ok(Command::new(&python).args(["-c", import])) {
+        Some(python)
+    } else {
+        eprintln!(
+            "SKIPPED: `python3 -m venv target/{name} && target/{name}/bin/pip install {}` failed \
+             (no Python venv or no PyPI here)",
+            packages.join(" ")
+        );
+        None
+    }
+}
