@@ -18,8 +18,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use ::foxglove::messages::Log;
-use ::foxglove::Decode;
 use common::*;
 use serde_json::Value;
 
@@ -357,17 +355,6 @@ fn a_rotary_rig_follows_the_crank_angles() {
         s.summary["live"]["actuators_limited_steps"].as_u64(),
         Some(0)
     );
-}
-
-/// The texts of the `/events` messages (`foxglove.Log`) of a recording.
-fn recorded_events(path: &Path) -> Vec<String> {
-    let bytes = std::fs::read(path).unwrap();
-    mcap::MessageStream::new(&bytes)
-        .unwrap()
-        .map(Result::unwrap)
-        .filter(|m| m.channel.topic == "/events")
-        .map(|m| Log::decode(&m.data[..]).unwrap().message)
-        .collect()
 }
 
 #[test]

@@ -336,21 +336,6 @@ fn channels_of(path: &std::path::Path) -> BTreeMap<String, String> {
         .collect()
 }
 
-/// The texts of the `/events` messages (`foxglove.Log`) of a recording.
-fn recorded_events(path: &std::path::Path) -> Vec<String> {
-    let bytes = std::fs::read(path).unwrap();
-    mcap::MessageStream::new(&bytes)
-        .unwrap()
-        .map(Result::unwrap)
-        .filter(|m| m.channel.topic == "/events")
-        .map(|m| {
-            ::foxglove::messages::Log::decode(&m.data[..])
-                .unwrap()
-                .message
-        })
-        .collect()
-}
-
 /// `hexcue live --headless --foxglove` against a simulator that sends level flight, pauses
 /// long enough for the input to be lost, resumes, and is still sending when --duration ends
 /// the session with a stop: a WebSocket client sees the recording's channels advertised,

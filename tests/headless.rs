@@ -349,29 +349,7 @@ fn a_recording_of_the_landing_takes_at_most_5_mb_a_minute_with_every_topic() {
     let stats = summary.stats.unwrap();
     assert_eq!(indexed as u64, stats.message_count, "every message indexed");
 
-    // Issue 38 item 12: each platform's 3D transforms at 30 Hz or more, evenly spaced, so
-    // that Foxglove's 3D panel plays the platforms back smoothly.
-    let mut tf_times: std::collections::BTreeMap<String, Vec<u64>> = Default::default();
-    for m in mcap::MessageStream::new(&bytes).unwrap() {
-        let m = m.unwrap();
-        if m.channel.topic.ends_with("/tf") {
-            tf_times
-                .entry(m.channel.topic.clone())
-                .or_default()
-                .push(m.log_time);
-        }
-    }
-    for alg in ["smpc", "mpc", "cwf"] {
-        let times = &tf_times[&format!("/{alg}/tf")];
-        let span_s = (times[times.len() - 1] - times[0]) as f64 * 1e-9;
-        let rate_hz = (times.len() - 1) as f64 / span_s;
-        let widest_s = times.windows(2).map(|w| w[1] - w[0]).max().unwrap() as f64 * 1e-9;
-        assert!(rate_hz >= 30.0, "/{alg}/tf at {rate_hz:.1} Hz");
-        assert!(
-            widest_s <= 1.0 / 30.0 + 1e-6,
-            "/{alg}/tf: a gap of {widest_s} s"
-        );
-    }
+    assert_transforms_at_30_hz(&bytes, "landing");
 }
 
 /// Issue 38, item 5: the README's RAE table of the horizontal stall is what

@@ -15,7 +15,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 
-use ::foxglove::Decode;
 use common::*;
 use serde_json::{json, Value};
 use tungstenite::client::IntoClientRequest;
@@ -74,21 +73,6 @@ fn parameter(msg: &Value, name: &str) -> Option<f64> {
         .iter()
         .find(|p| p["name"] == name)
         .and_then(|p| p["value"].as_f64())
-}
-
-/// The texts of the `/events` messages (`foxglove.Log`) of a recording.
-fn recorded_events(path: &std::path::Path) -> Vec<String> {
-    let bytes = std::fs::read(path).unwrap();
-    mcap::MessageStream::new(&bytes)
-        .unwrap()
-        .map(Result::unwrap)
-        .filter(|m| m.channel.topic == "/events")
-        .map(|m| {
-            ::foxglove::messages::Log::decode(&m.data[..])
-                .unwrap()
-                .message
-        })
-        .collect()
 }
 
 fn spawn(in_port: u16, out_port: u16, dir: &std::path::Path) -> (Child, mpsc::Receiver<String>) {

@@ -19,8 +19,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use ::foxglove::messages::Log;
-use ::foxglove::Decode;
 use common::*;
 use hexcue::sinks::moog::fake::{FakeBase, FakeBaseConfig, Received};
 use hexcue::sinks::moog::protocol::{mcw, BaseState};
@@ -160,17 +158,6 @@ fn event_time(err: &str, text: &str) -> f64 {
         .unwrap()
         .parse()
         .unwrap()
-}
-
-/// The texts of the `/events` messages (`foxglove.Log`) of a recording.
-fn recorded_events(path: &Path) -> Vec<String> {
-    let bytes = std::fs::read(path).unwrap();
-    mcap::MessageStream::new(&bytes)
-        .unwrap()
-        .map(Result::unwrap)
-        .filter(|m| m.channel.topic == "/events")
-        .map(|m| Log::decode(&m.data[..]).unwrap().message)
-        .collect()
 }
 
 #[test]

@@ -224,22 +224,6 @@ fn no_realtime_leaves_every_thread_alone_and_says_nothing() {
     assert_eq!(rt["sched_fifo"], Value::Bool(false), "{rt}");
 }
 
-/// The texts of the `/events` messages (`foxglove.Log`) of a recording.
-fn recorded_events(path: &Path) -> Vec<String> {
-    use prost::Message;
-    let bytes = std::fs::read(path).unwrap();
-    mcap::MessageStream::new(&bytes)
-        .unwrap()
-        .map(Result::unwrap)
-        .filter(|m| m.channel.topic == "/events")
-        .map(|m| {
-            foxglove::messages::Log::decode(&m.data[..])
-                .unwrap()
-                .message
-        })
-        .collect()
-}
-
 /// Where the OS refuses (here: a child with no real-time priority allowed, CAP_SYS_NICE and
 /// CAP_IPC_LOCK dropped, a 64 KiB memlock limit), the session runs on at normal priority and
 /// says why: on stderr, in the recording's `/events` and in the summary.

@@ -8,7 +8,6 @@
 
 mod common;
 
-use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::Path;
 
@@ -87,27 +86,7 @@ fn every_shipped_flight_records_its_platforms_at_30_hz_within_5_mb_a_minute() {
             ));
         }
 
-        let mut tf_times: BTreeMap<String, Vec<u64>> = BTreeMap::new();
-        for m in mcap::MessageStream::new(&bytes).unwrap() {
-            let m = m.unwrap();
-            if m.channel.topic.ends_with("/tf") {
-                tf_times
-                    .entry(m.channel.topic.clone())
-                    .or_default()
-                    .push(m.log_time);
-            }
-        }
-        for alg in ["smpc", "mpc", "cwf"] {
-            let times = &tf_times[&format!("/{alg}/tf")];
-            let span_s = (times[times.len() - 1] - times[0]) as f64 * 1e-9;
-            let rate_hz = (times.len() - 1) as f64 / span_s;
-            let widest_s = times.windows(2).map(|w| w[1] - w[0]).max().unwrap() as f64 * 1e-9;
-            assert!(rate_hz >= 30.0, "{name}: /{alg}/tf at {rate_hz:.1} Hz");
-            assert!(
-                widest_s <= 1.0 / 30.0 + 1e-6,
-                "{name}: /{alg}/tf has a gap of {widest_s} s"
-            );
-        }
+        assert_transforms_at_30_hz(&bytes, &name);
         checked += 1;
     }
     assert_eq!(checked, 5, "the five shipped flights");

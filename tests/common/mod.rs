@@ -420,3 +420,46 @@ pub fn python_venv(name: &str, packages: &[&str], import: &str) -> Option<PathBu
         None
     }
 }
+
+/// The texts of the `/events` messages (`foxglove.Log`) of a recording.
+pub fn recorded_events(path: &Path) -> Vec<String> {
+    use prost::Message;
+    let bytes = std::fs::read(path).unwrap();
+    mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(Result::unwrap)
+        .filter(|m| m.channel.topic == "/events")
+        .map(|m| {
+            ::foxglove::messages::Log::decode(&m.data[..])
+                .unwrap()
+                .message
+        })
+        .collect()
+}
+
+/// Issue 38 item 12: each platform's 3D transforms in the recording `bytes` at 30 Hz or
+/// more, with no gap over 1/30 s, so that Foxglove's 3D panel plays them back smoothly.
+/// `name` heads the messages.
+pub fn assert_transforms_at_30_hz(bytes: &[u8], name: &str) {
+    let mut tf_times: std::collections::BTreeMap<String, Vec<u64>> = Default::default();
+    for m in mcap::MessageStream::new(bytes).unwrap() {
+        let m = m.unwrap();
+        if m.channel.topic.ends_with("/tf") {
+            tf_times
+                .entry(m.channel.topic.clone())
+                .or_default()
+                .push(m.log_time);
+        }
+    }
+    for alg in ["smpc", "mpc", "cwf"] {
+        let times = &tf_times[&format!("/{alg}/tf")];
+        let span_s = (times[times.len() - 1] - times[0]) as f64 * 1e-9;
+        let rate_hz = (times.len() - 1) as f64 / span_s;
+        let widest_s = times.windows(2).map(|w| w[1] - w[0]).max().unwrap() as f64 * 1e-9;
+        assert!(rate_hz >= 30.0, "{name}: /{alg}/tf at {rate_hz:.1} Hz");
+        assert!(
+            widest_s <= 1.0 / 30.0 + 1e-6,
+            "{name}: /{alg}/tf has a gap of {widest_s} s"
+        );
+    }
+}
