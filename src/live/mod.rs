@@ -428,9 +428,9 @@ impl LiveSession {
             self.engine.reset_lanes();
         }
         self.engine.set_cue_gain(plan.cue_gain);
-        // Never wait for the lock on this thread: a change held up by another side's lock
-        // is applied a step later.
-        if let Ok(mut shared) = self.tuning.try_lock() {
+        // Never wait for the lock on this thread, and take it only when a change is queued:
+        // a change held up by another side's lock is applied a step later.
+        if let Some(mut shared) = self.tuning.try_lock_pending() {
             let texts = crate::tuning::apply_pending(
                 &mut shared,
                 &mut self.engine,

@@ -370,14 +370,81 @@ pub struct Shared {
 }
 
 /// The handle every side holds.
-pub type TuningHandle = std::sync::Arc<std::sync::Mutex<Shared>>;
+pub type TuningHandle = std::sync::Arc<Tuning>;
+
+/// The shared tuner behind its lock, with a flag saying whether changes are queued: the
+/// stepping loop reads the flag each step and takes the lock only when there is something
+/// to apply, so that no step takes a lock while nobody tunes.
+pub struct Tuning {
+    shared: std::sync::Mutex<Shared>,
+    pending: std::sync::atomic::AtomicBool,
+}
+
+/// The tuner could not be had: a side panicked while holding it.
+#[derive(Debug)]
+pub struct Poisoned;
+
+/// The locked tuner; on release it raises or clears [`Tuning`]'s flag by its queue.
+pub struct TuningGuard<'a> {
+    guard: std::sync::MutexGuard<'a, Shared>,
+    pending: &'a std::sync::atomic::AtomicBool,
+}
+
+impl std::ops::Deref for TuningGuard<'_> {
+    type Target = Shared;
+    fn deref(&self) -> &Shared {
+        &self.guard
+    }
+}
+
+impl std::ops::DerefMut for TuningGuard<'_> {
+    fn deref_mut(&mut self) -> &mut Shared {
+        &mut self.guard
+    }
+}
+
+impl Drop for TuningGuard<'_> {
+    fn drop(&mut self) {
+        self.pending.store(
+            !self.guard.pending.is_empty(),
+            std::sync::atomic::Ordering::Release,
+        );
+    }
+}
+
+impl Tuning {
+    /// Waits for the tuner (the console and the Foxglove server).
+    pub fn lock(&self) -> Result<TuningGuard<'_>, Poisoned> {
+        let guard = self.shared.lock().map_err(|_| Poisoned)?;
+        Ok(TuningGuard {
+            guard,
+            pending: &self.pending,
+        })
+    }
+
+    /// The tuner when changes are queued and nobody else holds it; `None` otherwise, at the
+    /// cost of one atomic load when nothing is queued (the stepping loop, each step).
+    pub fn try_lock_pending(&self) -> Option<TuningGuard<'_>> {
+        if !self.pending.load(std::sync::atomic::Ordering::Acquire) {
+            return None;
+        }
+        let guard = self.shared.try_lock().ok()?;
+        Some(TuningGuard {
+            guard,
+            pending: &self.pending,
+        })
+    }
+}
 
 impl Shared {
     pub fn handle(tuner: Tuner) -> TuningHandle {
-        std::sync::Arc::new(std::sync::Mutex::new(Shared {
-            tuner,
-            pending: Vec::new(),
-        }))
+        std::sync::Arc::new(Tuning {
+            shared: std::sync::Mutex::new(Shared {
+                tuner,
+                pending: Vec::new(),
+            }),
+            pending: std::sync::atomic::AtomicBool::new(false),
+        })
     }
 
     /// [`Tuner::set`], queued for the next step.
