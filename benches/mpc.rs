@@ -9,9 +9,9 @@
 
 use std::time::Instant;
 
-use hexcue::formats::profile::default_profile;
-use hexcue::mca::mpc::{Mpc, Terminal};
-use hexcue::mca::{CueInput, CueSample, PlatformCommand};
+use hexcue_core::mca::mpc::{Mpc, Terminal};
+use hexcue_core::mca::{CueInput, CueSample, PlatformCommand};
+use hexcue_core::profile::text::default_profile;
 use nalgebra::Vector3;
 
 fn manoeuvre(t: f64) -> CueSample {
@@ -64,7 +64,7 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 
 /// `MPC_BENCH=key=value,…` overrides `[mpc]` keys, to compare formulations without editing
 /// the profile: e.g. `MPC_BENCH=leg_constraint_stride=2,coarse_steps=3`.
-fn profile() -> hexcue::profile::Profile {
+fn profile() -> hexcue_core::profile::Profile {
     let mut profile = default_profile();
     let Ok(spec) = std::env::var("MPC_BENCH") else {
         return profile;

@@ -5,13 +5,13 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use hexcue::engine::Engine;
-use hexcue::formats::profile::default_profile;
 use hexcue::formats::recording::{Recorder, RecordingMeta};
 use hexcue::formats::trace::load_trace;
-use hexcue::mca::{AlgorithmId, CueInput, PlatformCommand};
-use hexcue::metrics::TimeHistogram;
-use hexcue::summary::SummaryBuilder;
+use hexcue_core::engine::Engine;
+use hexcue_core::mca::{AlgorithmId, CueInput, PlatformCommand};
+use hexcue_core::metrics::TimeHistogram;
+use hexcue_core::profile::text::default_profile;
+use hexcue_core::summary::SummaryBuilder;
 
 fn repo(path: &str) -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
@@ -33,7 +33,7 @@ fn main() {
         .trace
         .samples
         .iter()
-        .map(|s| hexcue::engine::cue_sample(&profile, s))
+        .map(|s| hexcue_core::engine::cue_sample(&profile, s))
         .collect();
     let applied = PlatformCommand::default();
     let mut hist = TimeHistogram::default();
@@ -71,7 +71,7 @@ fn main() {
         let mut recorder = record.then(|| {
             let meta = RecordingMeta {
                 profile_name: profile.name.clone(),
-                profile_toml: hexcue::formats::profile::DEFAULT_PROFILE_TOML.to_string(),
+                profile_toml: hexcue_core::profile::text::DEFAULT_PROFILE_TOML.to_string(),
                 trace_name: tr.name.clone(),
                 trace_csv: trace.text.clone(),
                 trace_sidecar: None,

@@ -6,11 +6,11 @@
 use std::io::Write;
 use std::sync::Arc;
 
-use hexcue::engine::Frame;
-use hexcue::formats::profile::default_profile;
-use hexcue::mca::AlgorithmId;
-use hexcue::trace::{AircraftSample, Trace};
 use hexcue::tui::{self, FrameSink, LiveConfig, RecordingRequest};
+use hexcue_core::engine::Frame;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::text::default_profile;
+use hexcue_core::trace::{AircraftSample, Trace};
 use nalgebra::Vector3;
 
 /// Writes `t fx_ref fx_perceived...` per frame: enough to see what was recorded and when.
@@ -50,7 +50,7 @@ fn synthetic_trace() -> Trace {
                 specific_force_mps2: Vector3::new(
                     2.0 * s * (t * 0.13).cos(),
                     1.5 * (t * 0.25).sin(),
-                    -hexcue::G_MPS2 - 1.0 * (t * 0.9).sin() * s,
+                    -hexcue_core::G_MPS2 - 1.0 * (t * 0.9).sin() * s,
                 ),
                 angular_velocity_radps: Vector3::new(
                     0.1 * (t * 0.7).sin(),

@@ -5,10 +5,11 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use hexcue::engine::Engine;
-use hexcue::formats::profile::{default_profile, load_profile};
+use hexcue::formats::profile::load_profile;
 use hexcue::formats::trace::load_trace;
-use hexcue::mca::AlgorithmId;
+use hexcue_core::engine::Engine;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::text::default_profile;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();

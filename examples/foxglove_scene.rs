@@ -11,8 +11,8 @@ use std::collections::BTreeMap;
 use anyhow::{anyhow, bail, Context, Result};
 use foxglove::messages::{Color as FgColor, FrameTransforms, Point3, Pose, SceneUpdate};
 use foxglove::Decode;
-use hexcue::mca::AlgorithmId;
 use hexcue::plot::{algorithm_color, register_font, FONT, REFERENCE_COLOR};
+use hexcue_core::mca::AlgorithmId;
 use nalgebra::{Isometry3, Point3 as P3, Translation3, UnitQuaternion, Vector3};
 use plotters::prelude::*;
 

@@ -5,13 +5,13 @@
 
 use std::time::Instant;
 
-use hexcue::formats::profile::default_profile;
-use hexcue::mca::mpc::{Mpc, Terminal};
-use hexcue::mca::washout::Washout;
-use hexcue::mca::{CueInput, CueSample, MotionCueing, PlatformCommand};
-use hexcue::model::stewart::head_motion;
-use hexcue::model::vestibular::Vestibular;
-use hexcue::G_MPS2;
+use hexcue_core::mca::mpc::{Mpc, Terminal};
+use hexcue_core::mca::washout::Washout;
+use hexcue_core::mca::{CueInput, CueSample, MotionCueing, PlatformCommand};
+use hexcue_core::model::stewart::head_motion;
+use hexcue_core::model::vestibular::Vestibular;
+use hexcue_core::profile::text::default_profile;
+use hexcue_core::G_MPS2;
 use nalgebra::Vector3;
 
 /// One algorithm step: the command and whether its QP (if any) was solved.

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::{Args, Parser, Subcommand};
 
-use crate::mca::AlgorithmId;
+use hexcue_core::mca::AlgorithmId;
 
 #[derive(Parser, Debug)]
 #[command(name = "hexcue", version, about = "Motion cueing console for 6-DoF Stewart-platform flight simulators: \
@@ -292,7 +292,7 @@ pub fn parse_channels(list: &[String]) -> Result<[bool; 6]> {
     let mut mask = [false; 6];
     for name in list {
         let key = name.trim().to_ascii_lowercase();
-        match crate::vocab::Channel::ALL
+        match hexcue_core::vocab::Channel::ALL
             .iter()
             .position(|c| c.key() == key)
         {
@@ -559,8 +559,8 @@ pub fn parse_algorithms(names: &[String]) -> Result<Vec<AlgorithmId>> {
 }
 
 /// Parses `--tests`: every test when none is named, in the standard's order.
-pub fn parse_tests(names: &[String]) -> Result<Vec<crate::omct::OmctTest>> {
-    use crate::omct::OmctTest;
+pub fn parse_tests(names: &[String]) -> Result<Vec<hexcue_core::omct::OmctTest>> {
+    use hexcue_core::omct::OmctTest;
     let mut out = parse_keys(names, "--tests", "test", &OmctTest::ALL, OmctTest::key)?;
     if out.is_empty() {
         out = OmctTest::ALL.to_vec();

@@ -1,49 +1,29 @@
-//! hexcue: motion cueing for 6-DoF Stewart-platform flight simulators.
+//! hexcue: the terminal console and command line for motion cueing on 6-DoF Stewart-platform
+//! flight simulators.
 //!
-//! The core (`model`, `actuators`, `mca`, `metrics`, `engine`, `source`, `safety`, `profile`, `trace`,
-//! `omct`) does no I/O; `formats`, `sources`, `sinks`, `live`, `foxglove`, `plot` and `tui`
-//! adapt it to files, sockets, the terminal and Foxglove. `cli` (the arguments) and `app`
-//! (one file per command) are the binary's edge, private to the crate and reached through
-//! [`run_cli`]; nothing in the library imports them. Frames and units: docs/design.md §1 and
-//! `docs/design.md`.
+//! The algorithms, models, score and engine are the `hexcue-core` crate, which does no I/O;
+//! this crate adapts them to files (`formats`), simulators (`sources`), platforms (`sinks`),
+//! the live loop (`live`), Foxglove (`foxglove`), plots (`plot`) and the terminal (`tui`).
+//! `cli` (the arguments) and `app` (one file per command) are the binary's edge, private to
+//! the crate and reached through [`run_cli`]; nothing in the library imports them. Frames
+//! and units: docs/design.md §1.
 
-pub mod actuators;
 pub(crate) mod app;
-pub mod bound;
-pub mod bumpless;
 pub mod channels;
 pub(crate) mod cli;
 pub mod compare;
-pub mod engine;
-pub mod events;
 pub(crate) mod export;
 pub mod formats;
 pub mod foxglove;
-pub mod jolts;
 pub mod live;
-pub mod mca;
-pub mod metrics;
-pub mod model;
-pub mod omct;
 pub(crate) mod outputs;
 pub mod plot;
-pub mod profile;
-pub mod qp;
-pub mod safety;
-pub mod score;
 pub mod session;
 pub mod sinks;
-pub mod source;
 pub mod sources;
-pub mod summary;
-pub mod trace;
 pub mod tui;
 pub(crate) mod tune;
 pub mod tuning;
-pub mod vocab;
-
-/// Standard gravity (m/s²).
-pub const G_MPS2: f64 = 9.80665;
 
 /// The `hexcue` command: parses the arguments, runs the command and turns an error into the
 /// message and exit status the binary reports. The command-line modules (`cli`, `app`,

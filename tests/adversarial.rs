@@ -10,11 +10,12 @@
 
 use std::sync::Arc;
 
-use hexcue::engine::{Engine, Frame};
-use hexcue::formats::profile::{default_profile, load_profile};
-use hexcue::mca::{AlgorithmId, PlatformCommand};
-use hexcue::profile::{DofLimits, Profile};
-use hexcue::trace::{AircraftSample, Trace};
+use hexcue::formats::profile::load_profile;
+use hexcue_core::engine::{Engine, Frame};
+use hexcue_core::mca::{AlgorithmId, PlatformCommand};
+use hexcue_core::profile::text::default_profile;
+use hexcue_core::profile::{DofLimits, Profile};
+use hexcue_core::trace::{AircraftSample, Trace};
 use nalgebra::{Vector3, Vector6};
 use proptest::prelude::*;
 

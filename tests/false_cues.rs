@@ -130,9 +130,9 @@ fn no_mpc_feels_turbulence_the_wrong_way_longer_than_the_washout() {
 /// perception threshold, on any channel, through the stall and the reversal.
 #[test]
 fn the_smpc_does_not_jolt_the_wrong_way_at_the_stalls_sway_reversal() {
-    use hexcue::engine::Engine;
-    use hexcue::formats::profile::default_profile;
-    use hexcue::mca::AlgorithmId;
+    use hexcue_core::engine::Engine;
+    use hexcue_core::mca::AlgorithmId;
+    use hexcue_core::profile::text::default_profile;
 
     let mut profile = default_profile();
     // Judge the algorithm, not the machine's load (as the core's tests do).

@@ -31,7 +31,7 @@ struct Limits {
 }
 
 fn limits() -> Limits {
-    let p = hexcue::formats::profile::default_profile();
+    let p = hexcue_core::profile::text::default_profile();
     let l = p.limits.si();
     Limits {
         excursion: l.excursion.into(),

@@ -19,7 +19,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use common::*;
-use hexcue::engine::Frame;
+use hexcue_core::engine::Frame;
 
 // ---------------------------------------------------------------------------------------------
 // A reader of the XML FlightGear's protocol files use (elements, text, comments, the XML
@@ -282,7 +282,7 @@ fn frames(dir: &Path) -> Vec<Frame> {
 /// The recording's `/aircraft` before the first sample: the held sample at rest.
 fn at_rest(f: &Frame) -> bool {
     let a = &f.aircraft;
-    a.specific_force_mps2 == nalgebra::Vector3::new(0.0, 0.0, -hexcue::G_MPS2)
+    a.specific_force_mps2 == nalgebra::Vector3::new(0.0, 0.0, -hexcue_core::G_MPS2)
         && a.angular_velocity_radps == nalgebra::Vector3::zeros()
         && a.attitude_rad == nalgebra::Vector3::zeros()
 }

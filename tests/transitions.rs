@@ -230,7 +230,7 @@ fn check_summary(summary: &Value, count: u64) {
 }
 
 fn return_time_s() -> f64 {
-    hexcue::formats::profile::default_profile()
+    hexcue_core::profile::text::default_profile()
         .safety
         .return_time_s
 }

@@ -8,7 +8,7 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    if let Ok(profile) = hexcue::formats::profile::parse_profile(text, "fuzz.toml") {
+    if let Ok(profile) = hexcue_core::profile::text::parse_profile(text, "fuzz.toml") {
         // What the engine does first with a profile: it must not panic either.
         let stewart = profile.stewart();
         let neutral = nalgebra::Vector6::zeros();

@@ -16,7 +16,7 @@ fuzz_target!(|data: &[u8]| {
     };
     if let Ok(trace) = hexcue::formats::trace::parse_trace(text, "fuzz.csv", "fuzz", rate_hz) {
         assert!(trace.samples.len() >= 2, "accepted a trace of fewer than two samples");
-        assert!(trace.samples.len() <= hexcue::trace::MAX_TRACE_SAMPLES);
+        assert!(trace.samples.len() <= hexcue_core::trace::MAX_TRACE_SAMPLES);
         for (k, s) in trace.samples.iter().enumerate() {
             assert!(
                 s.specific_force_mps2.iter().all(|v| v.is_finite())

@@ -9,17 +9,18 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 
 use crate::app::common::{inputs, print_stdout};
-use crate::bound::{Bound, BoundDetails};
 use crate::cli::{parse_algorithms, parse_channels, BoundArgs};
-use crate::engine::Engine;
-use crate::formats::profile::{default_profile, load_profile};
+use crate::formats::profile::load_profile;
 use crate::formats::trace::load_trace_within;
-use crate::mca::AlgorithmId;
 use crate::outputs::check_output_of;
-use crate::profile::Profile;
-use crate::summary::{Summary, SummaryBuilder};
-use crate::trace::Trace;
-use crate::vocab::Channel;
+use hexcue_core::bound::{Bound, BoundDetails};
+use hexcue_core::engine::Engine;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::text::default_profile;
+use hexcue_core::profile::Profile;
+use hexcue_core::summary::{Summary, SummaryBuilder};
+use hexcue_core::trace::Trace;
+use hexcue_core::vocab::Channel;
 
 /// The JSON of `hexcue bound --json`.
 #[derive(Serialize)]
@@ -84,7 +85,7 @@ pub fn bound_of_summary(
             channel_errors(&run, AlgorithmId::Cwf).context("the CWF did not run")?
         }
     };
-    Ok(crate::bound::bound(profile, trace, &cwf, [true; 6])?)
+    Ok(hexcue_core::bound::bound(profile, trace, &cwf, [true; 6])?)
 }
 
 /// The yardstick on a loaded trace: the CWF first (dominance needs its errors), then the
@@ -105,7 +106,7 @@ pub fn bound_with_algorithms(
     let (bound, summary) = rayon::join(
         || {
             let started = Instant::now();
-            crate::bound::bound(profile, trace, &cwf_error, alone)
+            hexcue_core::bound::bound(profile, trace, &cwf_error, alone)
                 .map(|(b, d)| (b, d, started.elapsed().as_secs_f64()))
         },
         || run_algorithms(profile, trace, &others),

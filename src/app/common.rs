@@ -10,8 +10,8 @@ use std::sync::Arc;
 use anyhow::{bail, Context, Result};
 
 use crate::outputs::{check_distinct, check_not_input, check_output_of, Input};
-use crate::summary::Summary;
-use crate::vocab::Channel;
+use hexcue_core::summary::Summary;
+use hexcue_core::vocab::Channel;
 
 /// Set by SIGINT, SIGTERM or SIGHUP so that a headless run stops cleanly and finishes its
 /// recording.
@@ -114,7 +114,7 @@ pub fn format_table(s: &Summary) -> String {
         out.push_str(&format!(
             "ED >{0:.2} or <-{0:.2}: the best lag is at the edge of the ±{0:.2} s searched, so the \
              delay is at least that, if the signals are related at all.\n",
-            crate::summary::MAX_LAG_S
+            hexcue_core::summary::MAX_LAG_S
         ));
     }
     out.push('\n');
@@ -133,7 +133,7 @@ pub fn format_table(s: &Summary) -> String {
             alg.step_time_us.p99,
             alg.step_time_us.max
         ));
-        let dofs: Vec<String> = crate::summary::DOFS
+        let dofs: Vec<String> = hexcue_core::summary::DOFS
             .iter()
             .map(|d| {
                 format!(
@@ -194,7 +194,7 @@ pub fn format_table(s: &Summary) -> String {
 
 /// Per algorithm and channel the error above the bound's `lower` (the cueable error), and the
 /// share of the CWF's cueable error each other algorithm removes (docs/bound.md).
-fn bound_lines(s: &Summary, b: &crate::bound::Bound) -> String {
+fn bound_lines(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
     let mut out = format!(
         "\nbound: lower {:.4} (joint), achieved {:.4} (limiter {:.2} %, {} leg violations); \
          dominance over the CWF {}{}\n",
@@ -266,7 +266,7 @@ fn bound_lines(s: &Summary, b: &crate::bound::Bound) -> String {
 }
 
 /// The transitions to neutral, and any that braked harder than the gentle limits.
-fn transitions_line(t: &crate::summary::TransitionSummary) -> String {
+fn transitions_line(t: &hexcue_core::summary::TransitionSummary) -> String {
     let mut line = format!(
         "transitions to neutral: {}, the longest {:.2} s; ",
         t.count, t.longest_s
@@ -293,7 +293,7 @@ fn transitions_line(t: &crate::summary::TransitionSummary) -> String {
 }
 
 /// How the stepping thread ran, and what its sinks missed.
-fn realtime_line(l: &crate::summary::LiveSummary) -> String {
+fn realtime_line(l: &hexcue_core::summary::LiveSummary) -> String {
     let rt = &l.realtime;
     let mut parts = vec![match (rt.requested, rt.sched_fifo) {
         (false, _) => "normal priority (--no-realtime)".to_string(),
@@ -383,8 +383,8 @@ pub fn check_session_outputs(
 }
 
 /// A profile file loaded as every command loads one: validated, and with a warning for each
-/// setting the platform cannot honour ([`crate::profile::Profile::warnings`]).
-pub fn load_profile_warned(path: &Path) -> Result<(crate::profile::Profile, String)> {
+/// setting the platform cannot honour ([`hexcue_core::profile::Profile::warnings`]).
+pub fn load_profile_warned(path: &Path) -> Result<(hexcue_core::profile::Profile, String)> {
     let (profile, text) = crate::formats::profile::load_profile(path)?;
     for w in profile.warnings() {
         eprintln!("warning: {}: {w}", path.display());

@@ -7,22 +7,22 @@ use anyhow::{bail, Context, Result};
 
 use crate::app::common::{inputs, print_stdout, progress_bar, progress_line, stop_flag};
 use crate::cli::{parse_algorithms, CompareArgs};
-use crate::engine::Engine;
-use crate::formats::profile::default_profile;
 use crate::formats::trace::load_trace_within;
 use crate::outputs::check_output_of;
 use crate::session::{FrameSink, Runner, SinkFailure};
 use crate::sinks::recorder::ProgressSink;
-use crate::summary::Summary;
-use crate::vocab::AlgorithmId;
+use hexcue_core::engine::Engine;
+use hexcue_core::profile::text::default_profile;
+use hexcue_core::summary::Summary;
+use hexcue_core::vocab::AlgorithmId;
 
 /// The suffix of an algorithm's key in the report when it ran with the flight's future.
 pub const PREVIEW_SUFFIX: &str = "-preview";
 
 /// One run of `algorithms` over `trace`, its progress shown on `bar` from `done` steps on.
 fn run_one(
-    profile: &crate::profile::Profile,
-    trace: &Arc<crate::trace::Trace>,
+    profile: &hexcue_core::profile::Profile,
+    trace: &Arc<hexcue_core::trace::Trace>,
     algorithms: &[AlgorithmId],
     bar: &indicatif::ProgressBar,
     done: usize,
@@ -67,7 +67,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
     }
     // Every trace is read and checked before the first is run: a bad one at the end of the
     // folder must not cost the runs before it.
-    let traces: Vec<crate::trace::Trace> = match &args.traces {
+    let traces: Vec<hexcue_core::trace::Trace> = match &args.traces {
         Some(dir) => {
             let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
                 .with_context(|| format!("{}: cannot list the traces folder", dir.display()))?

@@ -20,20 +20,20 @@ use toml_edit::DocumentMut;
 use crate::app::common::{load_profile_warned, stop_flag};
 use crate::app::tune::{add_header, parse_algorithm, trace_files};
 use crate::cli::EvalArgs;
-use crate::formats::profile::{parse_profile, DEFAULT_PROFILE_SOURCE, DEFAULT_PROFILE_TOML};
 use crate::formats::trace::load_trace_within;
-use crate::mca::AlgorithmId;
 use crate::outputs::{check_distinct, check_output_of, Input};
-use crate::profile::Profile;
-use crate::score::ScoreTerms;
-use crate::summary::AlgorithmSummary;
-use crate::trace::Trace;
 use crate::tune::set::{apply_all, Setting};
 use crate::tune::validate::{self, Validated};
 use crate::tune::{
     default_budget, default_step, keys, limiter_bounds, score_ceilings, tunable_keys, Candidate,
     Evaluator, TraceOutcome, LIMITER_TOLERANCE,
 };
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::text::{parse_profile, DEFAULT_PROFILE_SOURCE, DEFAULT_PROFILE_TOML};
+use hexcue_core::profile::Profile;
+use hexcue_core::score::ScoreTerms;
+use hexcue_core::summary::AlgorithmSummary;
+use hexcue_core::trace::Trace;
 
 /// `hexcue eval --space`: the keys `tune` searches for an algorithm, as a runner needs them.
 #[derive(Serialize)]
@@ -668,7 +668,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     eprintln!(
         "{} on {}: mean score {:.4} (base {:.4}), objective {:.4}{}; {}; wrote {} in {:.2} s",
         algorithm.label(),
-        crate::vocab::plural(flights.len() as u64, "flight"),
+        hexcue_core::vocab::plural(flights.len() as u64, "flight"),
         result.mean_score,
         result.base_mean_score,
         result.objective,

@@ -63,8 +63,8 @@ pub fn run(args: &ExportArgs) -> Result<()> {
         eprintln!(
             "wrote {} ({}, {})",
             w.path,
-            crate::vocab::plural(w.rows as u64, "row"),
-            crate::vocab::plural(w.columns as u64, "column")
+            hexcue_core::vocab::plural(w.rows as u64, "row"),
+            hexcue_core::vocab::plural(w.columns as u64, "column")
         );
     }
     Ok(())

@@ -10,12 +10,12 @@ use anyhow::{bail, Context, Result};
 use crate::app::common::{check_session_outputs, headless_or_console, inputs, stop_flag};
 use crate::app::play::start_foxglove;
 use crate::cli::{parse_algorithms, LiveArgs};
-use crate::formats::profile::{default_profile, DEFAULT_PROFILE_TOML};
-use crate::mca::AlgorithmId;
-use crate::profile::Profile;
-use crate::summary::Summary;
 use crate::tui::terminal::{exit_for_signal, require_terminal, TerminalSignals};
 use crate::tui::{self, SessionInfo};
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::text::{default_profile, DEFAULT_PROFILE_TOML};
+use hexcue_core::profile::Profile;
+use hexcue_core::summary::Summary;
 
 /// The whole command: the outputs checked, the session headless or in the console, then a
 /// failure (platform fault, no input) reported after the summary.

@@ -7,12 +7,12 @@ use anyhow::{Context, Result};
 
 use crate::app::common::{check_folder_outputs, inputs, progress_bar};
 use crate::cli::{parse_algorithms, parse_tests, OmctArgs};
-use crate::formats::profile::default_profile;
 use crate::outputs::{check_output_dir, create_output_dir};
+use hexcue_core::profile::text::default_profile;
 
 pub fn run(args: &OmctArgs) -> Result<()> {
     use crate::formats::omct::OmctReport;
-    use crate::omct::{frequency_subset, run_all};
+    use hexcue_core::omct::{frequency_subset, run_all};
 
     let profile = match &args.profile {
         Some(path) => crate::app::common::load_profile_warned(path)?.0,

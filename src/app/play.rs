@@ -10,18 +10,18 @@ use crate::app::common::{
     check_session_outputs, headless_or_console, inputs, progress_bar, stop_flag,
 };
 use crate::cli::{parse_algorithms, PlayArgs};
-use crate::engine::Engine;
-use crate::formats::profile::{default_profile, DEFAULT_PROFILE_TOML};
 use crate::formats::recording::{Recorder, RecordingMeta};
 use crate::formats::trace::default_trace;
 use crate::foxglove::FoxgloveServer;
-use crate::mca::AlgorithmId;
-use crate::profile::Profile;
 use crate::session::{player, FrameSink, Runner, SinkFailure};
 use crate::sinks::recorder::{McapSink, ProgressSink, Quiet};
-use crate::summary::Summary;
 use crate::tui::terminal::{exit_for_signal, require_terminal};
 use crate::tui::{self, LiveConfig, SessionInfo};
+use hexcue_core::engine::Engine;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::text::{default_profile, DEFAULT_PROFILE_TOML};
+use hexcue_core::profile::Profile;
+use hexcue_core::summary::Summary;
 
 /// The whole command: the outputs checked, then headless (summary, table) or the console.
 pub fn run(args: &PlayArgs) -> Result<()> {
@@ -59,11 +59,11 @@ pub fn load_play(args: &PlayArgs) -> Result<(Profile, String, Vec<AlgorithmId>)>
 /// A play session's samples, streamed from the trace file (or the embedded trace), with
 /// what the user is told about it.
 pub struct PlaySource {
-    pub source: Box<dyn crate::source::SampleSource>,
+    pub source: Box<dyn hexcue_core::source::SampleSource>,
     pub name: String,
     pub len: usize,
     pub notices: Vec<String>,
-    pub info: Option<crate::trace::TraceInfo>,
+    pub info: Option<hexcue_core::trace::TraceInfo>,
 }
 
 /// Opens `--trace` as a stream: checked whole on a first pass, then read as it is stepped, so
@@ -88,7 +88,7 @@ pub fn open_play_source(args: &PlayArgs, rate_hz: f64) -> Result<PlaySource> {
                 len: trace.len(),
                 notices: trace.notices.clone(),
                 info: trace.info.clone(),
-                source: Box::new(crate::source::TraceSamples::new(Arc::new(trace))),
+                source: Box::new(hexcue_core::source::TraceSamples::new(Arc::new(trace))),
             }
         }
     })
@@ -200,7 +200,11 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
 
 /// The yardstick of the played flight, with the CWF's errors from the run when it was in
 /// it (otherwise from a CWF run of its own).
-fn bound_of(args: &PlayArgs, profile: &Profile, summary: &Summary) -> Result<crate::bound::Bound> {
+fn bound_of(
+    args: &PlayArgs,
+    profile: &Profile,
+    summary: &Summary,
+) -> Result<hexcue_core::bound::Bound> {
     let trace = match &args.trace {
         Some(path) => {
             crate::formats::trace::load_trace_within(path, profile.rate_hz, args.max_trace_mb)?

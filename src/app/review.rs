@@ -11,16 +11,16 @@ use anyhow::{bail, Result};
 use crate::app::common::{headless_or_console, stop_flag};
 use crate::app::play::start_foxglove;
 use crate::cli::ReviewArgs;
-use crate::engine::Frame;
 use crate::formats::recording::Recording;
 use crate::outputs::{check_output_of, Input};
-use crate::profile::Profile;
 use crate::session::{player, FrameSink, RecordedFrames, Runner, SinkFailure};
 use crate::sinks::recorder::Quiet;
 use crate::sources::recording::RecordingStream;
-use crate::summary::Summary;
 use crate::tui::terminal::{exit_for_signal, require_terminal};
 use crate::tui::{self, ReviewConfig, SessionInfo};
+use hexcue_core::engine::Frame;
+use hexcue_core::profile::Profile;
+use hexcue_core::summary::Summary;
 
 /// The whole command: the `--summary` check, then headless (summary, table) or the console.
 pub fn run(args: &ReviewArgs) -> Result<()> {

@@ -10,17 +10,17 @@ use toml_edit::DocumentMut;
 
 use crate::app::common::{progress_bar, progress_line, stop_flag};
 use crate::cli::TuneArgs;
-use crate::formats::profile::{
-    default_profile, parse_profile, DEFAULT_PROFILE_SOURCE, DEFAULT_PROFILE_TOML,
-};
 use crate::formats::trace::load_trace_within;
-use crate::mca::AlgorithmId;
-use crate::trace::Trace;
 use crate::tune::{
     default_budget, default_step, keys, tunable_keys, tune, validate::PER_FLIGHT_TOLERANCE,
     Evaluator, GenerationRecord, Progress, Validated, LIMITER_TOLERANCE,
 };
-use crate::vocab::plural;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::text::{
+    default_profile, parse_profile, DEFAULT_PROFILE_SOURCE, DEFAULT_PROFILE_TOML,
+};
+use hexcue_core::trace::Trace;
+use hexcue_core::vocab::plural;
 
 /// Traces from folders (their *.csv, sorted) and files, checked before any work.
 pub fn load_traces(
@@ -247,9 +247,9 @@ pub fn run(args: &TuneArgs) -> Result<()> {
             .iter()
             .map(|t| {
                 eprintln!("the bound of {} (what no motion can cue)", t.name);
-                let setup = crate::bound::Setup::new(&profile, t)
+                let setup = hexcue_core::bound::Setup::new(&profile, t)
                     .with_context(|| format!("{}: the bound", t.name))?;
-                let r = crate::bound::relaxed(&setup, [false; 6])
+                let r = hexcue_core::bound::relaxed(&setup, [false; 6])
                     .with_context(|| format!("{}: the bound", t.name))?;
                 Ok(r.total)
             })

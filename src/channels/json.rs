@@ -6,9 +6,9 @@ use schemars::generate::SchemaSettings;
 use schemars::JsonSchema;
 use serde::{Deserialize, Deserializer, Serialize};
 
-use crate::engine::{Frame, LaneFrame, Legs};
-use crate::mca::PlatformCommand;
-use crate::model::vestibular::Perceived;
+use hexcue_core::engine::{Frame, LaneFrame, Legs};
+use hexcue_core::mca::PlatformCommand;
+use hexcue_core::model::vestibular::Perceived;
 
 use super::{Channel, Kind};
 

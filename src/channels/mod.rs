@@ -16,7 +16,7 @@ pub mod scene;
 use ::foxglove::messages::{FrameTransforms, Log, SceneUpdate};
 use ::foxglove::Encode;
 
-use crate::mca::AlgorithmId;
+use hexcue_core::mca::AlgorithmId;
 
 /// What a topic carries.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]

@@ -18,11 +18,11 @@ use ::foxglove::messages::{
 use nalgebra::{UnitQuaternion, Vector3, Vector6};
 
 use super::{Channel, Kind};
-use crate::engine::{Frame, LaneFrame};
-use crate::events::EventLevel;
-use crate::mca::{AlgorithmId, Mode};
-use crate::model::stewart::Stewart;
-use crate::profile::Profile;
+use hexcue_core::engine::{Frame, LaneFrame};
+use hexcue_core::events::EventLevel;
+use hexcue_core::mca::{AlgorithmId, Mode};
+use hexcue_core::model::stewart::Stewart;
+use hexcue_core::profile::Profile;
 
 /// Foxglove's fixed frame: z up.
 pub const WORLD_FRAME: &str = "world";
@@ -85,7 +85,7 @@ pub fn timestamp(log_time_ns: u64) -> Timestamp {
 }
 
 /// The rotation of a pose's roll, pitch and yaw (Z-Y-X Euler, R = Rz·Ry·Rx as in
-/// [`crate::model::stewart::rotation`]) as Foxglove's quaternion.
+/// [`hexcue_core::model::stewart::rotation`]) as Foxglove's quaternion.
 pub fn pose_rotation(pose: &Vector6<f64>) -> Quaternion {
     quaternion(&UnitQuaternion::from_euler_angles(
         pose[3], pose[4], pose[5],
@@ -449,7 +449,7 @@ impl SceneBuilder {
         let mut legs = entity(base_frame(id), "legs", false);
         let pose = &lane.command.pose;
         if pose.iter().all(|v| v.is_finite()) {
-            let rot = crate::model::stewart::rotation(pose[3], pose[4], pose[5]);
+            let rot = hexcue_core::model::stewart::rotation(pose[3], pose[4], pose[5]);
             let at = pose.fixed_rows::<3>(0).into_owned();
             for i in 0..6 {
                 let top = at + rot * self.stewart.platform_joints_m[i];
@@ -532,13 +532,14 @@ impl SceneBuilder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::stewart::rotation;
-    use crate::profile::tests::full_flight;
+    use hexcue_core::model::stewart::rotation;
+    use hexcue_core::testing::full_flight;
 
     /// The first frame of the CWF alone on the engine's test manoeuvre.
-    fn first_cwf_frame(profile: &crate::profile::Profile) -> crate::engine::Frame {
-        let trace = std::sync::Arc::new(crate::engine::tests::manoeuvre());
-        let mut engine = crate::engine::Engine::new(profile, trace, &[AlgorithmId::Cwf]).unwrap();
+    fn first_cwf_frame(profile: &hexcue_core::profile::Profile) -> hexcue_core::engine::Frame {
+        let trace = std::sync::Arc::new(hexcue_core::testing::manoeuvre());
+        let mut engine =
+            hexcue_core::engine::Engine::new(profile, trace, &[AlgorithmId::Cwf]).unwrap();
         engine.step().unwrap()
     }
 

@@ -1,8 +1,8 @@
 //! What the parts of the report share: the trace's results, and the algorithms' and
 //! channels' order and names as the report shows them.
 
-use crate::summary::{AlgorithmSummary, Summary};
-use crate::vocab::{AlgorithmId, Channel};
+use hexcue_core::summary::{AlgorithmSummary, Summary};
+use hexcue_core::vocab::{AlgorithmId, Channel};
 
 /// One trace's results with what the report says about the trace.
 pub struct TraceResult {
@@ -49,7 +49,7 @@ pub(crate) fn ordered(summary: &Summary) -> Vec<(&str, &AlgorithmSummary)> {
 pub(crate) fn metric(
     a: &AlgorithmSummary,
     ch: &str,
-    f: fn(&crate::metrics::ChannelMetrics) -> f64,
+    f: fn(&hexcue_core::metrics::ChannelMetrics) -> f64,
 ) -> f64 {
     a.metrics.get(ch).map_or(f64::NAN, f)
 }

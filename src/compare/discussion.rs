@@ -5,9 +5,9 @@ use std::fmt::Write;
 
 use super::common::{channel_name, label, metric, ordered, TraceResult};
 use super::verdict::*;
-use crate::metrics::CHANNELS;
-use crate::summary::AlgorithmSummary;
-use crate::vocab::AlgorithmId;
+use hexcue_core::metrics::CHANNELS;
+use hexcue_core::summary::AlgorithmSummary;
+use hexcue_core::vocab::AlgorithmId;
 
 /// All six channels over every trace: which algorithm is best where, where an MPC is worse
 /// than the CWF, the false-cue and roll/pitch PC targets (DESIGN §9, issue 11), and the
@@ -214,7 +214,10 @@ pub(super) fn false_cue_sources(misses: &[(String, &str)]) -> String {
 
 /// Facts drawn from the numbers: where the paper's ordering holds and where it does not, and
 /// the workspace and timing figures that bear on it.
-pub(super) fn discussion(results: &[TraceResult], profile: &crate::profile::Profile) -> String {
+pub(super) fn discussion(
+    results: &[TraceResult],
+    profile: &hexcue_core::profile::Profile,
+) -> String {
     let mut out = String::from("## Discussion (generated from the numbers above)\n\n");
     out.push_str(&channels_discussion(results));
     out.push_str("### The paper's measure: surge and sway RAE\n\n");
@@ -241,7 +244,7 @@ pub(super) fn discussion(results: &[TraceResult], profile: &crate::profile::Prof
         let cells: Vec<&str> = [("fx", true), ("fy", true), ("fx", false), ("fy", false)]
             .iter()
             .map(|&(ch, rae)| {
-                let f: fn(&crate::metrics::ChannelMetrics) -> f64 =
+                let f: fn(&hexcue_core::metrics::ChannelMetrics) -> f64 =
                     if rae { |m| m.rae } else { |m| m.naad };
                 let ok = ordering_holds(&r.summary, ch, f).unwrap_or(false);
                 total += 1;
@@ -373,7 +376,10 @@ pub(super) fn fx_margin_over_cwf(results: &[TraceResult]) -> Option<(f64, f64)> 
 
 /// Where the S-MPC never left COTC, the comparison is COTC against the free MPC: what the
 /// profile gives each of them, and the MPCs' margin over the CWF.
-pub(super) fn why_it_holds(results: &[TraceResult], profile: &crate::profile::Profile) -> String {
+pub(super) fn why_it_holds(
+    results: &[TraceResult],
+    profile: &hexcue_core::profile::Profile,
+) -> String {
     let never_switched = results
         .iter()
         .all(|r| r.summary.algorithms["smpc"].switches == 0);
@@ -410,7 +416,7 @@ pub(super) fn why_it_holds(results: &[TraceResult], profile: &crate::profile::Pr
 }
 
 /// The explanation the numbers support, when they support one.
-pub(super) fn why(results: &[TraceResult], profile: &crate::profile::Profile) -> String {
+pub(super) fn why(results: &[TraceResult], profile: &hexcue_core::profile::Profile) -> String {
     let fails_on_fx: Vec<&TraceResult> = results
         .iter()
         .filter(|r| ordering_holds(&r.summary, "fx", |m| m.rae) == Some(false))

@@ -17,10 +17,10 @@ mod tests {
     use super::tables::*;
     use super::verdict::*;
     use super::*;
-    use crate::metrics::{ChannelMetrics, StepTimes, CHANNELS};
-    use crate::profile::tests::full_flight;
-    use crate::summary::AlgorithmSummary;
-    use crate::summary::Summary;
+    use hexcue_core::metrics::{ChannelMetrics, StepTimes, CHANNELS};
+    use hexcue_core::summary::AlgorithmSummary;
+    use hexcue_core::summary::Summary;
+    use hexcue_core::testing::full_flight;
     use std::collections::BTreeMap;
 
     /// An algorithm whose threshold-aware error and felt error equal its RAE on every channel
@@ -56,7 +56,7 @@ mod tests {
             switches,
             max_dof_usage: BTreeMap::new(),
             score: 1.0,
-            score_terms: crate::score::ScoreTerms {
+            score_terms: hexcue_core::score::ScoreTerms {
                 error: CHANNELS.iter().map(|c| (c.to_string(), rae(c))).collect(),
                 felt: CHANNELS.iter().map(|c| (c.to_string(), rae(c))).collect(),
                 ..Default::default()
@@ -289,19 +289,19 @@ mod tests {
     }
 
     fn with_bound(r: &mut TraceResult, felt_floor: f64, possible: bool, binding: &[&str]) {
-        let mut lower = crate::bound::Lower::default();
+        let mut lower = hexcue_core::bound::Lower::default();
         for c in CHANNELS {
             lower.felt.insert(c.to_string(), felt_floor);
         }
-        r.summary.bound = Some(crate::bound::Bound {
+        r.summary.bound = Some(hexcue_core::bound::Bound {
             lower,
-            achieved: crate::bound::Achieved {
+            achieved: hexcue_core::bound::Achieved {
                 error: BTreeMap::new(),
                 total: 0.0,
                 limiter_fraction: 0.0,
                 leg_violations: 0,
             },
-            dominance: crate::bound::Dominance {
+            dominance: hexcue_core::bound::Dominance {
                 possible,
                 binding: binding.iter().map(|s| s.to_string()).collect(),
             },

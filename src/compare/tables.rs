@@ -6,12 +6,12 @@ use std::fmt::Write;
 use super::common::{channel_name, label, metric, ordered, TraceResult};
 use super::discussion::*;
 use super::verdict::*;
-use crate::metrics::CHANNELS;
-use crate::summary::Summary;
+use hexcue_core::metrics::CHANNELS;
+use hexcue_core::summary::Summary;
 
 pub fn render_markdown(
     results: &[TraceResult],
-    profile: &crate::profile::Profile,
+    profile: &hexcue_core::profile::Profile,
     command: &str,
 ) -> String {
     let mut out = String::new();
@@ -199,7 +199,7 @@ pub fn render_markdown(
 /// and achieved errors beside each algorithm's error with its cueable part (error − lower) in
 /// brackets, the totals, the share of the CWF's cueable error each algorithm removes, and the
 /// dominance answer.
-pub fn bound_table(s: &Summary, b: &crate::bound::Bound) -> String {
+pub fn bound_table(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
     let mut out = String::new();
     let algs = ordered(s);
     let head: Vec<String> = algs
@@ -212,7 +212,8 @@ pub fn bound_table(s: &Summary, b: &crate::bound::Bound) -> String {
     );
     let _ = writeln!(out, "| channel | lower | achieved | {} |", head.join(" | "));
     let _ = writeln!(out, "|---|---:|---:|{}", "---:|".repeat(head.len()));
-    let err = |a: &crate::summary::AlgorithmSummary, c: &str| a.score_terms.error.get(c).copied();
+    let err =
+        |a: &hexcue_core::summary::AlgorithmSummary, c: &str| a.score_terms.error.get(c).copied();
     for c in CHANNELS {
         let lower = b.lower.channel.get(c).copied();
         let cells: Vec<String> = algs
@@ -232,7 +233,7 @@ pub fn bound_table(s: &Summary, b: &crate::bound::Bound) -> String {
             cells.join(" | ")
         );
     }
-    let total = |a: &crate::summary::AlgorithmSummary| -> f64 {
+    let total = |a: &hexcue_core::summary::AlgorithmSummary| -> f64 {
         CHANNELS.iter().filter_map(|c| err(a, c)).sum()
     };
     let cells: Vec<String> = algs

@@ -6,8 +6,8 @@
 use std::fmt::Write;
 
 use super::common::{label, metric, ordered};
-use crate::metrics::ChannelMetrics;
-use crate::summary::Summary;
+use hexcue_core::metrics::ChannelMetrics;
+use hexcue_core::summary::Summary;
 
 /// An algorithm whose false-cue time exceeds another's by more than this share of the flight
 /// loses to it on that channel, whatever its RAE: the margin of DESIGN §9 and issue 11 (no MPC
@@ -21,7 +21,7 @@ pub const ERROR_TOLERANCE_REL: f64 = 0.05;
 /// over 1 % of the flight (the false cues' margin). A smaller felt difference is an error
 /// beyond the other's by less than a threshold for all but 1 % of the flight: not felt.
 pub const ERROR_TOLERANCE_ABS: f64 = 0.01;
-/// An algorithm with more jolts charged to it (beyond the aircraft's, `crate::jolts`) than
+/// An algorithm with more jolts charged to it (beyond the aircraft's, `hexcue_core::jolts`) than
 /// another by more than this many loses to it: each such jolt is an onset above the
 /// threshold the aircraft did not have, felt on its own.
 pub const JOLT_MARGIN: u64 = 0;
@@ -450,7 +450,7 @@ impl<'a> Verdict<'a> {
 pub(super) fn ordering_holds(
     summary: &Summary,
     ch: &str,
-    f: fn(&crate::metrics::ChannelMetrics) -> f64,
+    f: fn(&hexcue_core::metrics::ChannelMetrics) -> f64,
 ) -> Option<bool> {
     let get = |k: &str| summary.algorithms.get(k).map(|a| metric(a, ch, f));
     let (s, m, c) = (get("smpc")?, get("mpc")?, get("cwf")?);

@@ -3,7 +3,7 @@
 //! the five shipped traces before.
 
 use super::trace::{embedded_traces, TraceError};
-use crate::trace::Trace;
+use hexcue_core::trace::Trace;
 
 /// Where the library's files are in the repository.
 pub const LIBRARY_FOLDER: &str = "recordings/traces/library";

@@ -3,8 +3,8 @@
 use serde::Serialize;
 use serde_json::{json, Value};
 
-use crate::mca::AlgorithmId;
-use crate::omct::{frequency_label, OmctCurve, OmctTest};
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::omct::{frequency_label, OmctCurve, OmctTest};
 
 /// Everything one `hexcue omct` run measured.
 #[derive(Clone, Debug)]
@@ -151,7 +151,7 @@ fn to_value<T: Serialize>(v: &T) -> Value {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::omct::OmctPoint;
+    use hexcue_core::omct::OmctPoint;
 
     #[test]
     fn report_tables_and_json() {

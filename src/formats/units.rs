@@ -5,8 +5,8 @@
 
 use nalgebra::Vector3;
 
-use crate::trace::AircraftSample;
-use crate::G_MPS2;
+use hexcue_core::trace::AircraftSample;
+use hexcue_core::G_MPS2;
 
 /// Thresholds of the checks.
 mod limits {

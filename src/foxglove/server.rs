@@ -20,10 +20,10 @@ use ::foxglove::{
 
 use crate::channels::scene::{self, SceneBuilder, SESSION_SOURCE};
 use crate::channels::{self, json, Channel, SceneMessage};
-use crate::engine::Frame;
-use crate::events::EventLevel;
-use crate::mca::AlgorithmId;
-use crate::profile::Profile;
+use hexcue_core::engine::Frame;
+use hexcue_core::events::EventLevel;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::Profile;
 
 /// Where `--foxglove` listens when given no address: Foxglove's default.
 pub const DEFAULT_ADDR: &str = "127.0.0.1:8765";
@@ -256,7 +256,7 @@ impl crate::session::FrameSink for FoxgloveServer {
         self.restart();
     }
 
-    fn event(&mut self, event: &crate::events::Event) -> anyhow::Result<()> {
+    fn event(&mut self, event: &hexcue_core::events::Event) -> anyhow::Result<()> {
         FoxgloveServer::event(self, event.level, &event.text);
         Ok(())
     }

@@ -11,8 +11,8 @@ use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use anyhow::Result;
 
 use super::StepReport;
-use crate::events::Event;
 use crate::session::FrameSink;
+use hexcue_core::events::Event;
 
 /// Seconds of steps the channel holds: far longer than an MCAP chunk's compression or a
 /// terminal's redraw, so a drop means the machine is overloaded, not that a sink hiccuped.
@@ -111,13 +111,13 @@ mod tests {
     use std::sync::{Arc, Barrier, Mutex};
 
     use super::*;
-    use crate::engine::tests::manoeuvre;
-    use crate::engine::{Engine, Frame};
     use crate::live::{EventLevel, LiveCounters};
-    use crate::mca::AlgorithmId;
-    use crate::profile::tests::full_flight;
-    use crate::safety::SafetyState;
     use crate::sinks::PlatformOutput;
+    use hexcue_core::engine::{Engine, Frame};
+    use hexcue_core::mca::AlgorithmId;
+    use hexcue_core::safety::SafetyState;
+    use hexcue_core::testing::full_flight;
+    use hexcue_core::testing::manoeuvre;
 
     fn frames(n: usize) -> Vec<Frame> {
         let mut engine =

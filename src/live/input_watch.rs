@@ -4,7 +4,7 @@
 //! session that waits in silence looks like one that works. Pure: the live loop gives it the
 //! counters each step, it gives back the events.
 
-use crate::events::{Event, EventLevel};
+use hexcue_core::events::{Event, EventLevel};
 
 /// Without any sample this long after the start, the operator is told where hexcue listens.
 pub const NO_INPUT_NOTICE_S: f64 = 2.0;

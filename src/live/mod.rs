@@ -3,7 +3,7 @@
 //! One thread keeps the clock, at real-time priority where the OS allows it
 //! ([`realtime`]). Each period it steps once: the latest input sample (held between
 //! arrivals) goes through the engine and every algorithm; the driving algorithm's command
-//! passes the safety stage ([`crate::safety`]) and a last workspace limiter, and goes to
+//! passes the safety stage ([`hexcue_core::safety`]) and a last workspace limiter, and goes to
 //! every output. Nothing else happens on that thread: the step's report is handed to a
 //! second thread ([`handoff`]) that feeds the frame sinks (the recording, Foxglove) and the
 //! caller's `on_step` (the console, stderr), and is dropped and counted rather than waited
@@ -23,24 +23,24 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 
-use crate::engine::{Engine, Frame};
-use crate::events::{Event, EventLevel};
 use crate::formats::trace::{UnitNames, UnitStats};
-use crate::mca::limiter::WorkspaceLimiter;
-use crate::mca::AlgorithmId;
-use crate::metrics::TimeHistogram;
-use crate::model::stewart::Stewart;
-use crate::profile::Profile;
-use crate::safety::path::Escalation;
-use crate::safety::{PlatformReadiness, Safety, SafetyState, DOF_NAMES};
 use crate::session::FrameSink;
 use crate::sinks::{CommandSink, PlatformOutput, PlatformPhase, PlatformStatus};
-use crate::source::{HeldSample, HeldSampleHandle};
 use crate::sources::live::LiveInput;
-use crate::summary::{
+use crate::tuning::{Shared, Tuner, TuningHandle};
+use hexcue_core::engine::{Engine, Frame};
+use hexcue_core::events::{Event, EventLevel};
+use hexcue_core::mca::limiter::WorkspaceLimiter;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::metrics::TimeHistogram;
+use hexcue_core::model::stewart::Stewart;
+use hexcue_core::profile::Profile;
+use hexcue_core::safety::path::Escalation;
+use hexcue_core::safety::{PlatformReadiness, Safety, SafetyState, DOF_NAMES};
+use hexcue_core::source::{HeldSample, HeldSampleHandle};
+use hexcue_core::summary::{
     HardBrake, LiveSummary, Quantiles, RealtimeSummary, Summary, SummaryBuilder, TransitionSummary,
 };
-use crate::tuning::{Shared, Tuner, TuningHandle};
 use input_watch::{InputCounts, InputWatch};
 
 /// Datagrams read at most per step: ten times what a simulator at 10× the step rate sends.
@@ -238,7 +238,7 @@ pub struct LiveSession {
     platform: Option<PlatformStatus>,
     /// The profile's actuators, when it has `[actuators]`: every command carries their
     /// positions.
-    actuators: Option<crate::actuators::Actuators>,
+    actuators: Option<hexcue_core::actuators::Actuators>,
     /// Whether an actuator was limited at the last step.
     actuators_were_limited: bool,
     /// The outputs (bit i) at whose address nothing listened at the last step.
@@ -597,7 +597,7 @@ impl LiveSession {
 
     /// A pose the actuators cannot give (cranks past their limits): counted every step, told
     /// when it starts and when it ends.
-    fn actuator_events(&mut self, t_s: f64, p: &crate::actuators::ActuatorPositions) {
+    fn actuator_events(&mut self, t_s: f64, p: &hexcue_core::actuators::ActuatorPositions) {
         let limited = p.limited != 0;
         if limited {
             self.stats.actuators_limited_steps += 1;
@@ -958,9 +958,9 @@ fn clock_loop(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::profile::tests::full_flight;
     use crate::sources::jsbsim::Jsbsim;
     use crate::sources::live::Endpoint;
+    use hexcue_core::testing::full_flight;
 
     fn session() -> (LiveSession, std::net::SocketAddr) {
         let input = LiveInput::with_decoder(
@@ -1239,7 +1239,7 @@ mod tests {
         let (mut s, _) = session();
         // The last three poses sent: sway at 1.48, 1.49, 1.50 m, moving out at 1 m/s.
         for y in [1.48, 1.49, 1.5] {
-            s.safety.sent(&crate::mca::PlatformCommand {
+            s.safety.sent(&hexcue_core::mca::PlatformCommand {
                 pose: nalgebra::Vector6::new(0.0, y, 0.0, 0.0, 0.0, 0.0),
                 ..Default::default()
             });

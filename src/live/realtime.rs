@@ -11,7 +11,7 @@
 //! recording, Foxglove and the console is started before and raised to
 //! [`SINKS_PRIORITY`], below the clock.
 
-use crate::summary::RealtimeSummary;
+use hexcue_core::summary::RealtimeSummary;
 
 /// The `SCHED_FIFO` priority of the stepping thread unless told otherwise: above every
 /// normal thread, level with the kernel's threaded interrupt handlers (50), below its

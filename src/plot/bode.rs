@@ -7,7 +7,7 @@ use anyhow::Result;
 use plotters::prelude::*;
 
 use super::{algorithm_color, font, legend_row, padded, tick, Area, DrawResult};
-use crate::omct::{frequencies_radps, OmctCurve, OmctTest};
+use hexcue_core::omct::{frequencies_radps, OmctCurve, OmctTest};
 
 /// Lowest gain drawn (dB): below it a cue is far under any perception threshold, and a
 /// near-zero cross-coupling would otherwise stretch the axis to −∞.
@@ -178,8 +178,8 @@ pub fn write(path: &Path, test: OmctTest, profile_name: &str, curves: &[OmctCurv
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mca::AlgorithmId;
-    use crate::omct::OmctPoint;
+    use hexcue_core::mca::AlgorithmId;
+    use hexcue_core::omct::OmctPoint;
 
     fn point(w: f64, gain: f64, phase_deg: f64) -> OmctPoint {
         OmctPoint {

@@ -20,8 +20,8 @@ use plotters::prelude::*;
 
 use super::{algorithm_color, font, legend_row, padded, tick, Area, DrawResult, REFERENCE_COLOR};
 use crate::formats::recording::Recording;
-use crate::mca::{AlgorithmId, Mode};
-use crate::model::stewart::Stewart;
+use hexcue_core::mca::{AlgorithmId, Mode};
+use hexcue_core::model::stewart::Stewart;
 
 /// A panel of the figure.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -442,7 +442,7 @@ pub fn read_timeline(recording: &Recording, request: &PlotRequest) -> Result<Tim
         .profile
         .as_ref()
         .ok()
-        .map(crate::bound::thresholds);
+        .map(hexcue_core::bound::thresholds);
     let columns = request.width_px.max(100) as usize;
     let algorithms = recording.algorithms.clone();
     let mut panels: Vec<(Panel, Vec<Line>)> = request

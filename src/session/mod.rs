@@ -15,10 +15,10 @@ pub(crate) mod time;
 
 use std::path::PathBuf;
 
-use crate::engine::{Engine, Frame};
-use crate::mca::AlgorithmId;
-use crate::profile::Profile;
-use crate::trace::Trace;
+use hexcue_core::engine::{Engine, Frame};
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::Profile;
+use hexcue_core::trace::Trace;
 
 pub use runner::{Pacer, RunEnd, Runner, SinkFailure};
 
@@ -32,7 +32,7 @@ pub trait FrameSink: Send {
     fn rewound(&mut self) {}
     /// An event of a live session (input lost, e-stop, washout, …) at session time `t_s`;
     /// sinks that have nowhere to put it ignore it.
-    fn event(&mut self, _event: &crate::events::Event) -> anyhow::Result<()> {
+    fn event(&mut self, _event: &hexcue_core::events::Event) -> anyhow::Result<()> {
         Ok(())
     }
     /// A fact about the whole session known only at its end (the platform's fault), under
@@ -138,7 +138,7 @@ impl FrameSource for Engine {
     }
     fn restore(&mut self, checkpoint: &SourceCheckpoint) -> bool {
         checkpoint
-            .get::<crate::engine::EngineSnapshot>()
+            .get::<hexcue_core::engine::EngineSnapshot>()
             .is_some_and(|s| Engine::restore(self, s))
     }
     fn take_error(&mut self) -> Option<anyhow::Error> {
@@ -225,7 +225,7 @@ impl SessionInfo {
     /// From a trace's name and sidecar: the sidecar's aircraft, scenario and events.
     pub fn described(
         trace_name: &str,
-        info: Option<&crate::trace::TraceInfo>,
+        info: Option<&hexcue_core::trace::TraceInfo>,
         profile_name: &str,
     ) -> Self {
         let (description, events) = match info {

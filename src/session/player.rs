@@ -9,10 +9,10 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
 
-use crate::engine::Frame;
-use crate::mca::AlgorithmId;
-use crate::profile::Profile;
-use crate::summary::{Summary, SummaryBuilder};
+use hexcue_core::engine::Frame;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::Profile;
+use hexcue_core::summary::{Summary, SummaryBuilder};
 
 use super::runner::{Runner, SinkFailure};
 

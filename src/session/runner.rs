@@ -5,9 +5,9 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use crate::engine::Frame;
-use crate::profile::Profile;
-use crate::summary::{Summary, SummaryBuilder};
+use hexcue_core::engine::Frame;
+use hexcue_core::profile::Profile;
+use hexcue_core::summary::{Summary, SummaryBuilder};
 
 use super::{FrameSink, FrameSource, SourceCheckpoint};
 

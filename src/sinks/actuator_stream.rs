@@ -21,8 +21,8 @@ use anyhow::{Context, Result};
 
 use super::reach::{connected_socket, Reach};
 use super::{CommandSink, PlatformOutput, PlatformPhase, PlatformStatus};
-use crate::actuators::FrameFormat;
-use crate::safety::SafetyState;
+use hexcue_core::actuators::FrameFormat;
+use hexcue_core::safety::SafetyState;
 
 /// A write that waits longer than this for room in the port's buffer is skipped, not waited
 /// for: a step never stalls on a controller that does not read.
@@ -242,8 +242,8 @@ impl CommandSink for UdpActuators {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::actuators::{ActuatorPositions, Encoding};
-    use crate::mca::AlgorithmId;
+    use hexcue_core::actuators::{ActuatorPositions, Encoding};
+    use hexcue_core::mca::AlgorithmId;
     use nalgebra::Vector6;
 
     fn output(state: SafetyState, stopped: bool, first: u32) -> PlatformOutput {

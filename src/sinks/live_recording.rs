@@ -10,11 +10,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use crate::engine::Frame;
 use crate::formats::recording::{Recorder, RecordingMeta};
 use crate::formats::trace::NATIVE_HEADER;
-use crate::mca::AlgorithmId;
 use crate::session::FrameSink;
+use hexcue_core::engine::Frame;
+use hexcue_core::mca::AlgorithmId;
 
 pub struct LiveRecording {
     recorder: Recorder,
@@ -84,7 +84,7 @@ impl FrameSink for LiveRecording {
         .with_context(|| format!("{}: cannot write", self.input_log_path.display()))
     }
 
-    fn event(&mut self, event: &crate::events::Event) -> Result<()> {
+    fn event(&mut self, event: &hexcue_core::events::Event) -> Result<()> {
         // On `/events` as `foxglove.Log`, beside the S-MPC's and the limiter's, as Foxglove
         // shows them live.
         Ok(self.recorder.event(

@@ -17,8 +17,8 @@ pub use crate::session::FrameSink;
 use anyhow::{bail, Context, Result};
 use nalgebra::Vector6;
 
-use crate::mca::AlgorithmId;
-use crate::safety::SafetyState;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::safety::SafetyState;
 
 /// Where a platform that reports its state is in its own sequence.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -96,7 +96,7 @@ pub struct PlatformOutput {
     /// The algorithm driving the platform.
     pub algorithm: AlgorithmId,
     /// The actuator positions of this pose, when the profile has `[actuators]`.
-    pub actuators: Option<crate::actuators::ActuatorPositions>,
+    pub actuators: Option<hexcue_core::actuators::ActuatorPositions>,
 }
 
 /// A platform, or anything listening like one, fed one command per step.
@@ -135,7 +135,7 @@ const OUTPUT_FORMS: &str = "udp://HOST:PORT (JSON), udp://HOST:PORT?frame=actuat
 /// every `period`).
 pub fn open_output(
     url: &str,
-    profile: &crate::profile::Profile,
+    profile: &hexcue_core::profile::Profile,
     period: std::time::Duration,
 ) -> Result<Box<dyn CommandSink>> {
     let (scheme, rest) = url
@@ -163,7 +163,7 @@ pub fn open_output(
         bail!("--output {url}: unknown option `{k}`; {scheme}:// takes {expected}");
     }
     let param = |key: &str| params.iter().find(|(k, _)| *k == key).map(|(_, v)| *v);
-    let frame = || -> Result<crate::actuators::FrameFormat> {
+    let frame = || -> Result<hexcue_core::actuators::FrameFormat> {
         let actuators = profile
             .actuators()
             .with_context(|| format!("--output {url}: the profile's [actuators]"))?;

@@ -2,9 +2,9 @@
 
 use anyhow::{Context, Result};
 
-use crate::engine::Frame;
 use crate::formats::recording::{Recorder, RecordingStats};
 use crate::session::FrameSink;
+use hexcue_core::engine::Frame;
 
 /// An MCAP recorder as a frame sink.
 pub struct McapSink {
@@ -111,7 +111,7 @@ impl FrameSink for Quiet {
     fn rewound(&mut self) {
         self.0.rewound()
     }
-    fn event(&mut self, event: &crate::events::Event) -> Result<()> {
+    fn event(&mut self, event: &hexcue_core::events::Event) -> Result<()> {
         self.0.event(event)
     }
     fn annotate(&mut self, key: &'static str, value: &str) {

@@ -102,8 +102,8 @@ impl CommandSink for UdpJson {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mca::AlgorithmId;
-    use crate::safety::SafetyState;
+    use hexcue_core::mca::AlgorithmId;
+    use hexcue_core::safety::SafetyState;
     use nalgebra::Vector6;
 
     #[test]
@@ -132,7 +132,7 @@ mod tests {
         assert_eq!(v["algorithm"], "smpc");
         assert!(v.get("actuators").is_none() && v.get("cranks_rad").is_none());
         let with = PlatformOutput {
-            actuators: Some(crate::actuators::ActuatorPositions {
+            actuators: Some(hexcue_core::actuators::ActuatorPositions {
                 counts: [0, 1, 2, 3, 4, 16_777_215],
                 raw: [0.5; 6],
                 limited: 0,

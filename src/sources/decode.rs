@@ -1,7 +1,7 @@
 //! What a live simulator's protocol decoder is, shared by the socket loop (`live`) and the
 //! protocols (JSBSim, FlightGear, X-Plane), which therefore do not import each other.
 
-use crate::trace::AircraftSample;
+use hexcue_core::trace::AircraftSample;
 
 /// What one datagram said.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -10,7 +10,7 @@
 //! tests/live_inputs.rs builds datagrams from the protocol file as FlightGear does.
 
 use super::decode::{Decoded, Decoder};
-use crate::trace::AircraftSample;
+use hexcue_core::trace::AircraftSample;
 
 /// Bytes of one frame.
 pub const FRAME_BYTES: usize = 44;

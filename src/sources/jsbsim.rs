@@ -11,7 +11,7 @@
 //! `p/q/r-rad_sec` body rates in rad/s, `phi/theta/psi-rad` attitude in rad, as hexcue's.
 
 use super::decode::{Decoded, Decoder};
-use crate::trace::AircraftSample;
+use hexcue_core::trace::AircraftSample;
 
 const FT_TO_M: f64 = 0.3048;
 

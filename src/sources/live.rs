@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 
-use crate::trace::AircraftSample;
+use hexcue_core::trace::AircraftSample;
 
 use super::decode::{Decoded, Decoder};
 

@@ -1,5 +1,5 @@
 //! Sources of aircraft samples (docs/design.md §11), adapters around the core's
-//! [`crate::source::SampleSource`]: a trace file streamed row by row, and live simulators
+//! [`hexcue_core::source::SampleSource`]: a trace file streamed row by row, and live simulators
 //! over UDP (JSBSim, FlightGear, X-Plane), each converting its units and signs to hexcue's
 //! at the edge (docs/design.md §1).
 

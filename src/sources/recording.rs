@@ -1,10 +1,10 @@
 //! A recording's frames, read as they are stepped, as a session's frame source for headless
 //! review: memory does not grow with the recording's length.
 
-use crate::engine::Frame;
 use crate::formats::recording::{Frames, RecordingError};
-use crate::mca::AlgorithmId;
 use crate::session::FrameSource;
+use hexcue_core::engine::Frame;
+use hexcue_core::mca::AlgorithmId;
 
 /// Frames streamed from a recording; it cannot rewind (the console holds a review's frames
 /// in memory instead, as [`crate::session::RecordedFrames`]).

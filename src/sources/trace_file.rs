@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 use crate::formats::trace::{
     open_grid, scan_trace_file, GridMark, GridSamples, TraceError, TracePlan,
 };
-use crate::source::{SampleSource, SourceError};
-use crate::trace::AircraftSample;
+use hexcue_core::source::{SampleSource, SourceError};
+use hexcue_core::trace::AircraftSample;
 
 /// Samples between two marks: at most this many are read again to seek.
 pub const MARK_EVERY: usize = 2048;
@@ -192,5 +192,36 @@ mod tests {
         let e = TraceFile::open(&path, 100.0).err().unwrap();
         assert_eq!(e.line(), Some(702));
         assert_eq!(e.column_name(), Some("fx"));
+    }
+
+    /// The engine over a streamed file goes back to a snapshot, also after the end of the
+    /// file, and steps exactly as the first time (the CWF: no solver warm start to differ).
+    #[test]
+    fn an_engine_over_a_streamed_file_restores_a_snapshot() {
+        use hexcue_core::engine::Engine;
+        use hexcue_core::mca::AlgorithmId;
+        let profile = hexcue_core::profile::text::default_profile();
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("recordings/traces/landing.csv");
+        let file = TraceFile::open(&path, profile.rate_hz).unwrap();
+        let mut engine =
+            Engine::with_source(&profile, Box::new(file), &[AlgorithmId::Cwf]).unwrap();
+        let run = |engine: &mut Engine| -> Vec<_> {
+            (0..60)
+                .map(|_| {
+                    let f = engine.step().unwrap();
+                    (f.k, f.aircraft, f.lanes[0].command)
+                })
+                .collect()
+        };
+        for _ in 0..1450 {
+            engine.step().unwrap();
+        }
+        let snap = engine.snapshot().unwrap();
+        let first = run(&mut engine);
+        assert!(engine.restore(&snap));
+        assert_eq!(run(&mut engine), first);
+        while engine.step().is_some() {}
+        assert!(engine.restore(&snap));
+        assert_eq!(run(&mut engine), first);
     }
 }

@@ -10,8 +10,8 @@
 //! body rates (deg/s); `phi`, `theta`, `psi` attitude (deg); `sim/time/paused` 0 or 1.
 
 use super::decode::{Decoded, Decoder};
-use crate::trace::AircraftSample;
-use crate::G_MPS2;
+use hexcue_core::trace::AircraftSample;
+use hexcue_core::G_MPS2;
 
 /// The datarefs, in index order.
 pub const DATAREFS: [&str; 10] = [

@@ -7,7 +7,7 @@ use ratatui::backend::Backend;
 use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
 use ratatui::Terminal;
 
-use crate::metrics::CHANNELS;
+use hexcue_core::metrics::CHANNELS;
 
 use super::player::{Command, Session, SEEK_STEP_S};
 

@@ -6,7 +6,7 @@
 use ratatui::style::Style;
 use ratatui::text::{Line, Span};
 
-use crate::engine::LaneFrame;
+use hexcue_core::engine::LaneFrame;
 
 use super::player::WindowRow;
 use super::state::App;

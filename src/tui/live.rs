@@ -15,14 +15,14 @@ use ratatui::style::Modifier;
 use ratatui::text::{Line, Span};
 use ratatui::Terminal;
 
-use crate::engine::Frame;
 use crate::live::{self, Control, LiveSession, StepReport};
-use crate::mca::AlgorithmId;
-use crate::metrics::CHANNELS;
-use crate::profile::Profile;
-use crate::safety::SafetyState;
 use crate::sinks::PlatformPhase;
-use crate::summary::{Summary, SummaryBuilder};
+use hexcue_core::engine::Frame;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::metrics::CHANNELS;
+use hexcue_core::profile::Profile;
+use hexcue_core::safety::SafetyState;
+use hexcue_core::summary::{Summary, SummaryBuilder};
 
 use super::player::{Snapshot, WindowRow, WINDOW_S};
 use super::state::{App, EventSource, UiEvent, FRAME_INTERVAL, NOTICE_FOR};
@@ -552,9 +552,9 @@ pub use super::terminal::TerminalEvents;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::tests::manoeuvre;
-    use crate::engine::Engine;
-    use crate::profile::tests::full_flight;
+    use hexcue_core::engine::Engine;
+    use hexcue_core::testing::full_flight;
+    use hexcue_core::testing::manoeuvre;
     use ratatui::backend::TestBackend;
 
     /// Two seconds of the manoeuvre's surge pulse through all three algorithms, as the clock

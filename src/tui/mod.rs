@@ -33,10 +33,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 
-use crate::engine::Engine;
-use crate::mca::AlgorithmId;
-use crate::profile::Profile;
-use crate::trace::Trace;
+use hexcue_core::engine::Engine;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::Profile;
+use hexcue_core::trace::Trace;
 
 pub use player::{Command, Snapshot};
 pub use state::{App, UiEvent};
@@ -53,7 +53,7 @@ pub struct LiveConfig {
     pub profile: Profile,
     /// The flight, streamed: seeking returns to the engine's nearest checkpoint, the source
     /// seeking to its sample (`SampleSource::seek`).
-    pub source: Box<dyn crate::source::SampleSource>,
+    pub source: Box<dyn hexcue_core::source::SampleSource>,
     pub info: SessionInfo,
     /// In any order: the console shows them in the order of [`AlgorithmId::ALL`].
     pub algorithms: Vec<AlgorithmId>,
@@ -73,14 +73,14 @@ pub struct LiveConfig {
 impl LiveConfig {
     pub fn new(profile: Profile, trace: Arc<Trace>, algorithms: Vec<AlgorithmId>) -> Self {
         let info = SessionInfo::for_trace(&trace, &profile);
-        let source = Box::new(crate::source::TraceSamples::new(trace));
+        let source = Box::new(hexcue_core::source::TraceSamples::new(trace));
         Self::streaming(profile, source, info, algorithms)
     }
 
     /// A session on a streamed flight (a trace file read as it is played).
     pub fn streaming(
         profile: Profile,
-        source: Box<dyn crate::source::SampleSource>,
+        source: Box<dyn hexcue_core::source::SampleSource>,
         info: SessionInfo,
         algorithms: Vec<AlgorithmId>,
     ) -> Self {

@@ -7,8 +7,8 @@ use ratatui::symbols::Marker;
 use ratatui::text::{Line, Span};
 use ratatui::widgets::Paragraph;
 
-use crate::mca::AlgorithmId;
-use crate::metrics::CHANNELS;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::metrics::CHANNELS;
 
 use super::player::{Snapshot, WINDOW_S};
 use super::state::App;

@@ -266,9 +266,9 @@ impl ParamPanel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mca::AlgorithmId;
-    use crate::profile::tests::full_flight;
     use crate::tuning::{Shared, Tuner, MOTION_GAIN};
+    use hexcue_core::mca::AlgorithmId;
+    use hexcue_core::testing::full_flight;
     use ratatui::crossterm::event::KeyModifiers;
 
     fn key(code: KeyCode) -> KeyEvent {
@@ -332,7 +332,7 @@ mod tests {
         );
         let text = std::fs::read_to_string(&written).unwrap();
         assert!(text.starts_with("# hexcue profile: a full-flight simulator"));
-        let reloaded = crate::formats::profile::parse_profile(&text, "written").unwrap();
+        let reloaded = hexcue_core::profile::text::parse_profile(&text, "written").unwrap();
         assert_eq!(reloaded.cwf.specific_force_scale[0], scale);
         // A second `w` never overwrites.
         p.on_key(key(KeyCode::Char('w')));

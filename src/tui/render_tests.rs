@@ -12,7 +12,7 @@ use ratatui::Terminal;
 use super::player::{Command, Player, RecordingStatus};
 use super::tests::{draw, dressed_snapshot, engine, recording_opts, screen, settle, Counters};
 use super::*;
-use crate::mca::AlgorithmId;
+use hexcue_core::mca::AlgorithmId;
 
 /// The screen's rows without TestBackend's quotes.
 fn rows(text: &str) -> Vec<String> {
@@ -83,7 +83,7 @@ fn columns_share_one_scale_per_channel() {
             // And they hold every column's signal and the reference: the union.
             let ch = channel;
             let (lo, hi) = bounds(&caps[0][0]);
-            let scale = crate::vocab::Channel::ALL[ch].display_scale();
+            let scale = hexcue_core::vocab::Channel::ALL[ch].display_scale();
             for r in &s.window {
                 for v in r.lanes.iter().map(|l| l[ch]).chain([r.reference[ch]]) {
                     let v = f64::from(v) * scale;
@@ -117,7 +117,7 @@ fn the_shared_range_is_the_union_of_the_shown_lanes() {
     let all = view::shared_ranges(&s, &[0, 1, 2]);
     let half = view::shared_ranges(&s, &[1]);
     for (ch, &(lo, hi)) in all.iter().enumerate() {
-        let scale = crate::vocab::Channel::ALL[ch].display_scale();
+        let scale = hexcue_core::vocab::Channel::ALL[ch].display_scale();
         for r in &s.window {
             for v in r.lanes.iter().map(|l| l[ch]).chain([r.reference[ch]]) {
                 let v = f64::from(v) * scale;
@@ -547,7 +547,7 @@ fn v_overlays_the_algorithms_on_one_chart_per_channel() {
     }
     // The band: the chart's range holds the reference ± its threshold.
     for ch in 0..6 {
-        let scale = crate::vocab::Channel::ALL[ch].display_scale();
+        let scale = hexcue_core::vocab::Channel::ALL[ch].display_scale();
         let (lo, hi) = overlay::overlay_range(&s, &[0, 1, 2], ch, app.thresholds[ch]);
         for r in &s.window {
             let x = f64::from(r.reference[ch]) * scale;

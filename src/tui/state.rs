@@ -8,12 +8,12 @@ use std::time::Duration;
 
 use ratatui::crossterm::event::KeyEvent;
 
-use crate::mca::AlgorithmId;
-use crate::metrics::CHANNELS;
-use crate::profile::Profile;
-use crate::safety::SafetyState;
 use crate::session::player::Snapshot;
 use crate::session::SessionInfo;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::metrics::CHANNELS;
+use hexcue_core::profile::Profile;
+use hexcue_core::safety::SafetyState;
 
 use super::theme::Theme;
 
@@ -42,7 +42,7 @@ pub trait EventSource {
 /// 1 at the end stop); the marks go by the margin left.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LegScale {
-    pub stewart: crate::model::stewart::Stewart,
+    pub stewart: hexcue_core::model::stewart::Stewart,
     /// Margin of each leg at the neutral pose (m).
     pub neutral_margin_m: [f64; 6],
     /// Below this the leg is marked `!` (m).
@@ -120,7 +120,7 @@ impl App {
             pose_limits: profile.limits.si().excursion.into(),
             pose: false,
             overlay: false,
-            thresholds: crate::bound::thresholds(profile),
+            thresholds: hexcue_core::bound::thresholds(profile),
             live: None,
             quit: None,
         }

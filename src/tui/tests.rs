@@ -12,15 +12,15 @@ use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
 use ratatui::style::Color;
 use ratatui::Terminal;
 
-use crate::trace::AircraftSample;
+use hexcue_core::trace::AircraftSample;
 
 use super::app::{run_ui, EventSource, UiEvent};
 use super::player::{self, Command, Player, PlayerOptions, RecordingSetup, Snapshot, Wait};
 use super::*;
-use crate::engine::tests::manoeuvre;
-use crate::engine::Frame;
-use crate::mca::{AlgorithmState, Mode, SolverReport};
-use crate::profile::tests::full_flight;
+use hexcue_core::engine::Frame;
+use hexcue_core::mca::{AlgorithmState, Mode, SolverReport};
+use hexcue_core::testing::full_flight;
+use hexcue_core::testing::manoeuvre;
 
 /// Counts what reaches the sinks, shared with the test.
 #[derive(Clone, Default)]
@@ -892,7 +892,7 @@ fn paused() -> PlayerOptions {
 }
 
 /// Frames and metrics of a snapshot, without the wall-clock step times.
-fn timeless(s: &Snapshot) -> (Frame, crate::summary::Summary) {
+fn timeless(s: &Snapshot) -> (Frame, hexcue_core::summary::Summary) {
     let mut f = s.last.clone().unwrap();
     f.lanes.iter_mut().for_each(|l| l.step_time_us = 0.0);
     let mut sum = (**s.summary.as_ref().unwrap()).clone();

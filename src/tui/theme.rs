@@ -63,8 +63,8 @@ impl Theme {
     /// An algorithm's line in the overlaid charts (`v`): the hue of its colour in figures
     /// and Foxglove (`channels::algorithm_rgb`: blue, orange, green), among the 16 named
     /// colours; each also has its own marker, so that it reads without colour.
-    pub fn algorithm(&self, id: crate::mca::AlgorithmId) -> Style {
-        use crate::mca::AlgorithmId;
+    pub fn algorithm(&self, id: hexcue_core::mca::AlgorithmId) -> Style {
+        use hexcue_core::mca::AlgorithmId;
         self.fg(match id {
             AlgorithmId::Smpc => Color::LightBlue,
             AlgorithmId::Mpc => Color::LightMagenta,

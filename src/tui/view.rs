@@ -9,10 +9,10 @@ use ratatui::symbols::Marker;
 use ratatui::text::{Line, Span};
 use ratatui::widgets::{Axis, Block, Borders, Chart, Dataset, GraphType, Paragraph};
 
-use crate::engine::LaneFrame;
-use crate::mca::{AlgorithmId, Mode};
-use crate::metrics::CHANNELS;
-use crate::vocab::Channel;
+use hexcue_core::engine::LaneFrame;
+use hexcue_core::mca::{AlgorithmId, Mode};
+use hexcue_core::metrics::CHANNELS;
+use hexcue_core::vocab::Channel;
 
 use super::gauges::{leg_lines, pose_lines, FULL_ROWS, PAIRED_ROWS};
 use super::player::{speed_label, Snapshot, WINDOW_S};
@@ -281,7 +281,7 @@ pub(super) fn header_line2(app: &App, width: usize) -> Line<'static> {
         (None, false) => {}
     }
     if let Some(clipped) = s.summary.as_ref().and_then(|sum| {
-        let parts: Vec<String> = crate::summary::INPUT_AXES
+        let parts: Vec<String> = hexcue_core::summary::INPUT_AXES
             .iter()
             .filter_map(|a| {
                 let n = sum.input_clipped.get(*a).copied().unwrap_or(0);
@@ -643,7 +643,7 @@ fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'stat
 }
 
 /// The solvers' statuses, short enough for an 80-column screen.
-fn status_word(status: &crate::vocab::SolveStatus) -> &'static str {
+fn status_word(status: &hexcue_core::vocab::SolveStatus) -> &'static str {
     status.short()
 }
 
@@ -661,7 +661,7 @@ fn fmt_us(us: f64) -> String {
 /// The supervisor's reasons (`Supervisor::update`) in a few characters: "COTC infeas" for
 /// "COTC not solved (primal_infeasible)", "|e|<ε 1.5s, COTC ok" for the return.
 fn short_reason(why: &str) -> String {
-    use crate::vocab::SwitchReason;
+    use hexcue_core::vocab::SwitchReason;
     match SwitchReason::parse(why) {
         SwitchReason::CotcNotSolved(status) => format!("COTC {}", status_word(&status)),
         SwitchReason::Settled { dwell_s, .. } => format!("|e|<ε {dwell_s:.1}s, COTC ok"),

@@ -6,7 +6,7 @@
 use anyhow::{anyhow, bail, Result};
 use toml_edit::{DocumentMut, Item, Value};
 
-use crate::mca::AlgorithmId;
+use hexcue_core::mca::AlgorithmId;
 
 /// One tuned value of the profile.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -272,12 +272,12 @@ pub fn check_table(keys: &[TunableKey], doc: &DocumentMut) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::profile::{parse_profile, DEFAULT_PROFILE_TOML};
+    use hexcue_core::profile::text::{parse_profile, DEFAULT_PROFILE_TOML};
 
     #[test]
     fn every_table_fits_the_shipped_profile() {
         let doc: DocumentMut = DEFAULT_PROFILE_TOML.parse().unwrap();
-        for alg in crate::mca::AlgorithmId::ALL {
+        for alg in hexcue_core::mca::AlgorithmId::ALL {
             check_table(tunable_keys(*alg), &doc).unwrap();
         }
     }

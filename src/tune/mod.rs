@@ -1,6 +1,6 @@
 //! The search behind `hexcue tune` (the command itself, its arguments aside, is
 //! `app/tune.rs`): derivative-free optimisation of one algorithm's tuning keys against the
-//! cueing score (`crate::score`) on a set of traces, with CMA-ES (the `cmaes` crate; the
+//! cueing score (`hexcue_core::score`) on a set of traces, with CMA-ES (the `cmaes` crate; the
 //! choice is argued in docs/tuning.md).
 //!
 //! Each candidate is the base profile's TOML with the tuned keys replaced, read back by the
@@ -22,12 +22,12 @@ use anyhow::{anyhow, bail, Context, Result};
 use rayon::prelude::*;
 use toml_edit::DocumentMut;
 
-use crate::engine::Engine;
-use crate::formats::profile::parse_profile;
-use crate::mca::AlgorithmId;
-use crate::profile::Profile;
-use crate::summary::{AlgorithmSummary, SummaryBuilder};
-use crate::trace::Trace;
+use hexcue_core::engine::Engine;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::text::parse_profile;
+use hexcue_core::profile::Profile;
+use hexcue_core::summary::{AlgorithmSummary, SummaryBuilder};
+use hexcue_core::trace::Trace;
 
 pub use keys::{tunable_keys, TunableKey};
 pub use validate::{GenerationRecord, Validated};
@@ -686,8 +686,8 @@ pub fn cross_validated_tune(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::profile::DEFAULT_PROFILE_TOML;
-    use crate::profile::tests::full_flight;
+    use hexcue_core::profile::text::DEFAULT_PROFILE_TOML;
+    use hexcue_core::testing::full_flight;
 
     struct Quiet;
     impl Progress for Quiet {
@@ -719,12 +719,12 @@ mod tests {
                     x * x * (3.0 - 2.0 * x)
                 };
                 let on = |a: f64, b: f64| edge(t - a) - edge(t - b);
-                crate::trace::AircraftSample {
+                hexcue_core::trace::AircraftSample {
                     t_s: t,
                     specific_force_mps2: Vector3::new(
                         1.5 * on(1.0, 4.0),
                         0.8 * on(6.0, 11.0),
-                        -crate::G_MPS2,
+                        -hexcue_core::G_MPS2,
                     ),
                     angular_velocity_radps: Vector3::new(
                         0.1 * on(5.0, 6.0),
@@ -750,8 +750,8 @@ mod tests {
         // bound's lower total), so the ranking is on what a motion can change.
         let plain = evaluator(vec![short_manoeuvre()]);
         let mut floored = evaluator(vec![short_manoeuvre()]);
-        let floor = crate::bound::relaxed(
-            &crate::bound::Setup::new(&full_flight(), &short_manoeuvre()).unwrap(),
+        let floor = hexcue_core::bound::relaxed(
+            &hexcue_core::bound::Setup::new(&full_flight(), &short_manoeuvre()).unwrap(),
             [false; 6],
         )
         .unwrap()
@@ -899,7 +899,7 @@ mod tests {
     fn the_result_makes_the_limiter_act_at_most_the_tolerance_more_than_the_base() {
         // The engine's test manoeuvre steps its body rates, which asks for an infinite
         // angular acceleration: the limiter acts on the base, and on any CWF tuning.
-        let mut t = crate::engine::tests::manoeuvre();
+        let mut t = hexcue_core::testing::manoeuvre();
         t.samples.truncate(1200);
         let ev = evaluator(vec![Arc::new(t)]);
         let r = tune(&ev, None, 20, 0.2, 1, &Quiet).unwrap();

@@ -192,7 +192,7 @@ pub fn apply_all(doc: &mut DocumentMut, settings: &[Setting]) -> Result<(), SetE
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::profile::{parse_profile, DEFAULT_PROFILE_TOML};
+    use hexcue_core::profile::text::{parse_profile, DEFAULT_PROFILE_TOML};
 
     fn set(doc: &mut DocumentMut, text: &str) -> Result<(), SetError> {
         text.parse::<Setting>()?.apply(doc)

@@ -2,7 +2,7 @@
 //! the master motion gain, a gain per DoF, and each algorithm's main keys by the profile's
 //! key path, each with its safe range. No I/O: the console and the Foxglove server call
 //! [`Tuner::set`]; what it returns is applied by the engine, bumplessly
-//! ([`crate::bumpless`]).
+//! ([`hexcue_core::bumpless`]).
 //!
 //! The ranges of the algorithms' keys are `hexcue tune`'s search bounds (`crate::tune::keys`):
 //! values inside them were scored by the tuner and load; the gains run from 0 to 1, so that a
@@ -11,12 +11,12 @@
 use nalgebra::Vector6;
 use toml_edit::DocumentMut;
 
-use crate::engine::Retune;
-use crate::mca::AlgorithmId;
-use crate::profile::Profile;
-use crate::safety::DOF_NAMES;
-use crate::summary::{ParameterChange, TuningSummary};
 use crate::tune::keys::{tunable_keys, TunableKey};
+use hexcue_core::engine::Retune;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::Profile;
+use hexcue_core::safety::DOF_NAMES;
+use hexcue_core::summary::{ParameterChange, TuningSummary};
 
 /// The master gain's name, as the issue and Foxglove's panel call it.
 pub const MOTION_GAIN: &str = "motion_gain";
@@ -476,7 +476,7 @@ impl Shared {
 /// recorded in the tuner for the summary.
 pub fn apply_pending(
     shared: &mut Shared,
-    engine: &mut crate::engine::Engine,
+    engine: &mut hexcue_core::engine::Engine,
     t_s: f64,
     blend_s: f64,
 ) -> Vec<String> {

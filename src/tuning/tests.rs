@@ -1,5 +1,5 @@
 use super::*;
-use crate::profile::tests::full_flight;
+use hexcue_core::testing::full_flight;
 
 fn tuner() -> Tuner {
     Tuner::new(&full_flight(), &[AlgorithmId::Cwf, AlgorithmId::Smpc]).unwrap()
@@ -148,7 +148,7 @@ fn writing_back_keeps_the_files_comments_and_reloads() {
         .collect();
     assert_eq!(changed.len(), 2, "{changed:?}");
     assert_eq!(text.lines().count(), out.lines().count());
-    let p = crate::formats::profile::parse_profile(&out, "written").unwrap();
+    let p = hexcue_core::profile::text::parse_profile(&out, "written").unwrap();
     assert_eq!(p.cwf.specific_force_scale[1], 0.25);
     assert_eq!(p.cwf.tilt_limit_deg, 12.0);
 }
@@ -159,9 +159,9 @@ fn writing_back_keeps_the_files_comments_and_reloads() {
 /// at 14 s takes the CWF to its 200 °/s² limit either way), and after it the new tuning acts.
 #[test]
 fn a_retune_mid_manoeuvre_is_bumpless_and_takes_effect() {
-    use crate::engine::Engine;
+    use hexcue_core::engine::Engine;
     let profile = full_flight();
-    let trace = std::sync::Arc::new(crate::engine::tests::manoeuvre());
+    let trace = std::sync::Arc::new(hexcue_core::testing::manoeuvre());
     let run = |change: bool| {
         let mut engine = Engine::new(&profile, trace.clone(), &[AlgorithmId::Cwf]).unwrap();
         let shared = Shared::handle(Tuner::new(&profile, &[AlgorithmId::Cwf]).unwrap());
@@ -211,9 +211,9 @@ fn a_retune_mid_manoeuvre_is_bumpless_and_takes_effect() {
 /// is over, the algorithm's own state untouched (its limiter still sees the whole command).
 #[test]
 fn the_master_gain_halves_the_command_once_its_path_is_over() {
-    use crate::engine::Engine;
+    use hexcue_core::engine::Engine;
     let profile = full_flight();
-    let trace = std::sync::Arc::new(crate::engine::tests::manoeuvre());
+    let trace = std::sync::Arc::new(hexcue_core::testing::manoeuvre());
     let mut plain = Engine::new(&profile, trace.clone(), &[AlgorithmId::Cwf]).unwrap();
     let mut gained = Engine::new(&profile, trace, &[AlgorithmId::Cwf]).unwrap();
     let shared = Shared::handle(Tuner::new(&profile, &[AlgorithmId::Cwf]).unwrap());

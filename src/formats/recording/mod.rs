@@ -22,10 +22,10 @@ use sha2::{Digest, Sha256};
 
 use crate::channels::json;
 use crate::channels::{Kind, REFERENCE_TOPIC};
-use crate::engine::Frame;
-use crate::mca::AlgorithmId;
-use crate::profile::Profile;
-use crate::trace::TraceInfo;
+use hexcue_core::engine::Frame;
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::Profile;
+use hexcue_core::trace::TraceInfo;
 
 pub use reader::{plural, Damage, Frames, JsonMessage, JsonMessages, LostSteps, Recording};
 pub use recover::{recover, RecoverStats};
@@ -204,19 +204,19 @@ mod tests {
     use super::source::check_attachment_body;
     use super::writer::scene_every_steps;
     use crate::channels::json::resolution;
-    use crate::mca::{AlgorithmState, Mode, SolverReport};
-    use crate::model::vestibular::Perceived;
+    use hexcue_core::mca::{AlgorithmState, Mode, SolverReport};
+    use hexcue_core::model::vestibular::Perceived;
     use mcap::records::MessageHeader;
     use serde_json::Value;
     use std::sync::Arc;
 
     use super::*;
-    use crate::engine::tests::manoeuvre;
-    use crate::engine::Engine;
-    use crate::formats::profile::DEFAULT_PROFILE_TOML;
-    use crate::profile::tests::full_flight;
-    use crate::summary::SummaryBuilder;
-    use crate::trace::Trace;
+    use hexcue_core::engine::Engine;
+    use hexcue_core::profile::text::DEFAULT_PROFILE_TOML;
+    use hexcue_core::summary::SummaryBuilder;
+    use hexcue_core::testing::full_flight;
+    use hexcue_core::testing::manoeuvre;
+    use hexcue_core::trace::Trace;
 
     fn trace_csv(trace: &Trace) -> String {
         let mut csv = String::from("t,fx,fy,fz,p,q,r,phi,theta,psi\n");
@@ -415,7 +415,7 @@ mod tests {
         assert_eq!(rec.profile_toml, DEFAULT_PROFILE_TOML);
         assert_eq!(
             rec.profile.as_ref().unwrap(),
-            &crate::formats::profile::default_profile()
+            &hexcue_core::profile::text::default_profile()
         );
         assert_eq!(rec.trace_csv, trace_csv(trace));
         assert_eq!(

@@ -15,11 +15,11 @@ use super::{
 };
 use crate::channels::json::{ActuatorsMsg, AircraftMsg, ControllerMsg, PerceivedMsg, PlatformMsg};
 use crate::channels::{Channel, Kind, AIRCRAFT_TOPIC, REFERENCE_TOPIC};
-use crate::engine::{Frame, LaneFrame, Legs};
-use crate::formats::profile::{parse_profile, ProfileLoadError};
-use crate::mca::{AlgorithmId, AlgorithmState, Mode, PlatformCommand, SolverReport};
-use crate::profile::Profile;
-use crate::trace::AircraftSample;
+use hexcue_core::engine::{Frame, LaneFrame, Legs};
+use hexcue_core::mca::{AlgorithmId, AlgorithmState, Mode, PlatformCommand, SolverReport};
+use hexcue_core::profile::text::{parse_profile, ProfileLoadError};
+use hexcue_core::profile::Profile;
+use hexcue_core::trace::AircraftSample;
 
 /// What a topic carries.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -142,7 +142,7 @@ impl Damage {
     }
 }
 
-pub use crate::vocab::plural;
+pub use hexcue_core::vocab::plural;
 
 /// A recording opened for review: what it says about itself and where its frames are.
 #[derive(Debug)]

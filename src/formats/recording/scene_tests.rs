@@ -9,13 +9,13 @@ use ::foxglove::messages::{FrameTransforms, Log, SceneUpdate};
 use ::foxglove::{Decode, Encode};
 use nalgebra::{UnitQuaternion, Vector3};
 
-use crate::engine::tests::manoeuvre;
-use crate::engine::{Engine, Frame};
-use crate::formats::profile::DEFAULT_PROFILE_TOML;
 use crate::formats::recording::{json_messages, Recorder, RecordingMeta};
-use crate::mca::AlgorithmId;
-use crate::model::stewart::rotation;
-use crate::profile::tests::full_flight;
+use hexcue_core::engine::{Engine, Frame};
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::model::stewart::rotation;
+use hexcue_core::profile::text::DEFAULT_PROFILE_TOML;
+use hexcue_core::testing::full_flight;
+use hexcue_core::testing::manoeuvre;
 
 /// 800 steps of the synthetic manoeuvre (the surge pulse and the turn entry), CWF and
 /// MPC, recorded; the frames and the file's bytes.
@@ -251,7 +251,7 @@ fn session_events_are_recorded_as_logs() {
     rec.record(&frames[0]).unwrap();
     rec.event(
         0.0,
-        crate::events::EventLevel::Warning,
+        hexcue_core::events::EventLevel::Warning,
         "live",
         "input lost: washout",
     )

@@ -19,9 +19,9 @@ use super::{
 use crate::channels::json::{self, Message};
 use crate::channels::scene::{self, SceneBuilder};
 use crate::channels::{self, Channel, EncodeError, Kind, SceneMessage};
-use crate::engine::Frame;
-use crate::events::EventLevel;
-use crate::formats::profile::parse_profile;
+use hexcue_core::engine::Frame;
+use hexcue_core::events::EventLevel;
+use hexcue_core::profile::text::parse_profile;
 
 /// Uncompressed chunk size. The one-second flush normally closes chunks first (a step of
 /// three algorithms is about 5 KB of JSON); this bounds the writer's memory otherwise.

@@ -11,11 +11,11 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
-use crate::trace::MAX_TRACE_SAMPLES;
-use crate::trace::{
+use hexcue_core::trace::MAX_TRACE_SAMPLES;
+use hexcue_core::trace::{
     lerp_sample, AircraftSample, ResampleError, Trace, TraceInfo, GRID_TOLERANCE_STEPS,
 };
-use crate::G_MPS2;
+use hexcue_core::G_MPS2;
 
 pub use super::units::{UnitJudgement, UnitNames, UnitStats};
 

@@ -12,8 +12,8 @@
 use nalgebra::Vector6;
 
 use super::protocol::{self, mcw, BaseState, BaseStatus, MoogDofs};
-use crate::profile::MoogParams;
 use crate::sinks::{PlatformPhase, PlatformStatus};
+use hexcue_core::profile::MoogParams;
 
 /// How a PARK on the way out ended.
 #[derive(Clone, Debug, PartialEq)]

@@ -214,9 +214,9 @@ fn serve(socket: UdpSocket, config: FakeBaseConfig, stop: &AtomicBool) -> Vec<Re
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::profile::MoogParams;
     use crate::sinks::moog::driver::{Driver, ParkOutcome};
     use crate::sinks::PlatformPhase;
+    use hexcue_core::profile::MoogParams;
     use nalgebra::Vector6;
 
     #[test]

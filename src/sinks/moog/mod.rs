@@ -13,8 +13,8 @@ use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
 
 use super::{CommandSink, PlatformOutput, PlatformStatus};
-use crate::profile::MoogParams;
 use driver::{Driver, ParkOutcome};
+use hexcue_core::profile::MoogParams;
 
 /// Replies read at most per poll: a base answers one per command.
 const MAX_REPLIES_PER_POLL: usize = 64;

@@ -3,6 +3,8 @@
 //! Values are stored in the units their key names (`_m`, `_deg`, `_dps`, …) so that the TOML
 //! reads as the engineer wrote it; accessors convert to SI.
 
+pub mod text;
+
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -587,20 +589,4 @@ fn check_points(key: &str, points: &[Vec<f64>]) -> Result<(), ProfileError> {
         }
     }
     Ok(())
-}
-
-#[cfg(test)]
-pub(crate) mod tests {
-    use super::Profile;
-
-    /// The shipped default profile, for tests of the core, without the MPCs' wall-clock
-    /// limit: the tests judge the algorithms, not this machine's speed (a loaded CI machine
-    /// ran an unoptimised solve past the shipped 20 ms, and its fallback failed a test).
-    /// The tests of that limit set their own.
-    pub(crate) fn full_flight() -> Profile {
-        let mut profile = crate::formats::profile::default_profile();
-        // Finite, so that the profile still validates.
-        profile.mpc.time_limit_ms = 1e6;
-        profile
-    }
 }

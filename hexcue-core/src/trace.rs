@@ -89,7 +89,7 @@ pub const MAX_TRACE_SAMPLES: usize = 4_000_000;
 
 /// Timestamps within this fraction of a step of the grid count as on it: CSV writers round
 /// time to a few decimals, and that rounding must not trigger an interpolation.
-pub(crate) const GRID_TOLERANCE_STEPS: f64 = 1e-6;
+pub const GRID_TOLERANCE_STEPS: f64 = 1e-6;
 
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum ResampleError {
@@ -182,7 +182,7 @@ pub fn resample_uniform(
 
 /// The sample at time `t` between `a` and `b`, linear in each quantity (angles the short way
 /// round).
-pub(crate) fn lerp_sample(a: &AircraftSample, b: &AircraftSample, t: f64) -> AircraftSample {
+pub fn lerp_sample(a: &AircraftSample, b: &AircraftSample, t: f64) -> AircraftSample {
     // Clamped because the last grid point may lie a rounding error past the last sample.
     let w = ((t - a.t_s) / (b.t_s - a.t_s)).clamp(0.0, 1.0);
     AircraftSample {
@@ -217,8 +217,38 @@ pub(crate) fn lerp3(a: &Vector3<f64>, b: &Vector3<f64>, w: f64, angles: bool) ->
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// A shipped trace (`recordings/traces/*.csv`: `t,fx,fy,fz,p,q,r,phi,theta,psi` in SI at
+    /// 100 Hz) for the core's tests. The application's reader checks units, gaps and rates;
+    /// these files are known to be clean, so the core's tests need no more than the numbers.
+    pub(crate) fn shipped_trace(path: &std::path::Path) -> Trace {
+        let text = std::fs::read_to_string(path).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some("t,fx,fy,fz,p,q,r,phi,theta,psi"));
+        let samples: Vec<AircraftSample> = lines
+            .map(|line| {
+                let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+                AircraftSample {
+                    t_s: v[0],
+                    specific_force_mps2: Vector3::new(v[1], v[2], v[3]),
+                    angular_velocity_radps: Vector3::new(v[4], v[5], v[6]),
+                    attitude_rad: Vector3::new(v[7], v[8], v[9]),
+                }
+            })
+            .collect();
+        assert!(samples
+            .windows(2)
+            .all(|w| (w[1].t_s - w[0].t_s - 0.01).abs() < 1e-9));
+        Trace {
+            name: path.file_stem().unwrap().to_string_lossy().into_owned(),
+            rate_hz: 100.0,
+            samples,
+            info: None,
+            notices: vec![],
+        }
+    }
 
     fn sample(t_s: f64, v: f64) -> AircraftSample {
         AircraftSample {

@@ -314,7 +314,7 @@ impl Actuators {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::profile::default_profile;
+    use crate::profile::text::default_profile;
 
     fn params(kind: &str) -> ActuatorParams {
         ActuatorParams {
@@ -368,10 +368,12 @@ mod tests {
     }
 
     fn shipped(name: &str) -> crate::profile::Profile {
-        let path = format!("{}/profiles/{name}", env!("CARGO_MANIFEST_DIR"));
-        crate::formats::profile::load_profile(std::path::Path::new(&path))
-            .unwrap()
-            .0
+        let path = format!(
+            "{}/profiles/{name}",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/..")
+        );
+        let text = std::fs::read_to_string(&path).unwrap();
+        crate::profile::text::parse_profile(&text, &path).unwrap()
     }
 
     /// The shipped rotary rig at neutral has every crank horizontal (its geometry puts the

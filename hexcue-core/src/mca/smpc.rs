@@ -268,7 +268,7 @@ mod tests {
 
     use crate::engine::Engine;
     use crate::mca::{AlgorithmId, Mode};
-    use crate::profile::tests::full_flight;
+    use crate::testing::full_flight;
     use crate::trace::{AircraftSample, Trace};
     use crate::G_MPS2;
 

@@ -495,7 +495,7 @@ impl CotcOverrides {
 
 #[cfg(test)]
 mod tests {
-    use crate::profile::tests::full_flight;
+    use crate::testing::full_flight;
 
     #[test]
     fn invalid_values_name_their_key() {
@@ -594,28 +594,28 @@ mod tests {
 
     #[test]
     fn a_profile_without_the_heave_cue_key_loads_and_tracks_the_whole_heave() {
-        let toml = crate::formats::profile::DEFAULT_PROFILE_TOML;
+        let toml = crate::profile::text::DEFAULT_PROFILE_TOML;
         let line = toml
             .lines()
             .find(|l| l.starts_with("heave_cue_s"))
             .expect("the default profile sets heave_cue_s");
         let without = toml.replace(line, "");
-        let p = crate::formats::profile::parse_profile(&without, "t").unwrap();
+        let p = crate::profile::text::parse_profile(&without, "t").unwrap();
         assert_eq!(p.mpc.heave_cue_s, 0.0);
     }
 
     #[test]
     fn a_profile_without_the_follow_keys_loads_and_rotates_freely() {
-        let toml = crate::formats::profile::DEFAULT_PROFILE_TOML;
+        let toml = crate::profile::text::DEFAULT_PROFILE_TOML;
         let without: String = toml
             .lines()
             .filter(|l| !(l.starts_with("tilt_follow_weight") || l.starts_with("follow_")))
             .map(|l| format!("{l}\n"))
             .collect();
-        let p = crate::formats::profile::parse_profile(&without, "t").unwrap();
+        let p = crate::profile::text::parse_profile(&without, "t").unwrap();
         assert_eq!(p.mpc.tilt_follow_weight, [0.0; 2]);
         // The rest default to the washout filter's shipped tuning.
-        let shipped = crate::formats::profile::parse_profile(toml, "t").unwrap();
+        let shipped = crate::profile::text::parse_profile(toml, "t").unwrap();
         assert_eq!(p.mpc.follow_tilt_lp_wn_radps, shipped.cwf.tilt_lp_wn_radps);
         assert_eq!(
             p.mpc.follow_tilt_rate_limit_dps,
@@ -629,40 +629,40 @@ mod tests {
 
     #[test]
     fn cotc_table_is_optional_and_refuses_unknown_keys() {
-        let toml = crate::formats::profile::DEFAULT_PROFILE_TOML;
+        let toml = crate::profile::text::DEFAULT_PROFILE_TOML;
         let start = toml
             .find("[smpc.cotc]")
             .expect("the default profile tunes COTC");
         let without = &toml[..start];
-        let p = crate::formats::profile::parse_profile(without, "t").unwrap();
+        let p = crate::profile::text::parse_profile(without, "t").unwrap();
         assert_eq!(p.cotc_params(), p.mpc);
         let spoiled = toml.replace("[smpc.cotc]\n", "[smpc.cotc]\nhorizon_s = 3.0\n");
-        let err = crate::formats::profile::parse_profile(&spoiled, "t").unwrap_err();
+        let err = crate::profile::text::parse_profile(&spoiled, "t").unwrap_err();
         let text = err.to_string();
         assert!(text.contains("horizon_s"), "{text}");
     }
 
     #[test]
     fn unknown_keys_are_refused_and_reference_parses() {
-        let toml = crate::formats::profile::DEFAULT_PROFILE_TOML;
+        let toml = crate::profile::text::DEFAULT_PROFILE_TOML;
         let line = "reference = \"decay\"";
         assert!(
             toml.contains(line),
             "the default profile's reference line moved"
         );
         let spoiled = toml.replace(line, "reference = \"decay\"\nhorizon = 3");
-        assert!(crate::formats::profile::parse_profile(&spoiled, "t").is_err());
+        assert!(crate::profile::text::parse_profile(&spoiled, "t").is_err());
         let preview = toml.replace(line, "reference = \"preview\"");
-        let p = crate::formats::profile::parse_profile(&preview, "t").unwrap();
+        let p = crate::profile::text::parse_profile(&preview, "t").unwrap();
         assert_eq!(p.mpc.reference, super::ReferenceMode::Preview);
     }
 
     #[test]
     fn both_shipped_profiles_load() {
         for path in ["profiles/full-flight.toml", "profiles/compact.toml"] {
-            let full = format!("{}/{path}", env!("CARGO_MANIFEST_DIR"));
+            let full = format!("{}/{path}", concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
             let text = std::fs::read_to_string(&full).unwrap();
-            let p = crate::formats::profile::parse_profile(&text, path).unwrap();
+            let p = crate::profile::text::parse_profile(&text, path).unwrap();
             assert!(p.mpc.horizon_s() >= 1.5);
         }
     }

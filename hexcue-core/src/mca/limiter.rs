@@ -258,7 +258,7 @@ fn stopping_speed(distance: f64, a_max: f64, dt: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::profile::tests::full_flight;
+    use crate::testing::full_flight;
 
     fn limiter() -> WorkspaceLimiter {
         let p = full_flight();

@@ -1,8 +1,8 @@
 use nalgebra::Vector3;
 
 use super::*;
-use crate::profile::tests::full_flight;
 use crate::score::soft_dead_zone;
+use crate::testing::full_flight;
 use crate::trace::AircraftSample;
 use crate::G_MPS2;
 
@@ -32,7 +32,7 @@ fn the_channel_filters_reproduce_the_pipelines_perception() {
     // The programmes' per-channel ZOH filters, driven by the aircraft, give the reference
     // the engine computes with the 15-state model.
     let profile = full_flight();
-    let trace = crate::engine::tests::manoeuvre();
+    let trace = crate::testing::manoeuvre();
     let reference = reference_channels(&profile, &trace);
     let filters = channel_filters(&profile, profile.dt_s());
     for (c, f) in filters.iter().enumerate() {

@@ -461,7 +461,7 @@ mod tests {
     use super::*;
     use crate::mca::washout::WashoutParams;
     use crate::model::lti::StateSpace;
-    use crate::profile::tests::full_flight;
+    use crate::testing::full_flight;
     use nalgebra::Complex;
 
     #[test]

@@ -2,8 +2,8 @@
 
 use super::*;
 use crate::mca::limiter::WorkspaceLimiter;
-use crate::profile::tests::full_flight;
 use crate::profile::Profile;
+use crate::testing::full_flight;
 use clarabel::solver::{IPSolver, SolverStatus};
 use nalgebra::Vector6;
 
@@ -536,8 +536,8 @@ fn a_plan_at_the_legs_bound_passes_the_limiter_and_comes_back() {
 
 #[test]
 fn compact_rig_builds_and_solves() {
-    let text = include_str!("../../../profiles/compact.toml");
-    let mut p = crate::formats::profile::parse_profile(text, "compact.toml").unwrap();
+    let text = include_str!("../../../../profiles/compact.toml");
+    let mut p = crate::profile::text::parse_profile(text, "compact.toml").unwrap();
     p.mpc.time_limit_ms = 10_000.0;
     let stewart = p.stewart();
     for terminal in [Terminal::Free, Terminal::Cotc] {
@@ -709,19 +709,18 @@ fn n_dyn(mpc: &Mpc) -> usize {
 #[test]
 fn active_set_and_clarabel_agree_on_every_qp_of_the_stall_and_landing() {
     use crate::engine::cue_sample;
-    use crate::formats::trace::load_trace;
+    use crate::trace::tests::shipped_trace;
     let mut p = full_flight();
     // Clarabel as the reference: far tighter than the shipped 1e-5 (at 1e-9 its first move
     // was off by 1.1e-5 at one step of the stall; at 1e-11 by 1.4e-6 at worst).
     p.mpc.tolerance = 1e-11;
     p.mpc.max_iterations = 200;
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("recordings/traces");
+    let root =
+        std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join("recordings/traces");
     let traces: Vec<(&str, Vec<CueSample>)> = ["horizontal-stall", "landing"]
         .into_iter()
         .map(|name| {
-            let trace = load_trace(&root.join(format!("{name}.csv")), p.rate_hz)
-                .unwrap()
-                .trace;
+            let trace = shipped_trace(&root.join(format!("{name}.csv")));
             (
                 name,
                 trace.samples.iter().map(|s| cue_sample(&p, s)).collect(),

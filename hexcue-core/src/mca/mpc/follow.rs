@@ -96,7 +96,7 @@ impl Follow {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::profile::tests::full_flight;
+    use crate::testing::full_flight;
 
     #[test]
     fn a_held_surge_is_followed_by_the_tilt_of_its_share_reached_at_the_rate_limit() {

@@ -585,7 +585,7 @@ impl TransitionLimits {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::profile::tests::full_flight;
+    use crate::testing::full_flight;
     use proptest::prelude::*;
 
     const DT: f64 = 0.01;
@@ -901,8 +901,8 @@ mod tests {
     /// back from there takes.
     #[test]
     fn the_shipped_profiles_full_returns() {
-        let compact = crate::formats::profile::parse_profile(
-            include_str!("../../profiles/compact.toml"),
+        let compact = crate::profile::text::parse_profile(
+            include_str!("../../../profiles/compact.toml"),
             "compact.toml",
         )
         .unwrap();

@@ -653,7 +653,7 @@ impl Safety {
 mod tests {
     use super::*;
     use crate::mca::limiter::WorkspaceLimiter;
-    use crate::profile::tests::full_flight;
+    use crate::testing::full_flight;
 
     const DT: f64 = 0.01;
 
@@ -1221,8 +1221,8 @@ mod tests {
     /// the gentle limits, sampled as sent.
     #[test]
     fn on_the_hobby_rig_the_way_back_keeps_the_legs_inside() {
-        let profile = crate::formats::profile::parse_profile(
-            include_str!("../profiles/hobby-linear.toml"),
+        let profile = crate::profile::text::parse_profile(
+            include_str!("../../profiles/hobby-linear.toml"),
             "hobby-linear.toml",
         )
         .unwrap();

@@ -84,7 +84,7 @@ pub fn neutral_conditioning(stewart: &Stewart) -> (f64, Vec<usize>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::profile::default_profile;
+    use crate::profile::text::default_profile;
 
     /// Heave in the symmetric form, by hand: every leg keeps its horizontal length d, so
     /// leg i is √(d² + (h0 + Δ)²) with Δ up; the reach up is where the longest leg meets

@@ -427,7 +427,7 @@ impl MotionCueing for Washout {
 mod tests {
     use super::*;
     use crate::mca::CueSample;
-    use crate::profile::tests::full_flight;
+    use crate::testing::full_flight;
 
     fn run(w: &mut Washout, samples: impl Iterator<Item = CueSample>) -> Vec<PlatformCommand> {
         let applied = PlatformCommand::default();

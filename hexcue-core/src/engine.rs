@@ -589,40 +589,8 @@ impl Engine {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::profile::tests::full_flight;
     use crate::summary::SummaryBuilder;
-
-    /// A synthetic 30 s manoeuvre at 100 Hz: a surge pulse, a sustained turn entry, a pitch
-    /// doublet and a heave bump.
-    pub(crate) fn manoeuvre() -> Trace {
-        let samples = (0..3000)
-            .map(|k| {
-                let t = k as f64 * 0.01;
-                let pulse = |t0: f64, t1: f64| if t >= t0 && t < t1 { 1.0 } else { 0.0 };
-                AircraftSample {
-                    t_s: t,
-                    specific_force_mps2: Vector3::new(
-                        2.5 * pulse(2.0, 6.0),
-                        1.5 * pulse(10.0, 20.0),
-                        -crate::G_MPS2 - 3.0 * pulse(22.0, 23.0),
-                    ),
-                    angular_velocity_radps: Vector3::new(
-                        0.2 * pulse(9.0, 10.0),
-                        0.1 * (pulse(14.0, 15.0) - pulse(15.0, 16.0)),
-                        0.05 * pulse(10.0, 20.0),
-                    ),
-                    attitude_rad: Vector3::zeros(),
-                }
-            })
-            .collect();
-        Trace {
-            name: "manoeuvre".into(),
-            rate_hz: 100.0,
-            samples,
-            info: None,
-            notices: vec![],
-        }
-    }
+    use crate::testing::{full_flight, manoeuvre};
 
     #[test]
     fn cwf_runs_a_manoeuvre_inside_the_workspace() {
@@ -759,53 +727,12 @@ pub(crate) mod tests {
         assert_eq!(cwf.position(), 0);
     }
 
+    /// The engine over a streamed file restores snapshots too: `hexcue`'s
+    /// `sources::trace_file` tests it, the file reader being the application's.
     #[test]
-    fn a_streamed_trace_file_restores_a_snapshot_and_a_live_stream_refuses() {
+    fn a_live_stream_refuses_to_restore_a_snapshot() {
         let profile = full_flight();
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("manoeuvre.csv");
-        let mut csv = String::from("t,fx,fy,fz,p,q,r\n");
-        for s in &manoeuvre().samples {
-            let (f, w) = (s.specific_force_mps2, s.angular_velocity_radps);
-            csv += &format!(
-                "{},{},{},{},{},{},{}\n",
-                s.t_s, f.x, f.y, f.z, w.x, w.y, w.z
-            );
-        }
-        std::fs::write(&path, csv).unwrap();
-        let file = crate::sources::trace_file::TraceFile::open(&path, 100.0).unwrap();
         let algorithms = [AlgorithmId::Mpc, AlgorithmId::Cwf];
-        let mut engine = Engine::with_source(&profile, Box::new(file), &algorithms).unwrap();
-        // Into the pitch doublet (14–16 s).
-        for _ in 0..1450 {
-            engine.step().unwrap();
-        }
-        let snap = engine.snapshot().unwrap();
-        let first: Vec<Frame> = (0..60).map(|_| timeless(engine.step().unwrap())).collect();
-        // Back 60 steps, and back again after the end of the file.
-        assert!(engine.restore(&snap));
-        let again: Vec<Frame> = (0..60).map(|_| timeless(engine.step().unwrap())).collect();
-        assert_replays(&first, &again);
-        while engine.step().is_some() {}
-        assert!(engine.restore(&snap));
-        let after_end: Vec<Frame> = (0..60).map(|_| timeless(engine.step().unwrap())).collect();
-        assert_replays(&first, &after_end);
-        // The same frames as the trace held in memory.
-        let mut held = Engine::new(&profile, Arc::new(manoeuvre()), &algorithms).unwrap();
-        let from_memory: Vec<Frame> = (0..1510)
-            .map(|_| timeless(held.step().unwrap()))
-            .skip(1450)
-            .collect();
-        // (Times differ in the last bit: k / 100 on the file's grid, k · 0.01 in memory.)
-        let motion = |f: &Frame| {
-            let a = f.aircraft;
-            (a.specific_force_mps2, a.angular_velocity_radps)
-        };
-        assert_eq!(
-            first.iter().map(motion).collect::<Vec<_>>(),
-            from_memory.iter().map(motion).collect::<Vec<_>>()
-        );
-
         let (live, _handle) = crate::source::HeldSample::new("sim", 100.0);
         let mut live = Engine::with_source(&profile, Box::new(live), &algorithms).unwrap();
         let at_zero = live.snapshot().unwrap();
