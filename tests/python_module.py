@@ -13,6 +13,26 @@ import numpy as np
 
 import hexcue
 
+
+def same(ours, theirs, path="summary"):
+    """The JSON's value (null for NaN) within 1e-12, key by key; wall times aside."""
+    if isinstance(theirs, dict):
+        assert isinstance(ours, dict) and set(ours) == set(theirs), (path, set(ours) ^ set(theirs))
+        for key, value in theirs.items():
+            if key != "step_time_us":
+                same(ours[key], value, f"{path}.{key}")
+    elif isinstance(theirs, list):
+        assert isinstance(ours, list) and len(ours) == len(theirs), path
+        for i, (a, b) in enumerate(zip(ours, theirs)):
+            same(a, b, f"{path}[{i}]")
+    elif theirs is None:
+        assert ours is None or ours != ours, (path, ours)  # null: None or NaN
+    elif isinstance(theirs, (int, float)) and not isinstance(theirs, bool):
+        assert abs(ours - theirs) <= 1e-12, (path, ours, theirs)
+    else:
+        assert ours == theirs, (path, ours, theirs)
+
+
 trace_csv, summary_json, recorded_csv, engine_json, profile_toml = sys.argv[1:6]
 
 # hexcue's own trace format (docs/formats.md): t, fx, fy, fz (m/s²), p, q, r (rad/s), ...
@@ -55,6 +75,8 @@ with open(summary_json) as fh:
     cli = json.load(fh)
 cli_score = cli["algorithms"]["smpc"]["score"]
 assert abs(smpc.score() - cli_score) <= 1e-12, (smpc.score(), cli_score)
+same({**smpc.summary(), "trace": cli["trace"]}, cli)
+print("step: the stepping object's summary is the CLI's to 1e-12")
 assert smpc.steps == len(f)
 smpc.reset()
 assert smpc.steps == 0
@@ -70,29 +92,11 @@ score = result.score("smpc")
 assert abs(score - cli_score) <= 1e-12, f"run() score {score!r} vs the CLI's {cli_score!r}"
 
 
-def same(ours, theirs, path="summary"):
-    """The JSON's value (null for NaN) within 1e-12, key by key; wall times aside."""
-    if isinstance(theirs, dict):
-        assert isinstance(ours, dict) and set(ours) == set(theirs), (path, set(ours) ^ set(theirs))
-        for key, value in theirs.items():
-            if key != "step_time_us":
-                same(ours[key], value, f"{path}.{key}")
-    elif isinstance(theirs, list):
-        assert isinstance(ours, list) and len(ours) == len(theirs), path
-        for i, (a, b) in enumerate(zip(ours, theirs)):
-            same(a, b, f"{path}[{i}]")
-    elif theirs is None:
-        assert ours is None or ours != ours, (path, ours)  # null: None or NaN
-    elif isinstance(theirs, (int, float)) and not isinstance(theirs, bool):
-        assert abs(ours - theirs) <= 1e-12, (path, ours, theirs)
-    else:
-        assert ours == theirs, (path, ours, theirs)
-
-
 same(result.summary, cli)
 run_pose = result.algorithms["smpc"]["pose"]
 assert run_pose.shape == (len(f), 6)
 assert float(np.max(np.abs(run_pose - stepped["pose"]))) <= 1e-9
+assert result.algorithms["smpc"]["mode"] == [s["state"]["mode"] for s in steps]
 print(f"run: score {score!r}, the CLI's {cli_score!r}; the whole summary the same to 1e-12")
 
 # The vestibular model of the aircraft's signal is the run's reference.
