@@ -105,6 +105,28 @@ for key in ("specific_force_mps2", "angular_velocity_radps"):
     assert np.array_equal(perceived[key], result.reference[key]), key
 print("perceive: the run's reference, exactly")
 
+# The controller's state through a switch and back: a flight made up here (2 s of the largest
+# surge the input allows, 1 s of its opposite, half a second of sway) that COTC cannot follow.
+n = 1500
+t = np.arange(n) / profile.rate_hz
+hard_f = np.tile([0.0, 0.0, -hexcue.G_MPS2], (n, 1))
+hard_f[(t > 1) & (t < 3), 0] = 9.0
+hard_f[(t > 3) & (t < 4), 0] = -9.0
+hard_f[(t > 4) & (t < 4.5), 1] = 9.0
+hard_w = np.zeros((n, 3))
+smpc.reset()
+states = [smpc.step(hard_f[k], hard_w[k])["state"] for k in range(n)]
+hard = hexcue.run(hard_f, hard_w, profile=profile, algorithms=["smpc"])
+assert hard.algorithms["smpc"]["mode"] == [s["mode"] for s in states]
+switched = [k for k in range(1, n) if states[k]["switch_count"] > states[k - 1]["switch_count"]]
+assert len(switched) == hard.summary["algorithms"]["smpc"]["switches"] >= 2, switched
+first = states[switched[0]]
+# The supervisor's reason as recordings store it: "COTC not solved (primal_infeasible)".
+assert "cotc" in str(first["last_switch_reason"]).lower(), first
+assert {s["mode"] for s in states[switched[0]:]} & {"blend", "free"}, first
+reasons = [states[k]["last_switch_reason"] for k in switched]
+print(f"state: {len(switched)} switches, at steps {switched}: {reasons}")
+
 # (3) A bad profile raises with hexcue's message naming the key.
 with open(profile_toml) as fh:
     text = fh.read()
