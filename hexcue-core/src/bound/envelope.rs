@@ -168,7 +168,11 @@ pub fn residual_box(limits: &DofLimits, eye_m: &Vector3<f64>) -> [Interval; 6] {
             sp * st * sf + cp * cf - one,
             ct * sf,
         ],
-        [cp * st * cf + sp * sf, sp * st * cf - cp * sf, ct * cf - one],
+        [
+            cp * st * cf + sp * sf,
+            sp * st * cf - cp * sf,
+            ct * cf - one,
+        ],
     ];
     // The diagonal entries are at most 0 (products of cosines ≤ 1, and sp·st·sf + cp·cf ≤ 1 as
     // an entry of a rotation matrix); interval arithmetic's upper ends can only be looser.
@@ -182,11 +186,7 @@ pub fn residual_box(limits: &DofLimits, eye_m: &Vector3<f64>) -> [Interval; 6] {
         [zero, cf - one, ct * sf],
         [zero, -sf, ct * cf - one],
     ];
-    let e: IMat = [
-        [one, zero, -st],
-        [zero, cf, ct * sf],
-        [zero, -sf, ct * cf],
-    ];
+    let e: IMat = [[one, zero, -st], [zero, cf, ct * sf], [zero, -sf, ct * cf]];
     let (droll, dpitch) = (rate[0], rate[1]);
     let e_dot: IMat = [
         [zero, zero, -(ct * dpitch)],

@@ -454,4 +454,45 @@ mod valid {
         // 3.03 m/s² of heave force at the midpoint: ten heave thresholds.
         assert!(plus.delta_f_mps2.z > 3.0);
     }
+
+    #[test]
+    fn no_per_step_convex_relaxation_is_much_tighter_than_the_envelope() {
+        // A relaxation that treats each step on its own and is convex contains, with the
+        // (motion, input) pairs of a corner m of the boxes and of its mirror −m, their midpoint:
+        // the platform at rest with input (ρ(m) + ρ(−m))/2. Over the corners that reaches at
+        // least half the envelope on every channel, and every channel's reach is many
+        // perception thresholds: with a free term that large in every step's input, any such
+        // relaxation cues nearly everything (docs/bound.md, "Why no convex relaxation is tight").
+        let profile = full_flight();
+        let (l, eye) = (profile.limits.si(), profile.eye_point());
+        let envelope = residual_box(&l, &eye);
+        let tau = thresholds(&profile);
+        let mut reach = [0.0f64; 6];
+        // Translation does not enter ρ: the corners of the angles, rates and accelerations.
+        for bits in 0u32..(1 << 15) {
+            let f = |i: usize| if bits >> i & 1 == 1 { 1.0 } else { -1.0 };
+            let (mut p, mut v, mut a) = (Vector6::zeros(), Vector6::zeros(), Vector6::zeros());
+            for d in 0..3 {
+                p[3 + d] = f(d) * l.excursion[3 + d];
+            }
+            for d in 0..6 {
+                v[d] = f(3 + d) * l.velocity[d];
+                a[d] = f(9 + d) * l.acceleration[d];
+            }
+            let (r1, r2) = (residual(&p, &v, &a, &eye), residual(&-p, &-v, &-a, &eye));
+            for c in 0..6 {
+                reach[c] = reach[c].max((0.5 * (r1[c] + r2[c])).abs());
+            }
+        }
+        for c in 0..6 {
+            let width = envelope[c].hi.max(-envelope[c].lo);
+            assert!(reach[c] >= 0.5 * width, "{c}: {} vs {width}", reach[c]);
+            assert!(
+                reach[c] >= 2.0 * tau[c],
+                "{c}: {} vs τ {}",
+                reach[c],
+                tau[c]
+            );
+        }
+    }
 }
