@@ -376,8 +376,7 @@ mod valid {
             .map(|k| {
                 let t = k as f64 * dt;
                 let mut cmd = PlatformCommand::default();
-                for d in 0..6 {
-                    let w: f64 = omega[d];
+                for (d, &w) in omega.iter().enumerate() {
                     let amp = limits.excursion[d]
                         .min(limits.velocity[d] / w)
                         .min(limits.acceleration[d] / (w * w))
