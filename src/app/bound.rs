@@ -262,6 +262,19 @@ pub fn render(
         );
     }
     let _ = writeln!(out, "{line}");
+    if let Some(v) = &bound.lower.valid {
+        let per: Vec<String> = Channel::ALL
+            .iter()
+            .filter_map(|c| Some(format!("{} {:.3}", c.key(), v.channel.get(c.key())?)))
+            .collect();
+        let _ = writeln!(
+            out,
+            "valid lower bound of the exact kinematics (docs/bound.md): total {:.3}; alone: {}; \
+             `lower` above is the linearised model's optimum",
+            v.total,
+            per.join(", ")
+        );
+    }
     let gap = bound.achieved.total / bound.lower.total.max(1e-12) - 1.0;
     let _ = writeln!(
         out,

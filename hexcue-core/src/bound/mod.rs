@@ -9,6 +9,7 @@
 //! - dominance: the joint programme with each channel's error held at or below a given
 //!   algorithm's (the CWF's).
 
+pub mod envelope;
 pub mod programme;
 
 use std::collections::BTreeMap;
@@ -57,6 +58,18 @@ pub struct Lower {
     /// max(|u| − 1, 0), unweighted), what `compare`'s verdicts judge on.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub felt: BTreeMap<String, f64>,
+    /// The valid relaxation's optima (docs/bound.md, "A valid relaxation"): the same
+    /// programmes with the exact head model's residual over the boxes as a free term in every
+    /// step's input, so that they contain every motion with its exact perceived signals.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub valid: Option<ValidLower>,
+}
+
+/// A true lower bound of the exact kinematics: per channel alone and jointly.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ValidLower {
+    pub channel: BTreeMap<String, f64>,
+    pub total: f64,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -139,6 +152,9 @@ pub struct Setup {
     pub limits: DofLimits,
     pub eye_m: Vector3<f64>,
     pub filters: [DiscreteStateSpace; 6],
+    /// Bounds of the free term added to every step's input (`None`: the linearised model
+    /// alone; `Setup::valid`: the exact model's residual over the boxes).
+    pub residual: Option<[[f64; 2]; 6]>,
 }
 
 /// Perception thresholds per channel, as the summary's score uses them.
@@ -228,7 +244,26 @@ impl Setup {
             limits: profile.limits.si(),
             eye_m: profile.eye_point(),
             filters: channel_filters(profile, dt),
+            residual: None,
         })
+    }
+
+    /// The same flight for the valid relaxation: every step's input may carry any value of
+    /// the exact head model's residual over the boxes (`envelope::residual_box`), so the
+    /// programmes contain every motion in the boxes with its exact perceived signals.
+    pub fn valid(&self) -> Setup {
+        let r = envelope::residual_box(&self.limits, &self.eye_m);
+        Setup {
+            dt_s: self.dt_s,
+            reference: self.reference.clone(),
+            thresholds: self.thresholds,
+            below_threshold_weight: self.below_threshold_weight,
+            score_weights: self.score_weights,
+            limits: self.limits,
+            eye_m: self.eye_m,
+            filters: self.filters.clone(),
+            residual: Some(std::array::from_fn(|c| [r[c].lo, r[c].hi])),
+        }
     }
 
     /// The same flight on a grid `m` samples apart: the reference at every m-th sample and
@@ -256,6 +291,7 @@ impl Setup {
             },
             eye_m: self.eye_m,
             filters: channel_filters(profile, self.dt_s * m as f64),
+            residual: None,
         }
     }
 
@@ -289,6 +325,7 @@ impl Setup {
             legs: None,
             head: None,
             pose_cost: 0.0,
+            residual: self.residual,
         }
     }
 }
@@ -306,6 +343,7 @@ pub fn felt_lower(setup: &Setup, alone: [bool; 6]) -> Result<[f64; 6], BoundErro
         limits: setup.limits,
         eye_m: setup.eye_m,
         filters: setup.filters.clone(),
+        residual: setup.residual,
     };
     let solved: Vec<(usize, Solution)> = (0..6)
         .filter(|&c| alone[c])
@@ -759,8 +797,12 @@ pub fn bound(
     alone: [bool; 6],
 ) -> Result<(Bound, BoundDetails), BoundError> {
     let setup = Setup::new(profile, trace)?;
-    let (relaxed, felt) = rayon::join(|| relaxed(&setup, alone), || felt_lower(&setup, alone));
-    let (relaxed, felt) = (relaxed?, felt?);
+    let valid_setup = setup.valid();
+    let ((relaxed, felt), valid) = rayon::join(
+        || rayon::join(|| relaxed(&setup, alone), || felt_lower(&setup, alone)),
+        || relaxed(&valid_setup, alone),
+    );
+    let (relaxed, felt, valid) = (relaxed?, felt?, valid?);
     let cmds = commands_of(&relaxed.joint, &setup.limits);
     let first = replay(profile, trace, &cmds);
     let mut programmes = relaxed.programmes.len() + alone.iter().filter(|&&a| a).count();
@@ -811,6 +853,10 @@ pub fn bound(
             channel: by_channel(&relaxed.channel),
             total: relaxed.total,
             felt: by_channel(&felt),
+            valid: Some(ValidLower {
+                channel: by_channel(&valid.channel),
+                total: valid.total,
+            }),
         },
         achieved: Achieved {
             error: by_channel(&achieved.error),

@@ -174,6 +174,10 @@ pub struct Programme<'a> {
     /// Cost of the mean excursion Σ_d |p_d|/P_d (0: none). A small one picks, among the
     /// motions of (nearly) equal error, one near neutral, which the legs can make.
     pub pose_cost: f64,
+    /// Optional bounds [lo, hi] per channel of a free term added to each step's input: with
+    /// `envelope::residual_box` the programme contains the exact head model's inputs of every
+    /// motion in the boxes (the valid relaxation of docs/bound.md).
+    pub residual: Option<[[f64; 2]; 6]>,
 }
 
 /// The programme's answer.
@@ -231,17 +235,20 @@ impl Programme<'_> {
             .collect();
         // Per DoF: p, v, a, and with a pose cost t ≥ |p|/P.
         let per_dof = if self.pose_cost > 0.0 { 4 } else { 3 };
-        let stride = per_dof * nd + nstates.iter().map(|s| s + 1).sum::<usize>();
+        // Per channel: its filter states, the error slack and, with a residual, the free term.
+        let extra = usize::from(self.residual.is_some());
+        let stride = per_dof * nd + nstates.iter().map(|s| s + 1 + extra).sum::<usize>();
         let nvar = n * stride;
         let dof_col = |k: usize, j: usize, what: usize| k * stride + per_dof * j + what;
         let mut chan_off = Vec::with_capacity(self.channels.len());
         let mut off = per_dof * nd;
         for s in &nstates {
             chan_off.push(off);
-            off += s + 1;
+            off += s + 1 + extra;
         }
         let state_col = |k: usize, ci: usize, r: usize| k * stride + chan_off[ci] + r;
         let slack_col = |k: usize, ci: usize| k * stride + chan_off[ci] + nstates[ci];
+        let residual_col = |k: usize, ci: usize| k * stride + chan_off[ci] + nstates[ci] + 1;
         let dt = self.dt_s;
         let s_below = self.below_threshold_weight;
 
@@ -323,8 +330,16 @@ impl Programme<'_> {
                         if let Some(h) = self.head {
                             rhs = f.b[(r, 0)] * h[k - 1].offset[c];
                         }
+                        if self.residual.is_some() {
+                            entries.push((residual_col(k - 1, ci), -f.b[(r, 0)]));
+                        }
                         eq.row(&entries, rhs);
                     }
+                }
+                if let Some(bounds) = self.residual {
+                    let [lo, hi] = bounds[c];
+                    ineq.row(&[(residual_col(k, ci), 1.0)], hi);
+                    ineq.row(&[(residual_col(k, ci), -1.0)], -lo);
                 }
                 // e ≥ s·u, e ≥ −s·u, e ≥ u − (1 − s), e ≥ −u − (1 − s), u = (C s − x)/τ.
                 let x = self.reference[c][k];

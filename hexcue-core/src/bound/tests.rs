@@ -266,3 +266,232 @@ fn the_head_linearised_about_a_tilt_predicts_the_exact_head_to_second_order() {
     let miss = (e0[2] - predict(&neutral, &p, &v, &a)[2]).abs();
     assert!(miss > 0.5 * loss, "{miss} vs {loss}");
 }
+
+mod valid {
+    //! The valid relaxation (docs/bound.md, "A valid relaxation"): its free term contains the
+    //! exact head model's residual for every motion in the boxes, checked against
+    //! `head_motion` itself (not against the interval derivation).
+    use nalgebra::{Vector3, Vector6};
+    use proptest::prelude::*;
+
+    use super::super::envelope::{residual, residual_box};
+    use super::super::*;
+    use super::trace_of;
+    use crate::testing::full_flight;
+    use crate::G_MPS2;
+
+    /// A pose, velocity and acceleration in the profile's boxes from fractions in [−1, 1].
+    fn in_box(limits: &DofLimits, f: &[f64]) -> (Vector6<f64>, Vector6<f64>, Vector6<f64>) {
+        let p = Vector6::from_fn(|d, _| f[d] * limits.excursion[d]);
+        let v = Vector6::from_fn(|d, _| f[6 + d] * limits.velocity[d]);
+        let a = Vector6::from_fn(|d, _| f[12 + d] * limits.acceleration[d]);
+        (p, v, a)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4000))]
+        #[test]
+        fn every_motion_in_the_boxes_has_its_residual_in_the_envelope(
+            f in prop::collection::vec(-1.0f64..=1.0, 18),
+            corner in prop::collection::vec(any::<bool>(), 18),
+            snap in any::<bool>(),
+            eye_off in any::<bool>(),
+        ) {
+            let profile = full_flight();
+            let limits = profile.limits.si();
+            let eye = if eye_off { Vector3::new(0.4, -0.3, -1.0) } else { profile.eye_point() };
+            let envelope = residual_box(&limits, &eye);
+            // Half the cases at the boxes' corners, where products of the extremes meet.
+            let f: Vec<f64> = f
+                .iter()
+                .zip(&corner)
+                .map(|(x, c)| if snap { if *c { 1.0 } else { -1.0 } } else { *x })
+                .collect();
+            let (p, v, a) = in_box(&limits, &f);
+            let rho = residual(&p, &v, &a, &eye);
+            for c in 0..6 {
+                prop_assert!(
+                    envelope[c].contains(rho[c]),
+                    "channel {}: {} outside [{}, {}]", c, rho[c], envelope[c].lo, envelope[c].hi
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_envelope_is_zero_for_a_platform_that_cannot_tilt_or_turn() {
+        // Without rotation the head model is linear: nothing to bound.
+        let profile = full_flight();
+        let mut limits = profile.limits.si();
+        for d in 3..6 {
+            limits.excursion[d] = 0.0;
+            limits.velocity[d] = 0.0;
+            limits.acceleration[d] = 0.0;
+        }
+        for iv in residual_box(&limits, &profile.eye_point()) {
+            assert!(iv.lo.abs() < 1e-6 && iv.hi.abs() < 1e-6, "{iv:?}");
+        }
+    }
+
+    /// The error the valid relaxation charges a given motion: the programme with no DoF free,
+    /// the motion's linear-model input as a fixed offset and the residual's free term.
+    fn relaxed_error_of(setup: &Setup, commands: &[PlatformCommand], c: usize) -> f64 {
+        let rows: Vec<HeadRows> = commands
+            .iter()
+            .map(|cmd| {
+                let offset = std::array::from_fn(|ch| {
+                    (0..6)
+                        .map(|d| {
+                            let w = input_coefficients(ch, d, &setup.eye_m);
+                            w[0] * cmd.pose[d] + w[1] * cmd.velocity[d] + w[2] * cmd.acceleration[d]
+                        })
+                        .sum()
+                });
+                HeadRows {
+                    jac: [[[0.0; 3]; 6]; 6],
+                    offset,
+                }
+            })
+            .collect();
+        let mut prog = setup.programme(&[c], &[], &[c], None);
+        prog.head = Some(&rows);
+        let sol = prog.solve();
+        assert!(
+            matches!(
+                sol.status,
+                SolverStatus::Solved | SolverStatus::AlmostSolved
+            ),
+            "{:?}",
+            sol.status
+        );
+        sol.error[c]
+    }
+
+    /// A tilting, turning, translating motion within the boxes: sinusoids whose amplitude,
+    /// rate and acceleration stay inside each DoF's limits, with pose, velocity and
+    /// acceleration the exact derivatives.
+    fn wild_motion(limits: &DofLimits, n: usize, dt: f64) -> Vec<PlatformCommand> {
+        let omega = [0.7, 1.1, 1.9, 0.9, 1.3, 0.5];
+        (0..n)
+            .map(|k| {
+                let t = k as f64 * dt;
+                let mut cmd = PlatformCommand::default();
+                for (d, &w) in omega.iter().enumerate() {
+                    let amp = limits.excursion[d]
+                        .min(limits.velocity[d] / w)
+                        .min(limits.acceleration[d] / (w * w))
+                        * 0.98;
+                    let ph = 0.3 * d as f64;
+                    cmd.pose[d] = amp * (w * t + ph).sin();
+                    cmd.velocity[d] = amp * w * (w * t + ph).cos();
+                    cmd.acceleration[d] = -amp * w * w * (w * t + ph).sin();
+                }
+                cmd
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_valid_relaxation_charges_a_motion_no_more_than_the_pipeline() {
+        // For a motion far from neutral (every DoF near its limits) the pipeline's exact error
+        // is at least what the valid relaxation charges that motion, channel by channel, and
+        // the linearised model (no free term) charges what `linear_error` computes on its own.
+        let profile = full_flight();
+        let trace = trace_of(600, |t| {
+            (
+                Vector3::new(1.5 * (0.8 * t).sin(), -0.6, 1.2 * (1.7 * t).cos()),
+                Vector3::new(0.1 * (0.5 * t).sin(), 0.05, -0.08 * t.cos()),
+            )
+        });
+        let setup = Setup::new(&profile, &trace).unwrap();
+        let valid = setup.valid();
+        let cmds = wild_motion(&setup.limits, trace.len(), setup.dt_s);
+        let exact = replay_with(&profile, &trace, &cmds, false).error;
+        let linear = linear_error(&setup, &cmds);
+        for c in 0..6 {
+            let lin = relaxed_error_of(&setup, &cmds, c);
+            assert!(
+                (lin - linear[c]).abs() < 1e-5 * (1.0 + linear[c]),
+                "{c}: {lin} vs {}",
+                linear[c]
+            );
+            let relaxed = relaxed_error_of(&valid, &cmds, c);
+            assert!(
+                relaxed <= exact[c] + 1e-6,
+                "{c}: relaxed {relaxed} > exact {}",
+                exact[c]
+            );
+        }
+    }
+
+    #[test]
+    fn mirrored_motions_share_their_lightness_so_no_convex_relaxation_excludes_it() {
+        // Pitch +θ with surge acceleration +a, and its mirror −θ, −a: both in the boxes, both
+        // give the head the same Δf_z (the tilt's g(1 − cos θ) and −sin θ·a_x), opposite Δf_x
+        // and opposite pitch. Their midpoint is the platform at rest with no pitch, whose
+        // exact Δf_z is zero; a convex set containing both motions' (motion, input) pairs
+        // contains the midpoint with the shared Δf_z (docs/bound.md, "Why no convex
+        // relaxation is tight"). By hand: θ = 25°, a_x = 5 m/s², Δf_z = g(1 − cos θ) + sin θ·a_x
+        // (the body z axis leans forward, so a forward push has a component along it).
+        let eye = Vector3::new(0.0, 0.0, -1.2);
+        let theta = 25f64.to_radians();
+        let (z, mut p, mut a) = (Vector6::zeros(), Vector6::zeros(), Vector6::zeros());
+        p[4] = theta;
+        a[0] = 5.0;
+        let plus = crate::model::stewart::head_motion(&p, &z, &a, &eye);
+        let minus = crate::model::stewart::head_motion(&-p, &z, &-a, &eye);
+        let by_hand = G_MPS2 * (1.0 - theta.cos()) + 5.0 * theta.sin();
+        assert!((plus.delta_f_mps2.z - minus.delta_f_mps2.z).abs() < 1e-12);
+        assert!((plus.delta_f_mps2.x + minus.delta_f_mps2.x).abs() < 1e-12);
+        assert!(
+            (plus.delta_f_mps2.z - by_hand).abs() < 1e-9,
+            "{} vs {by_hand}",
+            plus.delta_f_mps2.z
+        );
+        let rest = crate::model::stewart::head_motion(&z, &z, &z, &eye);
+        assert!(rest.delta_f_mps2.norm() < 1e-12);
+        // 3.03 m/s² of heave force at the midpoint: ten heave thresholds.
+        assert!(plus.delta_f_mps2.z > 3.0);
+    }
+
+    #[test]
+    fn no_per_step_convex_relaxation_is_much_tighter_than_the_envelope() {
+        // A relaxation that treats each step on its own and is convex contains, with the
+        // (motion, input) pairs of a corner m of the boxes and of its mirror −m, their midpoint:
+        // the platform at rest with input (ρ(m) + ρ(−m))/2. Over the corners that reaches at
+        // least half the envelope on every channel, and every channel's reach is many
+        // perception thresholds: with a free term that large in every step's input, any such
+        // relaxation cues nearly everything (docs/bound.md, "Why no convex relaxation is tight").
+        let profile = full_flight();
+        let (l, eye) = (profile.limits.si(), profile.eye_point());
+        let envelope = residual_box(&l, &eye);
+        let tau = thresholds(&profile);
+        let mut reach = [0.0f64; 6];
+        // Translation does not enter ρ: the corners of the angles, rates and accelerations.
+        for bits in 0u32..(1 << 15) {
+            let f = |i: usize| if bits >> i & 1 == 1 { 1.0 } else { -1.0 };
+            let (mut p, mut v, mut a) = (Vector6::zeros(), Vector6::zeros(), Vector6::zeros());
+            for d in 0..3 {
+                p[3 + d] = f(d) * l.excursion[3 + d];
+            }
+            for d in 0..6 {
+                v[d] = f(3 + d) * l.velocity[d];
+                a[d] = f(9 + d) * l.acceleration[d];
+            }
+            let (r1, r2) = (residual(&p, &v, &a, &eye), residual(&-p, &-v, &-a, &eye));
+            for c in 0..6 {
+                reach[c] = reach[c].max((0.5 * (r1[c] + r2[c])).abs());
+            }
+        }
+        for c in 0..6 {
+            let width = envelope[c].hi.max(-envelope[c].lo);
+            assert!(reach[c] >= 0.5 * width, "{c}: {} vs {width}", reach[c]);
+            assert!(
+                reach[c] >= 2.0 * tau[c],
+                "{c}: {} vs τ {}",
+                reach[c],
+                tau[c]
+            );
+        }
+    }
+}
