@@ -66,6 +66,8 @@ impl Default for ScoreWeights {
 }
 
 impl ScoreWeights {
+    /// `Ok` when every weight is finite and 0 or more, `below_threshold_weight` is in [0, 1] and
+    /// `leg_usage_start` in [0, 1); else an error naming the key.
     pub fn validate(&self) -> Result<(), ProfileError> {
         let err = |key: String, reason: String| Err(ProfileError { key, reason });
         let non_negative = |key: String, v: f64| {
@@ -105,8 +107,11 @@ impl ScoreWeights {
 pub struct ScoreTerms {
     /// Threshold-aware error per channel (fx, fy, fz, wx, wy, wz).
     pub error: BTreeMap<String, f64>,
+    /// False cues: w_false · Σ_c (false-cue time of c) / (flight time).
     pub false_cue: f64,
+    /// Workspace: w_limiter · (share of steps the limiter acted).
     pub limiter: f64,
+    /// Legs near their end stops: w_legs · mean_k ((u_k − u₀)⁺ / (1 − u₀))², u₀ = `leg_usage_start`.
     pub legs: f64,
     /// Jolts beyond the aircraft's (`crate::jolts`).
     #[serde(default)]
@@ -143,6 +148,8 @@ pub struct ScoreAccumulator {
 }
 
 impl ScoreAccumulator {
+    /// An empty accumulator for these weights and the six perception thresholds (m/s² for fx,
+    /// fy, fz; rad/s for wx, wy, wz).
     pub fn new(weights: &ScoreWeights, thresholds: [f64; 6]) -> Self {
         ScoreAccumulator {
             weights: weights.clone(),

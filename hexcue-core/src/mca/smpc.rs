@@ -19,6 +19,9 @@ use super::switching::{
 use super::{AlgorithmId, AlgorithmState, CueInput, Mode, MotionCueing, PlatformCommand, Setting};
 use crate::model::stewart::Stewart;
 
+/// The switchable MPC: an MPC with terminal conditions (COTC) in charge while its QP is
+/// solved, a free MPC without them when it is not, switched with hysteresis and blended
+/// (docs/design.md §5). Built by `Profile::algorithm(AlgorithmId::Smpc)`.
 pub struct Smpc {
     cotc: Mpc,
     free: Mpc,
@@ -78,6 +81,7 @@ impl Smpc {
         })
     }
 
+    /// The controller in charge at the last step.
     pub fn active(&self) -> Controller {
         self.supervisor.active()
     }

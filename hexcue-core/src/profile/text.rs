@@ -8,23 +8,36 @@ pub const DEFAULT_PROFILE_TOML: &str = include_str!("../../../profiles/full-flig
 /// How the embedded default is named in messages and recordings.
 pub const DEFAULT_PROFILE_SOURCE: &str = "profiles/full-flight.toml (embedded)";
 
+/// Why a profile's text could not become a [`Profile`](crate::profile::Profile); each names
+/// the source (a file's path, or the embedded default).
 #[derive(Debug, thiserror::Error)]
 pub enum ProfileLoadError {
+    /// The profile could not be read.
     #[error("{source_name}: cannot read the profile: {error}")]
     Io {
+        /// The file's path, or a name for the text.
         source_name: String,
+        /// What reading it said.
         error: std::io::Error,
     },
+    /// The text is not TOML, or a key has the wrong type or is unknown.
     #[error("{source_name}:{line}:{column}: {message}")]
     Syntax {
+        /// The file's path, or a name for the text.
         source_name: String,
+        /// Line of the error, from 1.
         line: usize,
+        /// Column of the error, from 1.
         column: usize,
+        /// What the parser expected.
         message: String,
     },
+    /// The values parse but one cannot describe a real simulator.
     #[error("{source_name}: {error}")]
     Invalid {
+        /// The file's path, or a name for the text.
         source_name: String,
+        /// The key and the reason.
         error: ProfileError,
     },
 }
