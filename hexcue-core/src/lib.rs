@@ -7,7 +7,7 @@
 //! traces, recordings, simulators, platforms and the console. Frames and units:
 //! docs/design.md §1 of the repository.
 
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod actuators;
 pub mod bound;

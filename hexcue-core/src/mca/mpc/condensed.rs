@@ -61,7 +61,12 @@ struct RowMap {
 pub enum CondenseError {
     /// The dynamics rows do not have one row per state.
     #[error("{states} state columns but {rows} dynamics rows")]
-    Shape { states: usize, rows: usize },
+    Shape {
+        /// Number of state columns.
+        states: usize,
+        /// Number of dynamics rows.
+        rows: usize,
+    },
     /// A_x, the dynamics rows' state columns, cannot be inverted: the states are not determined
     /// by the inputs.
     #[error("the dynamics rows are singular in the states")]
