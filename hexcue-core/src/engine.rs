@@ -235,6 +235,30 @@ struct Window {
 }
 
 /// Steps samples from a source, one at a time, through every chosen algorithm.
+///
+/// Over a trace in memory, the three algorithms side by side, judged by the summary:
+///
+/// ```
+/// use std::sync::Arc;
+/// use hexcue_core::engine::Engine;
+/// use hexcue_core::summary::SummaryBuilder;
+/// use hexcue_core::vocab::AlgorithmId;
+///
+/// let profile = hexcue_core::testing::full_flight();
+/// let trace = Arc::new(hexcue_core::testing::manoeuvre()); // 30 s at 100 Hz
+/// let mut engine = Engine::new(&profile, trace.clone(), AlgorithmId::ALL).unwrap();
+/// let mut summary = SummaryBuilder::new(&profile, &trace.name);
+/// while let Some(frame) = engine.step() {
+///     let smpc = frame.lane(AlgorithmId::Smpc).unwrap();
+///     assert!(smpc.legs.margin_m.min() >= 0.0, "the limiter keeps every leg in its stroke");
+///     summary.push(&frame);
+/// }
+/// let summary = summary.finish();
+/// assert_eq!(summary.steps as usize, trace.len());
+/// for id in AlgorithmId::ALL {
+///     assert!(summary.algorithms[id.key()].score.is_finite());
+/// }
+/// ```
 pub struct Engine {
     profile: Profile,
     source: Box<dyn SampleSource>,

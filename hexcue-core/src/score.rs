@@ -134,6 +134,32 @@ pub fn felt(u: f64) -> f64 {
 }
 
 /// Accumulates one algorithm's run into its score.
+///
+/// ```
+/// use hexcue_core::score::{ScoreAccumulator, ScoreWeights};
+///
+/// let weights = ScoreWeights::default();
+/// let thresholds = [0.17, 0.17, 0.28, 0.05, 0.05, 0.05]; // m/s², rad/s
+/// let mut score = ScoreAccumulator::new(&weights, thresholds);
+/// // Ten steps where the platform is felt as the aircraft is, limiter idle, legs near neutral.
+/// let felt = [0.5, 0.0, 0.0, 0.0, 0.1, 0.0];
+/// for _ in 0..10 {
+///     score.push(&felt, &felt, false, 0.1);
+/// }
+/// let (total, terms) = score.finish(&[0.0; 6]);
+/// assert_eq!(total, 0.0);
+/// assert_eq!(terms.error["fx"], 0.0);
+///
+/// // Ten more where surge is missed by two thresholds: the error term is
+/// // w_fx · φ(2) = w_fx · (s + 1) on half the steps.
+/// for _ in 0..10 {
+///     score.push(&felt, &[0.5 - 2.0 * 0.17, 0.0, 0.0, 0.0, 0.1, 0.0], false, 0.1);
+/// }
+/// let (total, terms) = score.finish(&[0.0; 6]);
+/// let expected = weights.channel_weight[0] * (weights.below_threshold_weight + 1.0) / 2.0;
+/// assert!((terms.error["fx"] - expected).abs() < 1e-12);
+/// assert!((total - expected).abs() < 1e-12);
+/// ```
 #[derive(Clone, Debug)]
 pub struct ScoreAccumulator {
     weights: ScoreWeights,

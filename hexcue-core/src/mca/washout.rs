@@ -302,6 +302,36 @@ impl TiltCoordination {
 /// The classical washout filter (CWF): high-passed specific force and angular velocity for
 /// the onsets, tilt coordination for sustained surge and sway (docs/design.md §3). Built by
 /// `Profile::algorithm(AlgorithmId::Cwf)`.
+///
+/// ```
+/// use hexcue_core::mca::{CueInput, CueSample, PlatformCommand};
+/// use hexcue_core::profile::text::default_profile;
+/// use hexcue_core::vocab::AlgorithmId;
+/// use nalgebra::Vector3;
+///
+/// let profile = default_profile();
+/// let mut cwf = profile.algorithm(AlgorithmId::Cwf).unwrap();
+/// // Two seconds of a sustained 1 m/s² forward specific force (head frame).
+/// let sample = CueSample {
+///     delta_f_mps2: Vector3::new(1.0, 0.0, 0.0),
+///     angular_velocity_radps: Vector3::zeros(),
+/// };
+/// let mut applied = PlatformCommand::default();
+/// for k in 0..200 {
+///     let input = CueInput {
+///         k,
+///         t_s: k as f64 * profile.dt_s(),
+///         dt_s: profile.dt_s(),
+///         sample,
+///         preview: &[],
+///         applied: &applied,
+///     };
+///     // A loop of one's own limits the command here before it is applied.
+///     applied = cwf.step(&input);
+/// }
+/// // Tilt coordination pitches the cabin nose up, so that gravity gives the sustained part.
+/// assert!(applied.pose[4] > 0.0);
+/// ```
 #[derive(Clone, Debug)]
 pub struct Washout {
     params: WashoutParams,

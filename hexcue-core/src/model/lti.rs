@@ -16,7 +16,7 @@ pub struct StateSpace {
     pub d: DMatrix<f64>,
 }
 
-/// Discrete-time system x[k+1] = A x[k] + B u[k], y[k] = C x[k] + D u[k].
+/// Discrete-time system x\[k+1\] = A x\[k\] + B u\[k\], y\[k\] = C x\[k\] + D u\[k\].
 #[derive(Clone, Debug, PartialEq)]
 pub struct DiscreteStateSpace {
     /// State matrix A (n × n).
@@ -196,7 +196,7 @@ impl LtiFilter {
         &self.sys
     }
 
-    /// Its state x[k].
+    /// Its state x\[k\].
     pub fn state(&self) -> &DVector<f64> {
         &self.x
     }

@@ -160,6 +160,24 @@ pub enum KinematicsError {
 }
 
 /// A hexapod with its joints placed; every query is a pure function of a pose.
+///
+/// ```
+/// use hexcue_core::profile::text::default_profile;
+/// use nalgebra::Vector6;
+///
+/// let profile = default_profile();
+/// let stewart = profile.stewart();
+/// // Neutral: every leg at its neutral length.
+/// let neutral = Vector6::zeros();
+/// assert_eq!(stewart.leg_lengths(&neutral), stewart.neutral_lengths_m);
+/// // 10 cm forward and 3° nose up (x, y, z in m; roll, pitch, yaw in rad).
+/// let pose = Vector6::new(0.10, 0.0, 0.0, 0.0, 3f64.to_radians(), 0.0);
+/// let legs_m = stewart.leg_lengths(&pose);
+/// assert!(stewart.margins(&legs_m).min() > 0.0, "inside the stroke");
+/// // Forward kinematics gives the pose back from the legs.
+/// let back = stewart.forward(&legs_m, &neutral).unwrap();
+/// assert!((back - pose).norm() < 1e-9);
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct Stewart {
     /// Base joints in the inertial frame (m).

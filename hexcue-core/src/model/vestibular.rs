@@ -140,6 +140,26 @@ impl Perceived {
 }
 
 /// A running perception model at a fixed sample rate, starting from rest.
+///
+/// ```
+/// use hexcue_core::model::vestibular::{Vestibular, VestibularParams};
+/// use nalgebra::Vector3;
+///
+/// // A constant yaw rate of 0.2 rad/s from rest, at 100 Hz: felt at once, then the canals
+/// // adapt, and after 30 s the turn is felt, if at all, as a slight one the other way, below
+/// // the yaw threshold (why a simulator can wash out a sustained yaw).
+/// let mut vestibular = Vestibular::new(&VestibularParams::default(), 0.01);
+/// let (no_force, yaw) = (Vector3::zeros(), Vector3::new(0.0, 0.0, 0.2));
+/// let mut felt = |steps: usize| {
+///     (0..steps).map(|_| vestibular.step(&no_force, &yaw)).last().unwrap()
+/// };
+/// let after_1_s = felt(100);
+/// assert!(after_1_s.angular_velocity_radps.z > 0.15);
+/// let after_30_s = felt(2_900);
+/// let threshold_radps = VestibularParams::default().canal_threshold_radps().z;
+/// assert!(after_30_s.angular_velocity_radps.z < 0.0);
+/// assert!(after_30_s.angular_velocity_radps.z.abs() < threshold_radps);
+/// ```
 #[derive(Clone, Debug)]
 pub struct Vestibular {
     filter: LtiFilter,

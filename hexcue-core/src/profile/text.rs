@@ -8,7 +8,7 @@ pub const DEFAULT_PROFILE_TOML: &str = include_str!("../../../profiles/full-flig
 /// How the embedded default is named in messages and recordings.
 pub const DEFAULT_PROFILE_SOURCE: &str = "profiles/full-flight.toml (embedded)";
 
-/// Why a profile's text could not become a [`Profile`](crate::profile::Profile); each names
+/// Why a profile's text could not become a [`Profile`]; each names
 /// the source (a file's path, or the embedded default).
 #[derive(Debug, thiserror::Error)]
 pub enum ProfileLoadError {
@@ -73,6 +73,19 @@ fn key_at(text: &str, offset: usize) -> Option<String> {
 }
 
 /// Parses and validates a profile; `source_name` names it in every error.
+///
+/// ```
+/// use hexcue_core::profile::text::{parse_profile, DEFAULT_PROFILE_TOML};
+///
+/// // A lab's own simulator: the shipped profile at 60 Hz.
+/// let text = DEFAULT_PROFILE_TOML.replace("rate_hz = 100.0", "rate_hz = 60.0");
+/// let profile = parse_profile(&text, "lab.toml").unwrap();
+/// assert_eq!(profile.rate_hz, 60.0);
+///
+/// // A mistake is named with its source, line and column.
+/// let error = parse_profile("name = 3", "bad.toml").unwrap_err();
+/// assert!(error.to_string().starts_with("bad.toml:1:"), "{error}");
+/// ```
 pub fn parse_profile(text: &str, source_name: &str) -> Result<Profile, ProfileLoadError> {
     let profile: Profile = toml::from_str(text).map_err(|e| {
         let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));

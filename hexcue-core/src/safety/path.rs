@@ -11,7 +11,7 @@
 //!    moves one way only, so it cannot overshoot neutral.
 //!
 //! Each phase is closed form, so a plan costs a few hundred floating-point operations and no
-//! allocation; the ladder of [`plan_return`] tries (A, J) from gentle to the DoF's limit
+//! allocation; the ladder of [`TransitionLimits::plan_dof`] tries (A, J) from gentle to the DoF's limit
 //! and keeps the gentlest whose path stays inside the excursion and the velocity limit and
 //! ends within the return time. Hand-written rather than a trajectory crate: the crates
 //! found (ruckig's Rust ports) plan to a target state over a fixed horizon with their own

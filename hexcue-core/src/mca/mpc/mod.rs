@@ -109,6 +109,37 @@ pub struct MpcOutcome {
 /// solves a QP for the platform motion that matches them within the limits. Without terminal
 /// conditions it is the MPC of `Profile::algorithm(AlgorithmId::Mpc)`; with them (COTC) and
 /// without, it is the two controllers of the S-MPC.
+///
+/// ```
+/// use hexcue_core::mca::{CueInput, CueSample, Mode, PlatformCommand, SolveStatus};
+/// use hexcue_core::vocab::AlgorithmId;
+/// use nalgebra::Vector3;
+///
+/// // The shipped profile without its wall-clock limit on a solve (a test's choice: a loaded
+/// // machine must not change the result); a lab keeps the limit.
+/// let profile = hexcue_core::testing::full_flight();
+/// let mut mpc = profile.algorithm(AlgorithmId::Mpc).unwrap();
+/// let sample = CueSample {
+///     delta_f_mps2: Vector3::new(1.5, 0.0, 0.0),
+///     angular_velocity_radps: Vector3::zeros(),
+/// };
+/// let mut applied = PlatformCommand::default();
+/// for k in 0..50 {
+///     let input = CueInput {
+///         k,
+///         t_s: k as f64 * profile.dt_s(),
+///         dt_s: profile.dt_s(),
+///         sample,
+///         preview: &[],
+///         applied: &applied,
+///     };
+///     applied = mpc.step(&input);
+/// }
+/// let state = mpc.state();
+/// assert_eq!(state.mode, Mode::Mpc);
+/// assert_eq!(state.solvers[0].status, SolveStatus::Solved);
+/// assert!(applied.is_finite());
+/// ```
 pub struct Mpc {
     params: MpcParams,
     terminal: Terminal,
