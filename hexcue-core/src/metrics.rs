@@ -3,18 +3,6 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::vocab::Channel;
-
-/// The keys of the six perceived channels, in the order of [`Channel::ALL`].
-pub const CHANNELS: [&str; 6] = [
-    Channel::Fx.key(),
-    Channel::Fy.key(),
-    Channel::Fz.key(),
-    Channel::Wx.key(),
-    Channel::Wy.key(),
-    Channel::Wz.key(),
-];
-
 /// Metrics of one channel over a run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ChannelMetrics {

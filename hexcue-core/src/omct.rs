@@ -341,19 +341,6 @@ pub struct OmctCurve {
     pub points: Vec<OmctPoint>,
 }
 
-/// The test at every frequency of the standard's grid for one algorithm.
-pub fn run_test(
-    profile: &Profile,
-    algorithm: AlgorithmId,
-    test: OmctTest,
-) -> Result<OmctCurve, BuildError> {
-    let points = frequencies_radps()
-        .iter()
-        .map(|&w| measure_within_limits(profile, algorithm, test, w))
-        .collect::<Result<Vec<_>, _>>()?;
-    Ok(curve(test, algorithm, points))
-}
-
 fn curve(test: OmctTest, algorithm: AlgorithmId, points: Vec<OmctPoint>) -> OmctCurve {
     let (i, o) = test.channels();
     OmctCurve {

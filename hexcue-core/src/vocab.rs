@@ -82,6 +82,23 @@ impl AlgorithmId {
     }
 }
 
+/// `--drive smpc`: the values are the keys; the S-MPC also answers to `s-mpc` and `s_mpc`
+/// (with `ignore_case`, `S-MPC`), as [`AlgorithmId::from_key`] reads them.
+#[cfg(feature = "clap")]
+impl clap::ValueEnum for AlgorithmId {
+    fn value_variants<'a>() -> &'a [Self] {
+        Self::ALL
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        let value = clap::builder::PossibleValue::new(self.key());
+        Some(match self {
+            AlgorithmId::Smpc => value.aliases(["s-mpc", "s_mpc"]),
+            AlgorithmId::Mpc | AlgorithmId::Cwf => value,
+        })
+    }
+}
+
 impl std::fmt::Display for AlgorithmId {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.key())
