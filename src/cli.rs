@@ -76,8 +76,8 @@ pub struct LiveArgs {
     #[arg(long, value_name = "URL")]
     pub output: Vec<String>,
     /// The algorithm whose command drives the platform.
-    #[arg(long, value_name = "ALG", default_value = "smpc", value_parser = ["smpc", "mpc", "cwf"])]
-    pub drive: String,
+    #[arg(long, value_name = "ALG", value_enum, default_value_t = AlgorithmId::Smpc, ignore_case = true)]
+    pub drive: AlgorithmId,
     /// Algorithms to run side by side, comma-separated (the driving one among them): smpc
     /// (or s-mpc), mpc, cwf.
     #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = DEFAULT_ALGORITHMS)]
@@ -482,7 +482,7 @@ impl Cli {
 /// Every algorithm, as `--algorithms` takes them.
 pub const DEFAULT_ALGORITHMS: &str = "smpc,mpc,cwf";
 
-/// `--speed`: one of the console's speeds, as an index into `tui::player::SPEEDS`.
+/// `--speed`: one of the console's speeds, as an index into `session::player::SPEEDS`.
 /// `--max-trace-mb`: a positive number of MB.
 fn parse_trace_mb(text: &str) -> Result<f64, String> {
     match text.trim().parse::<f64>() {
@@ -492,7 +492,7 @@ fn parse_trace_mb(text: &str) -> Result<f64, String> {
 }
 
 fn parse_speed(text: &str) -> Result<usize, String> {
-    use crate::tui::player::SPEEDS;
+    use crate::session::player::SPEEDS;
     let t = text.trim().trim_start_matches(['x', '×']);
     let found = if t.eq_ignore_ascii_case("max") {
         SPEEDS.iter().position(Option::is_none)
@@ -504,7 +504,8 @@ fn parse_speed(text: &str) -> Result<usize, String> {
     found.ok_or_else(|| "expected one of 0.25, 0.5, 1, 2, 4, 8, 16, max".to_string())
 }
 
-/// Names as compared: case, `-` and `_` do not matter (`S-MPC` is `smpc`).
+/// Names as compared: case, `-` and `_` do not matter (`pitch_to_surge` is
+/// `pitch-to-surge`).
 fn key_form(name: &str) -> String {
     name.chars()
         .filter(|c| !matches!(c, '-' | '_' | ' '))
@@ -513,21 +514,17 @@ fn key_form(name: &str) -> String {
 }
 
 /// Parses a comma-separated option into known values, in the order given and without
-/// repeats; an unknown name is refused with the list of known ones.
+/// repeats: `find` reads a name; an unknown name is refused with the list of known ones.
 fn parse_keys<T: Copy + PartialEq>(
     names: &[String],
     option: &str,
     what: &str,
-    all: &[T],
-    key: fn(T) -> &'static str,
+    (all, key): (&[T], fn(T) -> &'static str),
+    find: impl Fn(&str) -> Option<T>,
 ) -> Result<Vec<T>> {
     let mut out = Vec::new();
     for name in names.iter().map(|n| n.trim()).filter(|n| !n.is_empty()) {
-        let Some(v) = all
-            .iter()
-            .copied()
-            .find(|v| key_form(key(*v)) == key_form(name))
-        else {
+        let Some(v) = find(name) else {
             let known: Vec<&str> = all.iter().map(|v| key(*v)).collect();
             bail!(
                 "{option}: unknown {what} `{name}`; expected one or more of {}",
@@ -543,12 +540,13 @@ fn parse_keys<T: Copy + PartialEq>(
 
 /// Parses `--algorithms`; unknown names are refused with the list of known ones.
 pub fn parse_algorithms(names: &[String]) -> Result<Vec<AlgorithmId>> {
+    // Algorithm names are read in one place: `AlgorithmId::from_key`.
     let mut out = parse_keys(
         names,
         "--algorithms",
         "algorithm",
-        AlgorithmId::ALL,
-        AlgorithmId::key,
+        (AlgorithmId::ALL, AlgorithmId::key),
+        AlgorithmId::from_key,
     )?;
     if out.is_empty() {
         bail!("--algorithms: expected at least one algorithm");
@@ -561,7 +559,17 @@ pub fn parse_algorithms(names: &[String]) -> Result<Vec<AlgorithmId>> {
 /// Parses `--tests`: every test when none is named, in the standard's order.
 pub fn parse_tests(names: &[String]) -> Result<Vec<hexcue_core::omct::OmctTest>> {
     use hexcue_core::omct::OmctTest;
-    let mut out = parse_keys(names, "--tests", "test", &OmctTest::ALL, OmctTest::key)?;
+    let mut out = parse_keys(
+        names,
+        "--tests",
+        "test",
+        (&OmctTest::ALL, OmctTest::key),
+        |name| {
+            OmctTest::ALL
+                .into_iter()
+                .find(|t| key_form(t.key()) == key_form(name))
+        },
+    )?;
     if out.is_empty() {
         out = OmctTest::ALL.to_vec();
     }
@@ -582,7 +590,7 @@ mod tests {
     fn console_start_up_options_parse() {
         let cli = parse(&["--speed", "4", "--paused", "--loop"]);
         assert_eq!(
-            crate::tui::player::speed_label(cli.play.start.speed),
+            crate::session::player::speed_label(cli.play.start.speed),
             "×4".to_string()
         );
         assert!(cli.play.start.paused && cli.play.start.looping);
@@ -590,10 +598,10 @@ mod tests {
         let Some(Command::Play(args)) = cli.command else {
             panic!("play")
         };
-        assert_eq!(crate::tui::player::speed_label(args.start.speed), "max");
+        assert_eq!(crate::session::player::speed_label(args.start.speed), "max");
         assert_eq!(
             parse(&[]).play.start.speed,
-            crate::tui::player::REAL_TIME,
+            crate::session::player::REAL_TIME,
             "×1 by default"
         );
         let e = Cli::try_parse_from(["hexcue", "--speed", "3"]).unwrap_err();
@@ -605,7 +613,10 @@ mod tests {
         let Some(Command::Review(args)) = cli.command else {
             panic!("review")
         };
-        assert_eq!(crate::tui::player::speed_label(args.start.speed), "×0.5");
+        assert_eq!(
+            crate::session::player::speed_label(args.start.speed),
+            "×0.5"
+        );
         assert!(args.start.looping && !args.start.paused);
     }
 

@@ -11,19 +11,19 @@
 pub(crate) mod app;
 pub mod channels;
 pub(crate) mod cli;
-pub mod compare;
+pub(crate) mod compare;
 pub(crate) mod export;
 pub mod formats;
 pub mod foxglove;
 pub mod live;
 pub(crate) mod outputs;
 pub mod plot;
-pub mod session;
+pub(crate) mod session;
 pub mod sinks;
 pub mod sources;
 pub mod tui;
 pub(crate) mod tune;
-pub mod tuning;
+pub(crate) mod tuning;
 
 /// The `hexcue` command: parses the arguments, runs the command and turns an error into the
 /// message and exit status the binary reports. The command-line modules (`cli`, `app`,

@@ -104,7 +104,7 @@ fn bad_traces_are_refused_with_file_line_and_reason() {
 fn a_single_enormous_line_is_refused_quickly() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("huge-line.csv");
-    let mut text = String::from("t,fx,fy,fz,p,q,r\n0,0,0,-9.81,0,0,0\n");
+    let mut text = String::from(trace_header(false)) + "0,0,0,-9.81,0,0,0\n";
     text.push_str(&"9".repeat(20_000_000));
     text.push('\n');
     std::fs::write(&path, text).unwrap();
@@ -306,7 +306,7 @@ fn degrees_and_degrees_per_second_are_refused_on_every_shipped_flight() {
 fn a_flight_that_cannot_be_judged_is_run_with_a_warning_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("parked.csv");
-    let mut text = String::from("t,fx,fy,fz,p,q,r,phi,theta,psi\n");
+    let mut text = String::from(trace_header(true));
     for k in 0..300 {
         text += &format!("{:.2},0.1,0,-9.81,0,0,0,0,0.05,1.2\n", k as f64 / 100.0);
     }

@@ -5,8 +5,7 @@
 mod common;
 
 use common::{hexcue, read_json, repo, shipped_traces, stderr};
-
-const CHANNELS: [&str; 6] = ["fx", "fy", "fz", "wx", "wy", "wz"];
+use hexcue_core::vocab::Channel;
 
 fn bound_json(trace: &std::path::Path, extra: &[&str]) -> serde_json::Value {
     bound_run(trace, extra).0
@@ -52,7 +51,7 @@ fn no_algorithm_beats_the_lower_bound_on_the_shipped_flights() {
                 lower_total <= total,
                 "{name}: {alg} total {total} < lower {lower_total}"
             );
-            for c in CHANNELS {
+            for c in Channel::ALL.map(Channel::key) {
                 let lower = bound["lower"]["channel"][c].as_f64().unwrap();
                 let err = e["error"][c].as_f64().unwrap();
                 assert!(lower <= err, "{name}: {alg} {c} {err} < lower {lower}");
@@ -69,7 +68,7 @@ fn no_algorithm_beats_the_lower_bound_on_the_shipped_flights() {
             "{name}: achieved {total} < lower {lower_total}"
         );
         // The joint optimum bounds every channel's own optimum from above.
-        for c in CHANNELS {
+        for c in Channel::ALL.map(Channel::key) {
             let own = bound["lower"]["channel"][c].as_f64().unwrap();
             let joint = j["details"]["joint_error"][c].as_f64().unwrap();
             assert!(

@@ -27,7 +27,7 @@ impl Lcg {
 fn turbulence_csv(seed: u64) -> String {
     let mut rng = Lcg(seed);
     let dt = 0.01_f64;
-    let mut out = String::from("t,fx,fy,fz,p,q,r,phi,theta,psi\n");
+    let mut out = String::from(common::trace_header(true));
     // Per channel: (corner rad/s, gain), state of two cascaded first-order lags.
     let spec: [(f64, f64); 6] = [
         (2.0, 0.8),

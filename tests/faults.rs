@@ -34,7 +34,7 @@ fn long_trace() -> &'static Path {
     static PATH: OnceLock<PathBuf> = OnceLock::new();
     PATH.get_or_init(|| {
         let path = scratch().join("long.csv");
-        let mut text = String::from("t,fx,fy,fz,p,q,r\n");
+        let mut text = String::from(common::trace_header(false));
         for k in 0..60_000 {
             let t = k as f64 / 100.0;
             text += &format!(

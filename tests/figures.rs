@@ -11,7 +11,7 @@ use common::*;
 /// test is quick, long enough that the washout does something.
 fn small_recording(dir: &Path) -> PathBuf {
     let trace = dir.join("wiggle.csv");
-    let mut csv = String::from("t,fx,fy,fz,p,q,r\n");
+    let mut csv = String::from(common::trace_header(false));
     for k in 0..600 {
         let t = k as f64 * 0.01;
         csv.push_str(&format!(

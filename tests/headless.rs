@@ -6,8 +6,8 @@ mod common;
 use std::collections::BTreeSet;
 
 use common::*;
+use hexcue_core::vocab::Channel;
 
-const CHANNELS: [&str; 6] = ["fx", "fy", "fz", "wx", "wy", "wz"];
 const METRICS: [&str; 7] = ["aad", "naad", "aas", "rae", "pc", "ed_s", "rmse"];
 
 fn check_summary(json: &serde_json::Value, trace: &str, algorithms: &[&str]) {
@@ -17,7 +17,7 @@ fn check_summary(json: &serde_json::Value, trace: &str, algorithms: &[&str]) {
     assert!(json["steps"].as_u64().unwrap() > 1000);
     for alg in algorithms {
         let a = &json["algorithms"][alg];
-        for ch in CHANNELS {
+        for ch in Channel::ALL.map(Channel::key) {
             for m in METRICS {
                 let v = a["metrics"][ch][m]
                     .as_f64()
@@ -129,7 +129,7 @@ fn default_run_uses_the_embedded_profile_and_trace() {
         "{table}"
     );
     // stdout holds the table and only the table.
-    for ch in CHANNELS {
+    for ch in Channel::ALL.map(Channel::key) {
         let rows = table
             .lines()
             .filter(|l| l.split_whitespace().take(2).eq(["cwf", ch]));

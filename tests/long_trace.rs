@@ -13,7 +13,7 @@ use common::*;
 /// A smooth synthetic trace of `rows` rows at 100 Hz, as docs/make-long-trace.py writes it.
 fn write_trace(path: &Path, rows: usize) {
     let mut out = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
-    writeln!(out, "t,fx,fy,fz,p,q,r,phi,theta,psi").unwrap();
+    write!(out, "{}", common::trace_header(true)).unwrap();
     for k in 0..rows {
         let t = k as f64 / 100.0;
         writeln!(

@@ -186,7 +186,7 @@ fn compare_runs_the_flight_library_from_any_directory() {
 fn input_clipping_is_reported_on_stderr_and_in_the_summary() {
     let dir = tempfile::tempdir().unwrap();
     // 1 s of a 40 m/s² surge: beyond the full-flight profile's 30 m/s² input limit.
-    let mut csv = String::from("t,fx,fy,fz,p,q,r\n");
+    let mut csv = String::from(common::trace_header(false));
     for k in 0..500 {
         let fx = if (100..200).contains(&k) { 40.0 } else { 0.0 };
         csv += &format!("{},{fx},0,-9.81,0,0,0\n", k as f64 / 100.0);

@@ -411,7 +411,7 @@ fn a_trace_attachment_that_does_not_decompress_is_refused_by_name() {
         |_, d| d,
         |a| {
             if a.name == "trace.csv.zst" {
-                a.data = Cow::Borrowed(b"t,fx,fy,fz,p,q,r\n");
+                a.data = Cow::Borrowed(common::trace_header(false).as_bytes());
             }
         },
     );

@@ -16,7 +16,7 @@ use common::{hexcue, repo, stderr, stdout};
 /// A synthetic flight at 100 Hz, `seconds` long: a surge pulse, a coordinated turn entry
 /// (sway and yaw rate), a pitch doublet and a heave bump, repeated every 30 s.
 fn synthetic_trace(dir: &Path, seconds: usize) -> PathBuf {
-    let mut csv = String::from("t,fx,fy,fz,p,q,r\n");
+    let mut csv = String::from(common::trace_header(false));
     for k in 0..seconds * 100 {
         let t = k as f64 * 0.01;
         let c = t % 30.0;

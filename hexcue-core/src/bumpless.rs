@@ -152,6 +152,7 @@ pub struct Blend {
 }
 
 impl Blend {
+    /// A blend that runs `duration_s` (s; at least 1 ns, so that a zero duration ends at once).
     pub fn new(duration_s: f64) -> Self {
         Blend {
             elapsed_s: 0.0,
@@ -181,6 +182,7 @@ impl Blend {
         }
     }
 
+    /// Moves the blend on by one step of `dt_s` (s).
     pub fn advance(&mut self, dt_s: f64) {
         self.elapsed_s += dt_s;
     }

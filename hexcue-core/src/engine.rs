@@ -28,20 +28,28 @@ pub const PREVIEW_HORIZON_S: f64 = 5.0;
 /// Leg lengths, velocities and margins (m, m/s, m) of one algorithm's platform.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Legs {
+    /// Length of each leg (m).
     pub length_m: Vector6<f64>,
+    /// Rate of change of each leg's length (m/s).
     pub velocity_mps: Vector6<f64>,
+    /// Distance of each leg to its nearer end stop (m; negative beyond it).
     pub margin_m: Vector6<f64>,
 }
 
 /// One algorithm's output at one step.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LaneFrame {
+    /// Which algorithm.
     pub id: AlgorithmId,
     /// The command after the limiter: what the platform is asked to do.
     pub command: PlatformCommand,
+    /// What the pilot would perceive of the command, at the head.
     pub perceived: Perceived,
+    /// The legs the command takes.
     pub legs: Legs,
+    /// The algorithm's mode, switches and solver reports after the step.
     pub state: AlgorithmState,
+    /// Whether the workspace limiter changed the algorithm's command at this step.
     pub limiter_active: bool,
     /// Wall time of the algorithm's step, limiter included (µs).
     pub step_time_us: f64,
@@ -50,15 +58,20 @@ pub struct LaneFrame {
 /// Everything that happened at one step.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Frame {
+    /// Index of the step, from 0.
     pub k: usize,
+    /// Time of the step, k / rate (s).
     pub t_s: f64,
+    /// The aircraft sample stepped, as the source gave it (before input limiting).
     pub aircraft: AircraftSample,
     /// What the pilot would perceive in the aircraft.
     pub reference: Perceived,
+    /// One frame per algorithm, in the order the engine was built with.
     pub lanes: Vec<LaneFrame>,
 }
 
 impl Frame {
+    /// The frame of algorithm `id`, if the engine runs it.
     pub fn lane(&self, id: AlgorithmId) -> Option<&LaneFrame> {
         self.lanes.iter().find(|l| l.id == id)
     }
@@ -222,6 +235,30 @@ struct Window {
 }
 
 /// Steps samples from a source, one at a time, through every chosen algorithm.
+///
+/// Over a trace in memory, the three algorithms side by side, judged by the summary:
+///
+/// ```
+/// use std::sync::Arc;
+/// use hexcue_core::engine::Engine;
+/// use hexcue_core::summary::SummaryBuilder;
+/// use hexcue_core::vocab::AlgorithmId;
+///
+/// let profile = hexcue_core::testing::full_flight();
+/// let trace = Arc::new(hexcue_core::testing::manoeuvre()); // 30 s at 100 Hz
+/// let mut engine = Engine::new(&profile, trace.clone(), AlgorithmId::ALL).unwrap();
+/// let mut summary = SummaryBuilder::new(&profile, &trace.name);
+/// while let Some(frame) = engine.step() {
+///     let smpc = frame.lane(AlgorithmId::Smpc).unwrap();
+///     assert!(smpc.legs.margin_m.min() >= 0.0, "the limiter keeps every leg in its stroke");
+///     summary.push(&frame);
+/// }
+/// let summary = summary.finish();
+/// assert_eq!(summary.steps as usize, trace.len());
+/// for id in AlgorithmId::ALL {
+///     assert!(summary.algorithms[id.key()].score.is_finite());
+/// }
+/// ```
 pub struct Engine {
     profile: Profile,
     source: Box<dyn SampleSource>,
@@ -325,6 +362,7 @@ impl Engine {
         })
     }
 
+    /// The profile the lanes run (the latest after a [`Engine::retune`]).
     pub fn profile(&self) -> &Profile {
         &self.profile
     }
@@ -404,6 +442,7 @@ impl Engine {
         self.profile = retune.profile;
     }
 
+    /// The algorithms run, in lane order.
     pub fn algorithms(&self) -> Vec<AlgorithmId> {
         self.lanes.iter().map(|l| l.algorithm.id()).collect()
     }
@@ -413,6 +452,7 @@ impl Engine {
         self.k
     }
 
+    /// Whether the source has no sample left to step.
     pub fn is_finished(&self) -> bool {
         self.window.exhausted && self.window.aircraft.is_empty()
     }

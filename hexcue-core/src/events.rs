@@ -6,9 +6,13 @@
 /// How much an event matters; the levels of `foxglove.Log` that hexcue uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EventLevel {
+    /// Detail for a log, not shown to the operator by default.
     Debug,
+    /// A change the operator may want to know of.
     Info,
+    /// Something that may be wrong and needs the operator's eye.
     Warning,
+    /// Something that stopped or degraded the session.
     Error,
 }
 
@@ -28,6 +32,8 @@ impl EventLevel {
 pub struct Event {
     /// Session time of the step (s).
     pub t_s: f64,
+    /// How much it matters.
     pub level: EventLevel,
+    /// What happened, in a sentence for the operator.
     pub text: String,
 }

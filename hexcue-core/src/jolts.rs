@@ -103,6 +103,7 @@ pub struct OnsetWindow {
 }
 
 impl OnsetWindow {
+    /// A window of `n` steps (at least one).
     pub fn new(n: usize) -> Self {
         OnsetWindow {
             history: vec![[0.0; 6]; n.max(1) + 1],
@@ -161,6 +162,8 @@ pub struct AircraftOnsets {
 }
 
 impl AircraftOnsets {
+    /// The aircraft's onsets, judged against the six onset thresholds (m/s² for fx, fy, fz; rad/s
+    /// for wx, wy, wz) over a window of `window_steps` steps ([`window_steps`]).
     pub fn new(thresholds: [f64; 6], window_steps: usize) -> Self {
         let n = window_steps.max(1);
         AircraftOnsets {
@@ -218,6 +221,8 @@ pub struct JoltAccumulator {
 }
 
 impl JoltAccumulator {
+    /// An empty accumulator for six onset thresholds (m/s², rad/s) over a window of
+    /// `window_steps` steps ([`window_steps`]).
     pub fn new(thresholds: [f64; 6], window_steps: usize) -> Self {
         JoltAccumulator {
             window: OnsetWindow::new(window_steps),
@@ -244,6 +249,7 @@ impl JoltAccumulator {
         }
     }
 
+    /// Each channel's jolts so far, in the order fx, fy, fz, wx, wy, wz.
     pub fn jolts(&self) -> [Jolts; 6] {
         std::array::from_fn(|c| Jolts {
             count: self.all[c].count,

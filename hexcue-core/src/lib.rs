@@ -7,6 +7,8 @@
 //! traces, recordings, simulators, platforms and the console. Frames and units:
 //! docs/design.md §1 of the repository.
 
+#![deny(missing_docs)]
+
 pub mod actuators;
 pub mod bound;
 pub mod bumpless;

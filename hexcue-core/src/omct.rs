@@ -43,19 +43,30 @@ pub fn frequency_label(w_radps: f64) -> String {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum OmctTest {
+    /// Roll rate p → roll rate at the head.
     RollRate,
+    /// Pitch rate q → pitch rate at the head.
     PitchRate,
+    /// Yaw rate r → yaw rate at the head.
     YawRate,
+    /// Surge specific force Δfx → Δfx at the head.
     Surge,
+    /// Sway specific force Δfy → Δfy at the head.
     Sway,
+    /// Heave specific force Δfz → Δfz at the head.
     Heave,
+    /// Pitch rate q → surge specific force Δfx at the head (tilt coordination's side effect).
     PitchToSurge,
+    /// Roll rate p → sway specific force Δfy at the head.
     RollToSway,
+    /// Surge specific force Δfx → pitch rate at the head.
     SurgeToPitch,
+    /// Sway specific force Δfy → roll rate at the head.
     SwayToRoll,
 }
 
 impl OmctTest {
+    /// Every test: the direct ones, then the cross-couplings (the standard's order).
     pub const ALL: [OmctTest; 10] = [
         OmctTest::RollRate,
         OmctTest::PitchRate,
@@ -86,6 +97,7 @@ impl OmctTest {
         }
     }
 
+    /// The name on the command line (`--tests`) and in reports, e.g. `pitch-to-surge`.
     pub fn key(self) -> &'static str {
         match self {
             OmctTest::RollRate => "roll-rate",
@@ -101,6 +113,7 @@ impl OmctTest {
         }
     }
 
+    /// The test a [`OmctTest::key`] names (case and surrounding blanks aside).
     pub fn from_key(key: &str) -> Option<OmctTest> {
         let k = key.trim().to_ascii_lowercase();
         OmctTest::ALL.into_iter().find(|t| t.key() == k)
@@ -122,6 +135,7 @@ impl OmctTest {
         }
     }
 
+    /// Whether the output channel differs from the input's.
     pub fn is_cross_coupling(self) -> bool {
         let (i, o) = self.channels();
         i != o
@@ -141,9 +155,11 @@ impl OmctTest {
 /// Fit of y ≈ a·sin(ωt) + b·cos(ωt) + c by least squares.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SineFit {
+    /// Amplitude of the fitted sinusoid (the samples' unit).
     pub amplitude: f64,
     /// Phase of the fitted sinusoid relative to sin(ωt) (rad).
     pub phase_rad: f64,
+    /// The constant c.
     pub offset: f64,
     /// RMS of what the sinusoid does not explain, relative to its amplitude.
     pub residual: f64,
@@ -187,10 +203,13 @@ pub fn fit_sine(samples: &[f64], t0_s: f64, dt_s: f64, w_radps: f64) -> SineFit 
 /// One frequency of one test.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct OmctPoint {
+    /// The input's frequency (rad/s).
     pub frequency_radps: f64,
     /// Input amplitude used (m/s² or rad/s).
     pub amplitude: f64,
+    /// Output amplitude at the head over input amplitude (in `output_unit` per `input_unit`).
     pub gain: f64,
+    /// Phase of the output relative to the input (°).
     pub phase_deg: f64,
     /// Steps at which the limiter acted (0 unless even the smallest amplitude tried needed it).
     pub limiter_steps: usize,
@@ -310,23 +329,16 @@ pub fn measure_within_limits(
 /// The whole test for one algorithm.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct OmctCurve {
+    /// Which test.
     pub test: OmctTest,
+    /// Which algorithm.
     pub algorithm: AlgorithmId,
+    /// Unit of the input amplitude (m/s² or rad/s).
     pub input_unit: &'static str,
+    /// Unit of the output at the head.
     pub output_unit: &'static str,
+    /// One point per frequency of the standard's grid, lowest first.
     pub points: Vec<OmctPoint>,
-}
-
-pub fn run_test(
-    profile: &Profile,
-    algorithm: AlgorithmId,
-    test: OmctTest,
-) -> Result<OmctCurve, BuildError> {
-    let points = frequencies_radps()
-        .iter()
-        .map(|&w| measure_within_limits(profile, algorithm, test, w))
-        .collect::<Result<Vec<_>, _>>()?;
-    Ok(curve(test, algorithm, points))
 }
 
 fn curve(test: OmctTest, algorithm: AlgorithmId, points: Vec<OmctPoint>) -> OmctCurve {

@@ -33,6 +33,19 @@ pub use crate::model::platform::{DofLimits, Limits, RotationLimits, TranslationL
 pub(crate) use crate::vocab::positive;
 pub use crate::vocab::ProfileError;
 
+/// A simulator described for hexcue: its rate, the pilot's eye point, the hexapod and its
+/// limits, the vestibular model and each algorithm's parameters. Read from TOML
+/// ([`text::parse_profile`], [`text::default_profile`]); docs/profiles.md lists the keys.
+///
+/// ```
+/// use hexcue_core::profile::text::default_profile;
+///
+/// let profile = default_profile();
+/// assert_eq!(profile.dt_s(), 1.0 / profile.rate_hz);
+/// // The shipped profile's hexapod fits its neutral pose with the limiter's margin.
+/// let neutral = nalgebra::Vector6::zeros();
+/// assert!(profile.stewart().fits(&neutral, profile.limiter.leg_margin_m));
+/// ```
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Profile {
@@ -46,13 +59,20 @@ pub struct Profile {
     /// Pilot's head relative to the centre of the platform joint plane, platform frame
     /// (x forward, y right, z down) (m).
     pub eye_point_m: [f64; 3],
+    /// The hexapod's joints and leg stroke (`[geometry]`).
     pub geometry: Geometry,
+    /// Per-DoF excursion, velocity and acceleration limits of the platform (`[limits]`).
     pub limits: Limits,
+    /// Saturation of the aircraft motion before the algorithms (`[input]`).
     pub input: InputLimits,
+    /// The workspace limiter's leg margin (`[limiter]`).
     pub limiter: LimiterParams,
+    /// The vestibular model's time constants and thresholds (`[vestibular]`).
     #[serde(default)]
     pub vestibular: VestibularParams,
+    /// The classical washout filter (`[cwf]`).
     pub cwf: WashoutParams,
+    /// The MPC, and the base of the S-MPC's two MPCs (`[mpc]`).
     pub mpc: MpcParams,
     /// The switchable MPC's supervisor, mixer and weight regulator; its two MPCs use `[mpc]`,
     /// COTC with the overrides of `[smpc.cotc]`.
@@ -114,14 +134,18 @@ pub struct InputLimits {
 }
 
 impl Profile {
+    /// The step of every algorithm: 1 / `rate_hz` (s).
     pub fn dt_s(&self) -> f64 {
         1.0 / self.rate_hz
     }
 
+    /// The pilot's eye point relative to the centre of the platform joint plane, platform frame
+    /// (x forward, y right, z down) (m).
     pub fn eye_point(&self) -> Vector3<f64> {
         Vector3::from(self.eye_point_m)
     }
 
+    /// The hexapod of `[geometry]`.
     pub fn stewart(&self) -> Stewart {
         Stewart::new(&self.geometry)
     }
@@ -169,7 +193,6 @@ impl Profile {
         }
     }
 
-    /// COTC's parameters: `[mpc]` with the overrides of `[smpc.cotc]`.
     /// The `[actuators]` section compiled against this profile's geometry; `None` when the
     /// profile has none.
     pub fn actuators(&self) -> Result<Option<Actuators>, ProfileError> {
@@ -179,6 +202,7 @@ impl Profile {
             .transpose()
     }
 
+    /// COTC's parameters: `[mpc]` with the overrides of `[smpc.cotc]`.
     pub fn cotc_params(&self) -> MpcParams {
         self.smpc.cotc.apply(&self.mpc)
     }

@@ -232,6 +232,7 @@ pub struct SafetyParams {
     /// Per DoF, the acceleration and jerk of the command while engaging and running (SI):
     /// the hand-over's bounds.
     pub handover_acceleration: Vector6<f64>,
+    /// Per DoF, the jerk bound of the hand-over (m/s³ for x, y, z; rad/s³ for roll, pitch, yaw).
     pub handover_jerk: Vector6<f64>,
 }
 
@@ -265,6 +266,7 @@ pub enum PlatformReadiness {
 }
 
 impl SafetyState {
+    /// The state's word in the JSON output and recordings (`parked`, `engaging`, …).
     pub fn word(self) -> &'static str {
         match self {
             SafetyState::Parked => "parked",
@@ -303,6 +305,7 @@ pub struct NeutralReturn {
 }
 
 impl NeutralReturn {
+    /// A return that starts at neutral at rest (the first transition plans from the pose).
     pub fn new(limits: TransitionLimits) -> Self {
         let plans = limits.plan(&[DofState::default(); 6]);
         NeutralReturn {
@@ -416,6 +419,7 @@ pub fn state_from_poses(poses: &[Vector6<f64>; 3], dt_s: f64) -> [DofState; 6] {
 /// What the live loop does at one step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepPlan {
+    /// The safety state at this step.
     pub state: SafetyState,
     /// Scale of the aircraft cue the algorithms see (0 at rest, 1 as flown).
     pub cue_gain: f64,
@@ -445,6 +449,7 @@ pub struct Safety {
 }
 
 impl Safety {
+    /// A state machine that starts parked, with no e-stop and the platform ready.
     pub fn new(params: SafetyParams) -> Self {
         let dt_s = params.transitions.dt_s;
         Safety {
@@ -462,6 +467,7 @@ impl Safety {
         }
     }
 
+    /// The parameters it was built with.
     pub fn params(&self) -> &SafetyParams {
         &self.params
     }
@@ -473,10 +479,12 @@ impl Safety {
         self
     }
 
+    /// The current safety state.
     pub fn state(&self) -> SafetyState {
         self.state
     }
 
+    /// Time spent in the current state (s).
     pub fn time_in_state_s(&self) -> f64 {
         self.time_in_state_s
     }
@@ -486,6 +494,7 @@ impl Safety {
         self.estop = true;
     }
 
+    /// Whether an e-stop was asked for (it is never taken back).
     pub fn estopped(&self) -> bool {
         self.estop
     }

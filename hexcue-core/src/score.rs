@@ -66,6 +66,8 @@ impl Default for ScoreWeights {
 }
 
 impl ScoreWeights {
+    /// `Ok` when every weight is finite and 0 or more, `below_threshold_weight` is in [0, 1] and
+    /// `leg_usage_start` in [0, 1); else an error naming the key.
     pub fn validate(&self) -> Result<(), ProfileError> {
         let err = |key: String, reason: String| Err(ProfileError { key, reason });
         let non_negative = |key: String, v: f64| {
@@ -105,8 +107,11 @@ impl ScoreWeights {
 pub struct ScoreTerms {
     /// Threshold-aware error per channel (fx, fy, fz, wx, wy, wz).
     pub error: BTreeMap<String, f64>,
+    /// False cues: w_false · Σ_c (false-cue time of c) / (flight time).
     pub false_cue: f64,
+    /// Workspace: w_limiter · (share of steps the limiter acted).
     pub limiter: f64,
+    /// Legs near their end stops: w_legs · mean_k ((u_k − u₀)⁺ / (1 − u₀))², u₀ = `leg_usage_start`.
     pub legs: f64,
     /// Jolts beyond the aircraft's (`crate::jolts`).
     #[serde(default)]
@@ -129,6 +134,32 @@ pub fn felt(u: f64) -> f64 {
 }
 
 /// Accumulates one algorithm's run into its score.
+///
+/// ```
+/// use hexcue_core::score::{ScoreAccumulator, ScoreWeights};
+///
+/// let weights = ScoreWeights::default();
+/// let thresholds = [0.17, 0.17, 0.28, 0.05, 0.05, 0.05]; // m/s², rad/s
+/// let mut score = ScoreAccumulator::new(&weights, thresholds);
+/// // Ten steps where the platform is felt as the aircraft is, limiter idle, legs near neutral.
+/// let felt = [0.5, 0.0, 0.0, 0.0, 0.1, 0.0];
+/// for _ in 0..10 {
+///     score.push(&felt, &felt, false, 0.1);
+/// }
+/// let (total, terms) = score.finish(&[0.0; 6]);
+/// assert_eq!(total, 0.0);
+/// assert_eq!(terms.error["fx"], 0.0);
+///
+/// // Ten more where surge is missed by two thresholds: the error term is
+/// // w_fx · φ(2) = w_fx · (s + 1) on half the steps.
+/// for _ in 0..10 {
+///     score.push(&felt, &[0.5 - 2.0 * 0.17, 0.0, 0.0, 0.0, 0.1, 0.0], false, 0.1);
+/// }
+/// let (total, terms) = score.finish(&[0.0; 6]);
+/// let expected = weights.channel_weight[0] * (weights.below_threshold_weight + 1.0) / 2.0;
+/// assert!((terms.error["fx"] - expected).abs() < 1e-12);
+/// assert!((total - expected).abs() < 1e-12);
+/// ```
 #[derive(Clone, Debug)]
 pub struct ScoreAccumulator {
     weights: ScoreWeights,
@@ -143,6 +174,8 @@ pub struct ScoreAccumulator {
 }
 
 impl ScoreAccumulator {
+    /// An empty accumulator for these weights and the six perception thresholds (m/s² for fx,
+    /// fy, fz; rad/s for wx, wy, wz).
     pub fn new(weights: &ScoreWeights, thresholds: [f64; 6]) -> Self {
         ScoreAccumulator {
             weights: weights.clone(),

@@ -58,6 +58,7 @@ pub struct TraceSamples {
 }
 
 impl TraceSamples {
+    /// Samples from a trace already in memory, from its first row.
     pub fn new(trace: Arc<Trace>) -> Self {
         TraceSamples { trace, next: 0 }
     }
@@ -107,6 +108,7 @@ pub struct HeldSample {
 pub struct HeldSampleHandle(Arc<Mutex<AircraftSample>>);
 
 impl HeldSampleHandle {
+    /// The sample the [`HeldSample`] gives from its next step on (the previous one is replaced).
     pub fn set(&self, sample: AircraftSample) {
         match self.0.lock() {
             Ok(mut s) => *s = sample,

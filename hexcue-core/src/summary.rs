@@ -19,12 +19,20 @@ use crate::vocab::Channel;
 /// Lags searched for the equivalent delay (s).
 pub const MAX_LAG_S: f64 = 1.0;
 
+/// A run judged: per algorithm the perception metrics, the score and its terms, step times
+/// and limiter activity, with what the run was (trace, profile, steps). The JSON of
+/// `--summary` and `compare`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
+    /// The trace's name (its file stem, or the live source's name).
     pub trace: String,
+    /// The profile's name.
     pub profile: String,
+    /// Steps run.
     pub steps: u64,
+    /// The profile's rate (Hz).
     pub rate_hz: f64,
+    /// Per algorithm (`smpc`, `mpc`, `cwf`) its summary.
     pub algorithms: BTreeMap<String, AlgorithmSummary>,
     /// Samples of the aircraft's motion clipped by the profile's `[input]` limits, per axis
     /// (fx, fy, fz as the change from 1 g; p, q, r), before any algorithm saw them.
@@ -54,7 +62,9 @@ pub struct Summary {
 /// every change with its session time.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct TuningSummary {
+    /// Each tunable parameter's value at the end (dotted key).
     pub final_parameter_values: BTreeMap<String, f64>,
+    /// Every change applied, in order.
     pub changes: Vec<ParameterChange>,
 }
 
@@ -63,8 +73,11 @@ pub struct TuningSummary {
 pub struct ParameterChange {
     /// Session time of the step that applied it (s).
     pub t_s: f64,
+    /// The parameter's dotted key.
     pub name: String,
+    /// Its value before.
     pub from: f64,
+    /// Its value after.
     pub to: f64,
     /// An undo of the change before.
     pub undo: bool,
@@ -209,25 +222,33 @@ pub struct RealtimeSummary {
     pub priority: i32,
     /// The process's memory was locked (`mlockall`, current and future pages).
     pub memory_locked: bool,
+    /// Why `SCHED_FIFO` was refused, when it was.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sched_fifo_refused: Option<String>,
+    /// Why `mlockall` was refused, when it was.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub memory_lock_refused: Option<String>,
 }
 
+/// Median, 99th percentile and maximum of a live session's timings, in the unit of the
+/// field that holds them (`step_ms`: ms).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Quantiles {
+    /// The median.
     pub median: f64,
+    /// The 99th percentile.
     pub p99: f64,
     /// The worst one.
     #[serde(default)]
     pub max: f64,
 }
 
+/// One algorithm's run: its metrics per channel, score, step times and limiter activity.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AlgorithmSummary {
     /// Per channel: fx, fy, fz, wx, wy, wz.
     pub metrics: BTreeMap<String, ChannelMetrics>,
+    /// Median, 99th percentile and maximum of its step times (µs).
     pub step_time_us: StepTimes,
     /// Steps at which the limiter changed the command.
     pub limiter_steps: u64,
@@ -301,6 +322,7 @@ pub struct SummaryBuilder {
 }
 
 impl SummaryBuilder {
+    /// An empty summary of `profile` over the source named `trace_name`.
     pub fn new(profile: &Profile, trace_name: &str) -> Self {
         let v = &profile.vestibular;
         let w = v.canal_threshold_radps();
@@ -343,6 +365,7 @@ impl SummaryBuilder {
         self.mpc_reference[1]
     }
 
+    /// Counts one step of the engine.
     pub fn push(&mut self, frame: &Frame) {
         self.steps += 1;
         // The same comparison as `engine::cue_sample`'s clamp.
@@ -408,6 +431,7 @@ impl SummaryBuilder {
         }
     }
 
+    /// The summary of the steps pushed so far.
     pub fn finish(&self) -> Summary {
         let algorithms = self
             .algorithms

@@ -28,17 +28,22 @@ impl AircraftSample {
 /// What a sidecar (`name.json`) says about a trace; every field is optional.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct TraceInfo {
+    /// The trace's name.
     #[serde(default)]
     pub name: Option<String>,
+    /// The aircraft flown, e.g. a JSBSim model's name.
     #[serde(default)]
     pub aircraft: Option<String>,
+    /// What was flown, in a few words.
     #[serde(default)]
     pub scenario: Option<String>,
+    /// Where the trace comes from (a simulator and its version, a script).
     #[serde(default)]
     pub source: Option<String>,
     /// Rate the trace was written at, as the sidecar claims it (Hz); checked against the CSV.
     #[serde(default)]
     pub sample_rate_hz: Option<f64>,
+    /// Length of the trace, as the sidecar claims it (s).
     #[serde(default)]
     pub duration_s: Option<f64>,
     /// Time-tagged events of the flight, e.g. "stall" at 29.8 s.
@@ -46,9 +51,12 @@ pub struct TraceInfo {
     pub events: Vec<TraceEvent>,
 }
 
+/// A time-tagged event of a flight, as a sidecar lists it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TraceEvent {
+    /// Time from the start of the trace (s).
     pub t: f64,
+    /// What happened, e.g. `stall`.
     pub event: String,
 }
 
@@ -57,7 +65,9 @@ pub struct TraceEvent {
 pub struct Trace {
     /// Name shown to the user (the file stem).
     pub name: String,
+    /// Sample rate of the grid (Hz).
     pub rate_hz: f64,
+    /// The samples, t_k = k / `rate_hz` from 0.
     pub samples: Vec<AircraftSample>,
     /// Description from the sidecar, when there is one.
     pub info: Option<TraceInfo>,
@@ -66,18 +76,22 @@ pub struct Trace {
 }
 
 impl Trace {
+    /// Number of samples.
     pub fn len(&self) -> usize {
         self.samples.len()
     }
 
+    /// Whether the trace has no sample.
     pub fn is_empty(&self) -> bool {
         self.samples.is_empty()
     }
 
+    /// The step between samples: 1 / `rate_hz` (s).
     pub fn dt_s(&self) -> f64 {
         1.0 / self.rate_hz
     }
 
+    /// Time of the last sample (s); 0 for an empty trace.
     pub fn duration_s(&self) -> f64 {
         self.samples.last().map_or(0.0, |s| s.t_s)
     }
@@ -91,23 +105,38 @@ pub const MAX_TRACE_SAMPLES: usize = 4_000_000;
 /// time to a few decimals, and that rounding must not trigger an interpolation.
 pub const GRID_TOLERANCE_STEPS: f64 = 1e-6;
 
+/// Why samples cannot be put on a uniform grid.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum ResampleError {
+    /// The rate asked for is not a positive finite number (Hz).
     #[error("the rate {0} Hz is not a positive finite number")]
     BadRate(f64),
+    /// Fewer than two samples: no step to resample.
     #[error("a trace needs at least two samples, found {0}")]
     TooFewSamples(usize),
+    /// The first sample's time is not 0 (s).
     #[error("the first sample is at {0} s; the grid starts at 0")]
     NotFromZero(f64),
+    /// A sample's time is not after the one before.
     #[error("time does not increase at sample {index}")]
-    NotIncreasing { index: usize },
+    NotIncreasing {
+        /// Index of the sample, from 0.
+        index: usize,
+    },
+    /// The grid would hold more than [`MAX_TRACE_SAMPLES`] samples.
     #[error("{duration_s} s at {rate_hz} Hz would need more than {MAX_TRACE_SAMPLES} samples")]
-    TooManySamples { duration_s: f64, rate_hz: f64 },
+    TooManySamples {
+        /// Length of the samples (s).
+        duration_s: f64,
+        /// The rate asked for (Hz).
+        rate_hz: f64,
+    },
 }
 
 /// Samples on the uniform grid t_k = k / rate, and whether any value was interpolated.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Resampled {
+    /// The samples on the grid.
     pub samples: Vec<AircraftSample>,
     /// False when the input already was on the grid and only its timestamps were snapped.
     pub interpolated: bool,

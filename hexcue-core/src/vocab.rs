@@ -19,6 +19,7 @@ pub fn plural(n: u64, thing: &str) -> String {
 pub struct ProfileError {
     /// Dotted path of the offending key, e.g. `geometry.leg_min_m`.
     pub key: String,
+    /// What is wrong with the value and what was expected.
     pub reason: String,
 }
 
@@ -38,12 +39,16 @@ pub(crate) fn positive(key: &str, v: f64) -> Result<(), ProfileError> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum AlgorithmId {
+    /// The switchable MPC (docs/design.md §5).
     Smpc,
+    /// The MPC without terminal conditions (docs/design.md §4).
     Mpc,
+    /// The classical washout filter (docs/design.md §3).
     Cwf,
 }
 
 impl AlgorithmId {
+    /// Every algorithm, in the console's column order.
     pub const ALL: &'static [AlgorithmId] =
         &[AlgorithmId::Smpc, AlgorithmId::Mpc, AlgorithmId::Cwf];
 
@@ -65,11 +70,32 @@ impl AlgorithmId {
         }
     }
 
-    pub fn from_key(key: &str) -> Option<Self> {
+    /// The algorithm a name means: its key or its label, case, blanks, `-` and `_` aside
+    /// (`S-MPC`, `s_mpc` and `smpc` are the S-MPC). The one place names are normalised.
+    pub fn from_key(name: &str) -> Option<Self> {
+        let wanted: String = name
+            .chars()
+            .filter(|c| !matches!(c, '-' | '_' | ' '))
+            .collect::<String>()
+            .to_ascii_lowercase();
+        Self::ALL.iter().copied().find(|a| a.key() == wanted)
+    }
+}
+
+/// `--drive smpc`: the values are the keys; the S-MPC also answers to `s-mpc` and `s_mpc`
+/// (with `ignore_case`, `S-MPC`), as [`AlgorithmId::from_key`] reads them.
+#[cfg(feature = "clap")]
+impl clap::ValueEnum for AlgorithmId {
+    fn value_variants<'a>() -> &'a [Self] {
         Self::ALL
-            .iter()
-            .copied()
-            .find(|a| a.key() == key.trim().to_ascii_lowercase())
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        let value = clap::builder::PossibleValue::new(self.key());
+        Some(match self {
+            AlgorithmId::Smpc => value.aliases(["s-mpc", "s_mpc"]),
+            AlgorithmId::Mpc | AlgorithmId::Cwf => value,
+        })
     }
 }
 
@@ -83,15 +109,22 @@ impl std::fmt::Display for AlgorithmId {
 /// perceived angular velocity about them (head frame), in the order of [`Channel::ALL`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Channel {
+    /// Perceived specific force along x, forward (m/s²).
     Fx,
+    /// Perceived specific force along y, right (m/s²).
     Fy,
+    /// Perceived specific force along z, down (m/s²).
     Fz,
+    /// Perceived angular velocity about x, roll (rad/s).
     Wx,
+    /// Perceived angular velocity about y, pitch (rad/s).
     Wy,
+    /// Perceived angular velocity about z, yaw (rad/s).
     Wz,
 }
 
 impl Channel {
+    /// The six channels in the order of a 6-vector: fx, fy, fz, wx, wy, wz.
     pub const ALL: [Channel; 6] = [
         Channel::Fx,
         Channel::Fy,
@@ -125,6 +158,7 @@ impl Channel {
         }
     }
 
+    /// The channel a [`Channel::key`] names.
     pub fn from_key(key: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|c| c.key() == key)
     }
@@ -184,19 +218,31 @@ pub enum SolveStatus {
     /// No solve yet (a report before the first step): the empty word.
     #[default]
     NotYet,
+    /// The QP was posed and not solved, for a reason the solver did not name.
     Unsolved,
+    /// Solved by the active set.
     Solved,
     /// Clarabel solved what the active set could not (docs/recordings.md).
     SolvedClarabel,
+    /// No motion satisfies the constraints.
     PrimalInfeasible,
+    /// The dual is infeasible: the objective is unbounded below.
     DualInfeasible,
+    /// Solved to Clarabel's reduced tolerance.
     AlmostSolved,
+    /// Primal infeasible to Clarabel's reduced tolerance.
     AlmostPrimalInfeasible,
+    /// Dual infeasible to Clarabel's reduced tolerance.
     AlmostDualInfeasible,
+    /// The iteration cap was reached.
     MaxIterations,
+    /// The time limit was reached.
     MaxTime,
+    /// The solver broke down numerically.
     NumericalError,
+    /// Clarabel stopped making progress.
     InsufficientProgress,
+    /// A callback stopped Clarabel (hexcue sets none).
     CallbackTerminated,
     /// The QP's data could not be brought up to date with this step.
     UpdateError,
@@ -211,6 +257,7 @@ pub enum SolveStatus {
 }
 
 impl SolveStatus {
+    /// Every status, in the order of the enum.
     pub const ALL: [SolveStatus; 19] = [
         SolveStatus::NotYet,
         SolveStatus::Unsolved,
@@ -333,7 +380,12 @@ pub enum SwitchReason {
     /// COTC's QP was not solved: the free MPC takes over.
     CotcNotSolved(SolveStatus),
     /// The errors stayed within ε for the dwell time and COTC is solved: back to COTC.
-    Settled { epsilon_mps2: f64, dwell_s: f64 },
+    Settled {
+        /// The error bound ε (m/s²).
+        epsilon_mps2: f64,
+        /// How long the errors stayed within it (s).
+        dwell_s: f64,
+    },
     /// A reason this version does not know, read from a file, kept as written.
     Other(String),
 }

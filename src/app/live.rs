@@ -12,7 +12,6 @@ use crate::app::play::start_foxglove;
 use crate::cli::{parse_algorithms, LiveArgs};
 use crate::tui::terminal::{exit_for_signal, require_terminal, TerminalSignals};
 use crate::tui::{self, SessionInfo};
-use hexcue_core::mca::AlgorithmId;
 use hexcue_core::profile::text::{default_profile, DEFAULT_PROFILE_TOML};
 use hexcue_core::profile::Profile;
 use hexcue_core::summary::Summary;
@@ -80,8 +79,7 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
     };
     let profile = live_profile(&profile);
     let algorithms = parse_algorithms(&args.algorithms)?;
-    let drive = AlgorithmId::from_key(&args.drive)
-        .with_context(|| format!("--drive {}: expected smpc, mpc or cwf", args.drive))?;
+    let drive = args.drive;
     let input = crate::sources::live::LiveInput::open(&args.input)?;
     let mut session = LiveSession::new(&profile, &algorithms, drive, input)?;
     session.set_realtime((!args.no_realtime).then_some(args.realtime_priority));

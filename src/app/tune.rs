@@ -62,14 +62,9 @@ pub fn trace_files(paths: &[PathBuf], option: &str) -> Result<Vec<PathBuf>> {
 
 /// `--algorithm`'s one algorithm: cwf, mpc or smpc (case, `-` and `_` aside).
 pub fn parse_algorithm(name: &str) -> Result<AlgorithmId> {
-    let wanted = name.trim().to_ascii_lowercase().replace(['-', '_'], "");
-    AlgorithmId::ALL
-        .iter()
-        .copied()
-        .find(|a| a.key() == wanted)
-        .ok_or_else(|| {
-            anyhow!("--algorithm: unknown algorithm `{name}`; expected one of cwf, mpc, smpc")
-        })
+    AlgorithmId::from_key(name).ok_or_else(|| {
+        anyhow!("--algorithm: unknown algorithm `{name}`; expected one of cwf, mpc, smpc")
+    })
 }
 
 struct Bar {

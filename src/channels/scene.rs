@@ -203,7 +203,7 @@ fn around(joints: &[Vector3<f64>; 6]) -> Vec<Vector3<f64>> {
     v
 }
 
-/// Leg colours by margin, with the console's thresholds (`tui::app::LegScale`): green, amber
+/// Leg colours by margin, with the console's thresholds (`tui::state::LegScale`): green, amber
 /// below a fifth of the smallest neutral margin, red at the limiter's margin or outside the
 /// stroke.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -5,9 +5,8 @@ use std::fmt::Write;
 
 use super::common::{channel_name, label, metric, ordered, TraceResult};
 use super::verdict::*;
-use hexcue_core::metrics::CHANNELS;
 use hexcue_core::summary::AlgorithmSummary;
-use hexcue_core::vocab::AlgorithmId;
+use hexcue_core::vocab::{AlgorithmId, Channel};
 
 /// All six channels over every trace: which algorithm is best where, where an MPC is worse
 /// than the CWF, the false-cue and roll/pitch PC targets (DESIGN §9, issue 11), and the
@@ -33,7 +32,7 @@ pub(super) fn channels_discussion(results: &[TraceResult]) -> String {
         if mpcs.is_empty() {
             continue;
         }
-        for ch in CHANNELS {
+        for ch in Channel::ALL.map(Channel::key) {
             fc_total += 1;
             let limit = metric(cwf, ch, |m| m.false_cue_s) + margin_s;
             let over: Vec<String> = mpcs
@@ -100,7 +99,7 @@ pub(super) fn channels_discussion(results: &[TraceResult]) -> String {
         }
     }
     out.push_str("Channel by channel (the verdict rule above):\n\n");
-    for ch in CHANNELS {
+    for ch in Channel::ALL.map(Channel::key) {
         let mut by_best: Vec<(String, Vec<&str>)> = Vec::new();
         let mut worse = Vec::new();
         let mut at_rest = Vec::new();
@@ -322,7 +321,8 @@ pub(super) fn where_the_cwf_does_better(results: &[TraceResult]) -> String {
         let parts: Vec<String> = ["smpc", "mpc"]
             .iter()
             .filter_map(|k| {
-                let channels: Vec<&str> = CHANNELS
+                let channels: Vec<&str> = Channel::ALL
+                    .map(Channel::key)
                     .iter()
                     .copied()
                     .filter(|c| metric(cwf, c, |m| m.rae) < metric(&a[*k], c, |m| m.rae))

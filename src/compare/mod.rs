@@ -8,8 +8,7 @@ mod tables;
 mod verdict;
 
 pub use self::common::TraceResult;
-pub use self::tables::{pilot_table, render_markdown};
-pub use self::verdict::{ERROR_TOLERANCE_ABS, ERROR_TOLERANCE_REL, FALSE_CUE_MARGIN, JOLT_MARGIN};
+pub use self::tables::render_markdown;
 
 #[cfg(test)]
 mod tests {
@@ -17,17 +16,19 @@ mod tests {
     use super::tables::*;
     use super::verdict::*;
     use super::*;
-    use hexcue_core::metrics::{ChannelMetrics, StepTimes, CHANNELS};
+    use hexcue_core::metrics::{ChannelMetrics, StepTimes};
     use hexcue_core::summary::AlgorithmSummary;
     use hexcue_core::summary::Summary;
     use hexcue_core::testing::full_flight;
+    use hexcue_core::vocab::Channel;
     use std::collections::BTreeMap;
 
     /// An algorithm whose threshold-aware error and felt error equal its RAE on every channel
     /// (a stand-in: the tests set them together).
     fn alg(rae_fx: f64, switches: u64) -> AlgorithmSummary {
         let rae = |c: &str| if c == "fx" { rae_fx } else { 0.5 };
-        let metrics = CHANNELS
+        let metrics = Channel::ALL
+            .map(Channel::key)
             .iter()
             .map(|c| {
                 (
@@ -57,8 +58,16 @@ mod tests {
             max_dof_usage: BTreeMap::new(),
             score: 1.0,
             score_terms: hexcue_core::score::ScoreTerms {
-                error: CHANNELS.iter().map(|c| (c.to_string(), rae(c))).collect(),
-                felt: CHANNELS.iter().map(|c| (c.to_string(), rae(c))).collect(),
+                error: Channel::ALL
+                    .map(Channel::key)
+                    .iter()
+                    .map(|c| (c.to_string(), rae(c)))
+                    .collect(),
+                felt: Channel::ALL
+                    .map(Channel::key)
+                    .iter()
+                    .map(|c| (c.to_string(), rae(c)))
+                    .collect(),
                 ..Default::default()
             },
         }
@@ -290,7 +299,7 @@ mod tests {
 
     fn with_bound(r: &mut TraceResult, felt_floor: f64, possible: bool, binding: &[&str]) {
         let mut lower = hexcue_core::bound::Lower::default();
-        for c in CHANNELS {
+        for c in Channel::ALL.map(Channel::key) {
             lower.felt.insert(c.to_string(), felt_floor);
         }
         r.summary.bound = Some(hexcue_core::bound::Bound {
@@ -466,7 +475,11 @@ mod tests {
         let mut r = result(0.2, 0.28, 0.32);
         set(&mut r, "mpc", "fz", 0.9, 0.2, 4.25);
         let md = render_markdown(&[r], &full_flight(), "hexcue compare");
-        let header: Vec<String> = CHANNELS.iter().map(|c| format!("false s {c}")).collect();
+        let header: Vec<String> = Channel::ALL
+            .map(Channel::key)
+            .iter()
+            .map(|c| format!("false s {c}"))
+            .collect();
         assert!(
             md.contains(&format!("| algorithm | {} |", header.join(" | "))),
             "{md}"
@@ -475,7 +488,7 @@ mod tests {
             md.contains("| MPC | 0.0 | 0.0 | 4.2 | 0.0 | 0.0 | 0.0 |"),
             "{md}"
         );
-        for ch in CHANNELS {
+        for ch in Channel::ALL.map(Channel::key) {
             let name = channel_name(ch);
             assert!(md.contains(&format!("| {name} | **")), "{name}: {md}");
             assert!(md.contains(&format!("- **{name}**: best")), "{name}: {md}");

@@ -6,8 +6,8 @@ use std::fmt::Write;
 use super::common::{channel_name, label, metric, ordered, TraceResult};
 use super::discussion::*;
 use super::verdict::*;
-use hexcue_core::metrics::CHANNELS;
 use hexcue_core::summary::Summary;
+use hexcue_core::vocab::Channel;
 
 pub fn render_markdown(
     results: &[TraceResult],
@@ -62,11 +62,16 @@ pub fn render_markdown(
             flight,
             FALSE_CUE_MARGIN * flight
         );
-        let header: Vec<String> = CHANNELS.iter().map(|c| format!("error {c}")).collect();
+        let header: Vec<String> = Channel::ALL
+            .map(Channel::key)
+            .iter()
+            .map(|c| format!("error {c}"))
+            .collect();
         let _ = writeln!(out, "| algorithm | {} |", header.join(" | "));
         let _ = writeln!(out, "|---|{}", "---:|".repeat(header.len()));
         for (k, a) in ordered(s) {
-            let errors: Vec<String> = CHANNELS
+            let errors: Vec<String> = Channel::ALL
+                .map(Channel::key)
                 .iter()
                 .map(|c| match a.score_terms.error.get(*c) {
                     Some(e) => format!("{e:.3}"),
@@ -76,22 +81,30 @@ pub fn render_markdown(
             let _ = writeln!(out, "| {} | {} |", label(k), errors.join(" | "));
         }
         let _ = writeln!(out);
-        let header: Vec<String> = CHANNELS
+        let header: Vec<String> = Channel::ALL
+            .map(Channel::key)
             .iter()
             .map(|c| format!("felt {c}"))
-            .chain(CHANNELS.iter().map(|c| format!("jolts {c}")))
+            .chain(
+                Channel::ALL
+                    .map(Channel::key)
+                    .iter()
+                    .map(|c| format!("jolts {c}")),
+            )
             .collect();
         let _ = writeln!(out, "| algorithm | {} |", header.join(" | "));
         let _ = writeln!(out, "|---|{}", "---:|".repeat(header.len()));
         for (k, a) in ordered(s) {
-            let felt: Vec<String> = CHANNELS
+            let felt: Vec<String> = Channel::ALL
+                .map(Channel::key)
                 .iter()
                 .map(|c| match a.score_terms.felt.get(*c) {
                     Some(e) => format!("{e:.3}"),
                     None => "–".to_string(),
                 })
                 .collect();
-            let jolts: Vec<String> = CHANNELS
+            let jolts: Vec<String> = Channel::ALL
+                .map(Channel::key)
                 .iter()
                 .map(|c| match a.metrics.get(*c) {
                     Some(m) => format!("{}/{}", m.jolts.charged, m.jolts.count),
@@ -107,7 +120,8 @@ pub fn render_markdown(
             );
         }
         if !s.aircraft_jolts.is_empty() {
-            let own: Vec<String> = CHANNELS
+            let own: Vec<String> = Channel::ALL
+                .map(Channel::key)
                 .iter()
                 .map(|c| {
                     let n = s.aircraft_jolts.get(*c).map_or(0, |j| j.count);
@@ -117,19 +131,27 @@ pub fn render_markdown(
             let _ = writeln!(out, "\nThe aircraft's own jolts: {}.", own.join(", "));
         }
         let _ = writeln!(out);
-        let header: Vec<String> = CHANNELS
+        let header: Vec<String> = Channel::ALL
+            .map(Channel::key)
             .iter()
             .map(|c| format!("RAE {c}"))
-            .chain(CHANNELS.iter().map(|c| format!("NAAD {c}")))
+            .chain(
+                Channel::ALL
+                    .map(Channel::key)
+                    .iter()
+                    .map(|c| format!("NAAD {c}")),
+            )
             .collect();
         let _ = writeln!(out, "| algorithm | {} |", header.join(" | "));
         let _ = writeln!(out, "|---|{}", "---:|".repeat(header.len()));
         for (k, a) in ordered(s) {
-            let rae: Vec<String> = CHANNELS
+            let rae: Vec<String> = Channel::ALL
+                .map(Channel::key)
                 .iter()
                 .map(|c| format!("{:.3}", metric(a, c, |m| m.rae)))
                 .collect();
-            let naad: Vec<String> = CHANNELS
+            let naad: Vec<String> = Channel::ALL
+                .map(Channel::key)
                 .iter()
                 .map(|c| format!("{:.4}", metric(a, c, |m| m.naad)))
                 .collect();
@@ -142,19 +164,27 @@ pub fn render_markdown(
             );
         }
         let _ = writeln!(out);
-        let header: Vec<String> = CHANNELS
+        let header: Vec<String> = Channel::ALL
+            .map(Channel::key)
             .iter()
             .map(|c| format!("false s {c}"))
-            .chain(CHANNELS.iter().map(|c| format!("PC {c}")))
+            .chain(
+                Channel::ALL
+                    .map(Channel::key)
+                    .iter()
+                    .map(|c| format!("PC {c}")),
+            )
             .collect();
         let _ = writeln!(out, "| algorithm | {} |", header.join(" | "));
         let _ = writeln!(out, "|---|{}", "---:|".repeat(header.len()));
         for (k, a) in ordered(s) {
-            let false_s: Vec<String> = CHANNELS
+            let false_s: Vec<String> = Channel::ALL
+                .map(Channel::key)
                 .iter()
                 .map(|c| format!("{:.1}", metric(a, c, |m| m.false_cue_s)))
                 .collect();
-            let pcs: Vec<String> = CHANNELS
+            let pcs: Vec<String> = Channel::ALL
+                .map(Channel::key)
                 .iter()
                 .map(|c| format!("{:.3}", metric(a, c, |m| m.pc)))
                 .collect();
@@ -214,7 +244,7 @@ pub fn bound_table(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
     let _ = writeln!(out, "|---|---:|---:|{}", "---:|".repeat(head.len()));
     let err =
         |a: &hexcue_core::summary::AlgorithmSummary, c: &str| a.score_terms.error.get(c).copied();
-    for c in CHANNELS {
+    for c in Channel::ALL.map(Channel::key) {
         let lower = b.lower.channel.get(c).copied();
         let cells: Vec<String> = algs
             .iter()
@@ -234,7 +264,11 @@ pub fn bound_table(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
         );
     }
     let total = |a: &hexcue_core::summary::AlgorithmSummary| -> f64 {
-        CHANNELS.iter().filter_map(|c| err(a, c)).sum()
+        Channel::ALL
+            .map(Channel::key)
+            .iter()
+            .filter_map(|c| err(a, c))
+            .sum()
     };
     let cells: Vec<String> = algs
         .iter()
@@ -325,7 +359,7 @@ pub(super) fn verdict_table(summary: &Summary) -> String {
         names.join(" / ")
     );
     let _ = writeln!(out, "|---|---|---:|---|---|");
-    for ch in CHANNELS {
+    for ch in Channel::ALL.map(Channel::key) {
         let v = verdict(summary, ch);
         let false_s: Vec<String> = v
             .algorithms
@@ -372,19 +406,21 @@ pub fn pilot_table(results: &[TraceResult]) -> String {
     let _ = writeln!(
         out,
         "| trace | {} |",
-        CHANNELS
+        Channel::ALL
+            .map(Channel::key)
             .iter()
             .map(|c| channel_name(c))
             .collect::<Vec<_>>()
             .join(" | ")
     );
-    let _ = writeln!(out, "|---|{}", "---|".repeat(CHANNELS.len()));
+    let _ = writeln!(out, "|---|{}", "---|".repeat(Channel::ALL.len()));
     let mut worse = Vec::new();
     let mut cases = 0;
     for r in results {
         let s = &r.summary;
         let mut worse_here = Vec::new();
-        let cells: Vec<String> = CHANNELS
+        let cells: Vec<String> = Channel::ALL
+            .map(Channel::key)
             .iter()
             .map(|ch| {
                 let v = verdict(s, ch);
@@ -442,7 +478,8 @@ pub(super) fn count_cases_with_worse(results: &[TraceResult]) -> usize {
     results
         .iter()
         .map(|r| {
-            CHANNELS
+            Channel::ALL
+                .map(Channel::key)
                 .iter()
                 .filter(|ch| !verdict(&r.summary, ch).worse_than_cwf().is_empty())
                 .count()

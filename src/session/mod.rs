@@ -20,7 +20,7 @@ use hexcue_core::mca::AlgorithmId;
 use hexcue_core::profile::Profile;
 use hexcue_core::trace::Trace;
 
-pub use runner::{Pacer, RunEnd, Runner, SinkFailure};
+pub use runner::{Runner, SinkFailure};
 
 /// Where frames go: a recording (the MCAP recorder), a live view (the Foxglove server).
 pub trait FrameSink: Send {

@@ -526,7 +526,8 @@ impl Player {
         }
     }
 
-    /// Positions of the checkpoints kept (for tests and the documentation's figures).
+    /// Positions of the checkpoints kept (for the tests).
+    #[cfg(test)]
     pub fn checkpoint_positions(&self) -> Vec<usize> {
         self.checkpoints.iter().map(|c| c.position).collect()
     }

@@ -59,10 +59,6 @@ impl Runner {
         }
     }
 
-    pub fn source(&self) -> &dyn FrameSource {
-        self.source.as_ref()
-    }
-
     /// The next frame, into the sinks and the summary; `None` at the end of the source.
     pub fn step(&mut self) -> anyhow::Result<Option<Frame>> {
         let Some(frame) = self.source.next_frame() else {

@@ -11,9 +11,6 @@ pub mod reach;
 pub mod recorder;
 pub mod udp_json;
 
-/// The trait lives with the session runner, which feeds it; kept here for the merge.
-pub use crate::session::FrameSink;
-
 use anyhow::{bail, Context, Result};
 use nalgebra::Vector6;
 

@@ -7,13 +7,13 @@ use ratatui::backend::Backend;
 use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
 use ratatui::Terminal;
 
-use hexcue_core::metrics::CHANNELS;
+use hexcue_core::vocab::Channel;
 
-use super::player::{Command, Session, SEEK_STEP_S};
+use crate::session::player::{Command, Session, SEEK_STEP_S};
 
 // The state the interface's parts share lives in `state`, below them all; here it is given
-// its behaviour (keys, the loop). Kept at the old paths for the tests and the merge.
-pub use super::state::{App, EventSource, LegScale, UiEvent, FRAME_INTERVAL, NOTICE_FOR};
+// its behaviour (keys, the loop).
+use super::state::{App, EventSource, UiEvent, FRAME_INTERVAL, NOTICE_FOR};
 
 impl App {
     /// Applies a key to the interface; returns the command for the engine thread, if any.
@@ -96,11 +96,11 @@ impl App {
                 None
             }
             KeyCode::Tab => {
-                self.channel = (self.channel + 1) % CHANNELS.len();
+                self.channel = (self.channel + 1) % Channel::ALL.len();
                 None
             }
             KeyCode::BackTab => {
-                self.channel = (self.channel + CHANNELS.len() - 1) % CHANNELS.len();
+                self.channel = (self.channel + Channel::ALL.len() - 1) % Channel::ALL.len();
                 None
             }
             KeyCode::Char(c @ '1'..='6') => {

@@ -8,8 +8,8 @@ use ratatui::text::{Line, Span};
 
 use hexcue_core::engine::LaneFrame;
 
-use super::player::WindowRow;
 use super::state::App;
+use crate::session::player::WindowRow;
 
 /// Longer gauge bars only spread the same information.
 const MAX_BAR_W: usize = 30;

@@ -19,17 +19,16 @@ use crate::live::{self, Control, LiveSession, StepReport};
 use crate::sinks::PlatformPhase;
 use hexcue_core::engine::Frame;
 use hexcue_core::mca::AlgorithmId;
-use hexcue_core::metrics::CHANNELS;
 use hexcue_core::profile::Profile;
 use hexcue_core::safety::SafetyState;
 use hexcue_core::summary::{Summary, SummaryBuilder};
+use hexcue_core::vocab::Channel;
 
-use super::player::{Snapshot, WindowRow, WINDOW_S};
 use super::state::{App, EventSource, UiEvent, FRAME_INTERVAL, NOTICE_FOR};
 use super::{SessionInfo, Theme};
+use crate::session::player::{Snapshot, WindowRow, WINDOW_S};
 
-/// At its old path for the tests and the merge.
-pub use super::state::LiveStatus;
+use super::state::LiveStatus;
 
 impl LiveStatus {
     fn of(report: &StepReport, input: (&str, &str), outputs: &[String], stopping: bool) -> Self {
@@ -303,7 +302,7 @@ impl LiveViewModel {
         s.recording = self
             .recording
             .as_ref()
-            .map(|path| super::player::RecordingStatus {
+            .map(|path| crate::session::player::RecordingStatus {
                 path: path.clone(),
                 frames: self.steps,
             });
@@ -531,11 +530,11 @@ pub fn on_key(app: &mut App, key: KeyEvent) -> LiveKey {
         }
         KeyCode::Char('r' | 'R') => LiveKey::RecordNotice,
         KeyCode::Tab => {
-            app.channel = (app.channel + 1) % CHANNELS.len();
+            app.channel = (app.channel + 1) % Channel::ALL.len();
             LiveKey::Shown
         }
         KeyCode::BackTab => {
-            app.channel = (app.channel + CHANNELS.len() - 1) % CHANNELS.len();
+            app.channel = (app.channel + Channel::ALL.len() - 1) % Channel::ALL.len();
             LiveKey::Shown
         }
         KeyCode::Char(c @ '1'..='6') => {
@@ -545,9 +544,6 @@ pub fn on_key(app: &mut App, key: KeyEvent) -> LiveKey {
         _ => LiveKey::Shown,
     }
 }
-
-/// The console's terminal events, at their old path.
-pub use super::terminal::TerminalEvents;
 
 #[cfg(test)]
 mod tests {

@@ -22,9 +22,6 @@ pub mod terminal;
 pub mod theme;
 pub mod view;
 
-/// The runner the console drives, at its old path for the front-ends and the tests.
-pub use crate::session::player;
-
 use std::io::Write;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -38,6 +35,7 @@ use hexcue_core::mca::AlgorithmId;
 use hexcue_core::profile::Profile;
 use hexcue_core::trace::Trace;
 
+use crate::session::player;
 pub use player::{Command, Snapshot};
 pub use state::{App, UiEvent};
 pub use terminal::TerminalSignals;

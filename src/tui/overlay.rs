@@ -8,14 +8,14 @@ use ratatui::text::{Line, Span};
 use ratatui::widgets::Paragraph;
 
 use hexcue_core::mca::AlgorithmId;
-use hexcue_core::metrics::CHANNELS;
+use hexcue_core::vocab::Channel;
 
-use super::player::{Snapshot, WINDOW_S};
 use super::state::App;
 use super::view::{
     channel_label, channel_scale, display_order, draw_chart, fit, fmt_axis, lane_metrics, line_of,
     metric_lines, ChartAreas, CHART_ROWS_EACH,
 };
+use crate::session::player::{Snapshot, WINDOW_S};
 
 /// Each algorithm's marker in the overlaid view, so that the lines tell apart without colour.
 fn algorithm_marker(id: AlgorithmId) -> (Marker, &'static str) {
@@ -47,10 +47,11 @@ pub(super) fn render_overlay(app: &App, f: &mut ratatui::Frame, area: Rect) {
     };
     let [charts_a, numbers_a] =
         Layout::vertical([Constraint::Min(0), Constraint::Length(numbers_h as u16)]).areas(area);
-    let charts = (usize::from(charts_a.height) / (CHART_ROWS_EACH - 1)).clamp(1, CHANNELS.len());
+    let charts =
+        (usize::from(charts_a.height) / (CHART_ROWS_EACH - 1)).clamp(1, Channel::ALL.len());
     let areas = Layout::vertical(vec![Constraint::Fill(1); charts]).split(charts_a);
     for (i, &a) in areas.iter().enumerate() {
-        let ch = (app.channel + i) % CHANNELS.len();
+        let ch = (app.channel + i) % Channel::ALL.len();
         render_overlay_chart(app, f, a, &order, ch);
     }
     let w = usize::from(area.width);
@@ -118,12 +119,13 @@ fn render_overlay_chart(app: &App, f: &mut ratatui::Frame, area: Rect, lanes: &[
     let band = app.thresholds[ch].abs() * scale;
     let (lo, hi) = overlay_range(s, lanes, ch, app.thresholds[ch]);
     let [caption, plot] = Layout::vertical([Constraint::Length(1), Constraint::Min(0)]).areas(area);
-    let series = |f: &dyn Fn(&super::player::WindowRow) -> Option<f64>| -> Vec<(f64, f64)> {
-        s.window
-            .iter()
-            .filter_map(|r| f(r).map(|v| (r.t_s, v)))
-            .collect()
-    };
+    let series =
+        |f: &dyn Fn(&crate::session::player::WindowRow) -> Option<f64>| -> Vec<(f64, f64)> {
+            s.window
+                .iter()
+                .filter_map(|r| f(r).map(|v| (r.t_s, v)))
+                .collect()
+        };
     let reference = series(&|r| Some(f64::from(r.reference[ch]) * scale));
     let upper = series(&|r| Some(f64::from(r.reference[ch]) * scale + band));
     let lower = series(&|r| Some(f64::from(r.reference[ch]) * scale - band));

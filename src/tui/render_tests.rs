@@ -9,9 +9,9 @@ use ratatui::backend::TestBackend;
 use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
 use ratatui::Terminal;
 
-use super::player::{Command, Player, RecordingStatus};
 use super::tests::{draw, dressed_snapshot, engine, recording_opts, screen, settle, Counters};
 use super::*;
+use crate::session::player::{Command, Player, RecordingStatus};
 use hexcue_core::mca::AlgorithmId;
 
 /// The screen's rows without TestBackend's quotes.

@@ -11,9 +11,9 @@ use ratatui::crossterm::event::KeyEvent;
 use crate::session::player::Snapshot;
 use crate::session::SessionInfo;
 use hexcue_core::mca::AlgorithmId;
-use hexcue_core::metrics::CHANNELS;
 use hexcue_core::profile::Profile;
 use hexcue_core::safety::SafetyState;
+use hexcue_core::vocab::Channel;
 
 use super::theme::Theme;
 
@@ -75,7 +75,7 @@ impl LegScale {
 pub struct App {
     pub info: Arc<SessionInfo>,
     pub snapshot: Arc<Snapshot>,
-    /// Index into [`CHANNELS`].
+    /// Index into [`Channel::ALL`].
     pub channel: usize,
     pub help: bool,
     /// The help's page, where it does not fit in one (`?` turns them).
@@ -136,7 +136,7 @@ impl App {
     }
 
     pub fn channel_name(&self) -> &'static str {
-        CHANNELS[self.channel % CHANNELS.len()]
+        Channel::ALL[self.channel % Channel::ALL.len()].key()
     }
 }
 

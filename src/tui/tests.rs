@@ -14,9 +14,12 @@ use ratatui::Terminal;
 
 use hexcue_core::trace::AircraftSample;
 
-use super::app::{run_ui, EventSource, UiEvent};
-use super::player::{self, Command, Player, PlayerOptions, RecordingSetup, Snapshot, Wait};
+use super::app::run_ui;
+use super::state::{EventSource, UiEvent};
 use super::*;
+use crate::session::player::{
+    self, Command, Player, PlayerOptions, RecordingSetup, Snapshot, Wait,
+};
 use hexcue_core::engine::Frame;
 use hexcue_core::mca::{AlgorithmState, Mode, SolverReport};
 use hexcue_core::testing::full_flight;

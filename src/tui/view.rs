@@ -11,13 +11,12 @@ use ratatui::widgets::{Axis, Block, Borders, Chart, Dataset, GraphType, Paragrap
 
 use hexcue_core::engine::LaneFrame;
 use hexcue_core::mca::{AlgorithmId, Mode};
-use hexcue_core::metrics::CHANNELS;
-use hexcue_core::vocab::Channel;
+use hexcue_core::vocab::{Channel, SolveStatus};
 
 use super::gauges::{leg_lines, pose_lines, FULL_ROWS, PAIRED_ROWS};
-use super::player::{speed_label, Snapshot, WINDOW_S};
 use super::state::App;
 use super::Theme;
+use crate::session::player::{speed_label, Snapshot, WINDOW_S};
 
 /// Narrowest useful algorithm column; narrower terminals show fewer columns.
 const MIN_COLUMN_W: u16 = 18;
@@ -67,9 +66,9 @@ fn unicode_width(c: char) -> usize {
 /// How a channel is named on screen: fz is shown as its change from 1 g, as the algorithms
 /// and the metrics use it (0 in level flight).
 pub(super) fn channel_label(ch: usize) -> &'static str {
-    match CHANNELS[ch % CHANNELS.len()] {
-        "fz" => "Δfz",
-        other => other,
+    match Channel::ALL[ch % Channel::ALL.len()] {
+        Channel::Fz => "Δfz",
+        other => other.key(),
     }
 }
 
@@ -226,7 +225,7 @@ pub(super) fn header_line2(app: &App, width: usize) -> Line<'static> {
         ),
     ];
     if let Some(a) = s.achieved_speed.filter(|_| !s.paused) {
-        if super::player::SPEEDS[s.speed].is_none() {
+        if crate::session::player::SPEEDS[s.speed].is_none() {
             items.push(item(5, vec![Span::styled(format!(" (×{a:.1})"), th.dim())]));
         }
     }
@@ -523,11 +522,11 @@ fn render_column(
     .areas(inner);
     // Tall columns show more channels, the selected one first: the other axes of the same
     // manoeuvre are often where a washout's false cues are.
-    let charts = (chart_rows / CHART_ROWS_EACH).clamp(1, CHANNELS.len());
+    let charts = (chart_rows / CHART_ROWS_EACH).clamp(1, Channel::ALL.len());
     if chart_rows >= 3 {
         let areas = Layout::vertical(vec![Constraint::Fill(1); charts]).split(chart_a);
         for (i, &a) in areas.iter().enumerate() {
-            let ch = (app.channel + i) % CHANNELS.len();
+            let ch = (app.channel + i) % Channel::ALL.len();
             render_chart(app, f, a, lane, s, ch, ranges[ch]);
         }
     }
@@ -612,7 +611,7 @@ fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'stat
         ]));
     }
     for sv in &st.solvers {
-        if sv.status == "standby" {
+        if sv.status == SolveStatus::Standby {
             // Not solved this step by design (the other controller is in charge and solved).
             lines.push(Line::from(Span::styled(
                 format!("· {} standby", sv.name),
@@ -620,8 +619,7 @@ fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'stat
             )));
             continue;
         }
-        let ok = matches!(sv.status.as_str(), "solved" | "solved_clarabel");
-        let (mark, style) = if ok {
+        let (mark, style) = if sv.status.is_solved() {
             ("✓", th.ok())
         } else {
             ("✗", th.warn())
@@ -643,7 +641,7 @@ fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'stat
 }
 
 /// The solvers' statuses, short enough for an 80-column screen.
-fn status_word(status: &hexcue_core::vocab::SolveStatus) -> &'static str {
+fn status_word(status: &SolveStatus) -> &'static str {
     status.short()
 }
 

@@ -316,11 +316,22 @@ pub fn read_pty(
     })
 }
 
+/// The header of a native trace CSV (docs/formats.md): time (s), specific force fx, fy, fz
+/// (m/s², head frame), body rates p, q, r (rad/s), attitude φ, θ, ψ (rad); the attitude
+/// columns are optional.
+pub fn trace_header(attitude: bool) -> &'static str {
+    if attitude {
+        "t,fx,fy,fz,p,q,r,phi,theta,psi\n"
+    } else {
+        "t,fx,fy,fz,p,q,r\n"
+    }
+}
+
 /// Writes a trace CSV (docs/formats.md) at `rate_hz` for `duration_s`: `sample(t)` gives
 /// fx, fy, fz (m/s², head frame), p, q, r (rad/s), φ, θ, ψ (rad) at time t.
 pub fn write_trace(path: &Path, rate_hz: f64, duration_s: f64, sample: impl Fn(f64) -> [f64; 9]) {
     use std::fmt::Write;
-    let mut csv = String::from("t,fx,fy,fz,p,q,r,phi,theta,psi\n");
+    let mut csv = String::from(trace_header(true));
     let steps = (duration_s * rate_hz).round() as usize;
     for k in 0..steps {
         let t = k as f64 / rate_hz;

@@ -19,6 +19,7 @@ pub enum Encoding {
 }
 
 impl Encoding {
+    /// The encoding a profile's `encoding` key names (`binary`, `decimal`, `hex`).
     pub fn from_key(key: &str) -> Option<Self> {
         match key {
             "binary" => Some(Encoding::Binary),
@@ -110,14 +111,40 @@ fn compile(text: &str, axes_allowed: bool) -> Result<Template, String> {
 /// Why bytes are not a frame of a template.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum FrameParseError {
+    /// The bytes end before the template does.
     #[error("the frame ends early (byte {at})")]
-    Short { at: usize },
+    Short {
+        /// Index of the byte where the frame ended.
+        at: usize,
+    },
+    /// A byte differs from the template's literal there.
     #[error("byte {at}: {found:#04x} where the template has {expected:#04x}")]
-    Literal { at: usize, expected: u8, found: u8 },
+    Literal {
+        /// Index of the byte.
+        at: usize,
+        /// The template's byte.
+        expected: u8,
+        /// The frame's byte.
+        found: u8,
+    },
+    /// A position's byte is not a digit of the encoding.
     #[error("byte {at}: expected a digit of actuator {axis}'s position")]
-    NotADigit { at: usize, axis: usize },
+    NotADigit {
+        /// Index of the byte.
+        at: usize,
+        /// The actuator, from 0.
+        axis: usize,
+    },
+    /// A position does not fit the resolution.
     #[error("actuator {axis}: {value} is beyond the {bits}-bit range")]
-    OutOfRange { axis: usize, value: u64, bits: u8 },
+    OutOfRange {
+        /// The actuator, from 0.
+        axis: usize,
+        /// The position read.
+        value: u64,
+        /// The resolution (bits).
+        bits: u8,
+    },
 }
 
 /// A compiled frame: the position template, the start and stop frames, the resolution and
@@ -208,10 +235,12 @@ impl FrameFormat {
         Ok(format)
     }
 
+    /// Resolution of a position (bits).
     pub fn bits(&self) -> u8 {
         self.bits
     }
 
+    /// How positions are written.
     pub fn encoding(&self) -> Encoding {
         self.encoding
     }

@@ -64,6 +64,7 @@ pub struct ActuatorParams {
     /// Rotary: the crank's travel, from the horizontal, positive up (deg).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub crank_min_deg: Option<f64>,
+    /// Rotary: the crank's upper travel limit, from the horizontal, positive up (deg).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub crank_max_deg: Option<f64>,
 }
@@ -247,10 +248,13 @@ impl Actuators {
         Ok(actuators)
     }
 
+    /// The frame each step's positions are written in.
     pub fn frame(&self) -> &FrameFormat {
         &self.frame
     }
 
+    /// Whether the rig's actuators are rotary cranks (positions are crank angles) rather than
+    /// linear legs (positions are leg lengths).
     pub fn is_rotary(&self) -> bool {
         matches!(self.kind, Kind::Rotary { .. })
     }

@@ -31,6 +31,7 @@ pub enum CrankAngle {
 }
 
 impl CrankAngle {
+    /// The angle, exact or limited (rad).
     pub fn rad(self) -> f64 {
         match self {
             CrankAngle::Exact(a) | CrankAngle::Limited(a) => a,
@@ -41,11 +42,15 @@ impl CrankAngle {
 /// One rotary actuator's geometry.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Crank {
+    /// Length of the crank arm, from its axis to the rod's joint (m).
     pub radius_m: f64,
+    /// Length of the rod from the arm's end to the platform joint (m).
     pub rod_m: f64,
     /// cos β and sin β of the arm's direction in the base plane.
     pub arm: (f64, f64),
+    /// Lower travel limit of the crank, from the horizontal, positive up (rad).
     pub min_rad: f64,
+    /// Upper travel limit of the crank, from the horizontal, positive up (rad).
     pub max_rad: f64,
 }
 

@@ -43,11 +43,16 @@ pub const LEG_ITERATIONS: usize = 4;
 /// The summary's `bound` object (issue #33's shape).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Bound {
+    /// The lowest threshold-aware error any motion within the platform's limits could have.
     pub lower: Lower,
+    /// What a motion that respects the legs and the limiter actually achieves.
     pub achieved: Achieved,
+    /// Whether some motion could beat the CWF on every channel at once.
     pub dominance: Dominance,
 }
 
+/// The relaxation's optima: the error no motion within the per-DoF limits (legs aside) can
+/// avoid on the flight, per channel and jointly.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Lower {
     /// Each channel's own optimum (only that channel's error minimised).
@@ -72,14 +77,21 @@ pub struct ValidLower {
     pub total: f64,
 }
 
+/// A motion found within the legs and replayed through the limiter, perception model and
+/// score: an error that is reachable, above the lower bound.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Achieved {
+    /// Weighted mean error per channel, as `score_terms.error`.
     pub error: BTreeMap<String, f64>,
+    /// The sum of `error`.
     pub total: f64,
+    /// Share of the steps at which the limiter acted on the replayed motion.
     pub limiter_fraction: f64,
+    /// Steps at which some leg was beyond its end stop.
     pub leg_violations: u64,
 }
 
+/// The dominance programme: the relaxation with every channel capped at the CWF's error.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Dominance {
     /// A motion of the relaxation exists whose error is nowhere above the CWF's and whose
@@ -101,7 +113,9 @@ pub struct BoundDetails {
     pub achieved_from: String,
     /// Programmes solved, variables and rows of the largest, and Clarabel's iterations.
     pub programmes: usize,
+    /// Variables of the largest programme.
     pub largest_variables: usize,
+    /// Constraint rows of the largest programme.
     pub largest_rows: usize,
     /// Any programme that did not end `Solved` (what it ended as).
     pub unsolved: Vec<String>,
@@ -133,24 +147,39 @@ pub struct GapParts {
 /// Errors of the yardstick (no I/O: only inputs that cannot be bounded).
 #[derive(Debug, thiserror::Error)]
 pub enum BoundError {
+    /// Fewer than two samples (the number found).
     #[error("the trace has {0} samples: the yardstick needs at least two")]
     TooShort(usize),
+    /// The trace's step is not the profile's.
     #[error("the trace's step {trace_s} s is not the profile's {profile_s} s: resample it first")]
-    Rate { trace_s: f64, profile_s: f64 },
+    Rate {
+        /// The trace's step (s).
+        trace_s: f64,
+        /// The profile's step (s).
+        profile_s: f64,
+    },
+    /// A programme (named by its channels) did not end solved (how it ended).
     #[error("the {0} programme ended {1:?}: no bound")]
     Unsolved(String, SolverStatus),
 }
 
 /// The flight and profile as the programmes see them.
 pub struct Setup {
+    /// The step of the trace and the profile (s).
     pub dt_s: f64,
     /// The pipeline's perceived reference per channel, one value per sample.
     pub reference: [Vec<f64>; 6],
+    /// Perception thresholds per channel (m/s², rad/s).
     pub thresholds: [f64; 6],
+    /// The score's cost of an error below the threshold relative to one above it.
     pub below_threshold_weight: f64,
+    /// The score's channel weights.
     pub score_weights: [f64; 6],
+    /// The platform's per-DoF limits in SI.
     pub limits: DofLimits,
+    /// The pilot's eye point, platform frame (m).
     pub eye_m: Vector3<f64>,
+    /// The ZOH vestibular filter of each channel at `dt_s` (otolith or canal).
     pub filters: [DiscreteStateSpace; 6],
     /// Bounds of the free term added to every step's input (`None`: the linearised model
     /// alone; `Setup::valid`: the exact model's residual over the boxes).
@@ -224,6 +253,8 @@ pub fn blocks(eye_m: &Vector3<f64>) -> Vec<(Vec<usize>, Vec<usize>)> {
 }
 
 impl Setup {
+    /// The flight as the programmes see it: the perceived reference through the engine's input
+    /// limiting and vestibular model, and the profile's thresholds, weights and limits.
     pub fn new(profile: &Profile, trace: &Trace) -> Result<Self, BoundError> {
         if trace.len() < 2 {
             return Err(BoundError::TooShort(trace.len()));
@@ -372,11 +403,15 @@ pub fn felt_lower(setup: &Setup, alone: [bool; 6]) -> Result<[f64; 6], BoundErro
 
 /// The relaxation's optima: per channel alone and jointly (one solution per block).
 pub struct Relaxed {
+    /// Each channel's own optimum (weighted mean error).
     pub channel: [f64; 6],
+    /// The joint optimum's solutions, one per block of coupled channels.
     pub joint: Vec<Solution>,
     /// Per channel, its error at the joint optimum.
     pub joint_error: [f64; 6],
+    /// The joint optimum's total: the sum of `joint_error`.
     pub total: f64,
+    /// Every programme solved, named by its channels.
     pub programmes: Vec<(String, Solution)>,
 }
 
@@ -474,8 +509,11 @@ pub fn commands_of(solutions: &[Solution], limits: &DofLimits) -> Vec<PlatformCo
 pub struct Replayed {
     /// Weighted mean error per channel, as `score_terms.error`.
     pub error: [f64; 6],
+    /// The sum of `error`.
     pub total: f64,
+    /// Share of the steps at which the limiter acted.
     pub limiter_fraction: f64,
+    /// Steps at which some leg was beyond its end stop.
     pub leg_violations: u64,
     /// The full score (error, false cues, limiter, legs).
     pub score: f64,

@@ -65,14 +65,18 @@ pub fn input_coefficients(channel: usize, dof: usize, eye_m: &Vector3<f64>) -> [
 /// l ≈ l̄ + J·(p − p̄) must stay in [lo, hi].
 #[derive(Clone, Debug)]
 pub struct LegRows {
+    /// The pose linearised about (m, rad).
     pub pose: Vector6<f64>,
+    /// The leg lengths l̄ at that pose (m).
     pub length_m: Vector6<f64>,
+    /// J = ∂l/∂pose at that pose.
     pub jacobian: Matrix6<f64>,
     /// The point where braking every DoF at its acceleration limit would stop, q = p + s(v)
     /// with s_d = v_d·|v_d|/(2·A_d), linearised about a velocity v̄: q ≈ p + G·v + o with
     /// G_d = |v̄_d|/A_d and o = s(v̄) − G·v̄. The legs at q are held in the stroke too (the
     /// workspace limiter's look-ahead, `mca::limiter`, brakes that way). G = 0: no such rows.
     pub stop_gain: Vector6<f64>,
+    /// The offset o of the linearised stopping point.
     pub stop_offset: Vector6<f64>,
 }
 
@@ -81,7 +85,10 @@ pub struct LegRows {
 /// `head_motion` to first order there (the sequential programme of the achieved motion).
 #[derive(Clone, Debug)]
 pub struct HeadRows {
+    /// `jac[c][d]`: the derivatives of head input c (Δf x, y, z; ω x, y, z) with respect to
+    /// DoF d's pose, velocity and acceleration, in that order.
     pub jac: [[[f64; 3]; 6]; 6],
+    /// The head inputs at the motion linearised about, less `jac` times that motion.
     pub offset: [f64; 6],
 }
 
@@ -149,6 +156,8 @@ pub struct Programme<'a> {
     pub reference: &'a [Vec<f64>; 6],
     /// Perception thresholds τ per channel.
     pub thresholds: [f64; 6],
+    /// Cost of an error below the threshold relative to one above it (the score's
+    /// `below_threshold_weight`).
     pub below_threshold_weight: f64,
     /// Objective weight per channel (0: modelled only if capped).
     pub weights: [f64; 6],
@@ -158,9 +167,11 @@ pub struct Programme<'a> {
     pub channels: Vec<usize>,
     /// DoFs that move (the others stay at neutral).
     pub dofs: Vec<usize>,
+    /// The platform's per-DoF limits.
     pub limits: DofLimits,
     /// Each box shrunk by this factor (1: the profile's own limits).
     pub box_scale: f64,
+    /// The pilot's eye point, platform frame (m).
     pub eye_m: Vector3<f64>,
     /// The ZOH vestibular filter of each channel at `dt_s` (otolith or canal).
     pub filters: &'a [DiscreteStateSpace; 6],
@@ -183,6 +194,7 @@ pub struct Programme<'a> {
 /// The programme's answer.
 #[derive(Clone, Debug)]
 pub struct Solution {
+    /// How the solver ended.
     pub status: SolverStatus,
     /// The optimum: Σ_c w_c · mean_k e_c.
     pub objective: f64,
@@ -191,12 +203,17 @@ pub struct Solution {
     pub error: [f64; 6],
     /// Pose, velocity and acceleration of every DoF per grid step (zeros for the fixed ones).
     pub pose: Vec<Vector6<f64>>,
+    /// Velocity of every DoF per grid step.
     pub velocity: Vec<Vector6<f64>>,
+    /// Acceleration of every DoF per grid step.
     pub acceleration: Vec<Vector6<f64>>,
     /// Channels whose cap was active at the optimum (positive dual).
     pub binding: Vec<usize>,
+    /// Solver iterations.
     pub iterations: u32,
+    /// Number of variables of the programme.
     pub variables: usize,
+    /// Number of constraint rows of the programme.
     pub rows: usize,
 }
 

@@ -29,6 +29,9 @@ pub struct LimiterParams {
     pub leg_margin_m: f64,
 }
 
+/// Keeps a command inside the platform's workspace: each degree of freedom within its
+/// excursion, velocity and acceleration limits, and every leg at least `leg_margin_m` from its
+/// end stops; a command that fits passes unchanged.
 #[derive(Clone, Debug)]
 pub struct WorkspaceLimiter {
     stewart: Stewart,
@@ -45,12 +48,15 @@ pub struct WorkspaceLimiter {
 /// What the limiter did at one step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Limited {
+    /// The command that goes to the platform.
     pub command: PlatformCommand,
     /// True when the command differs from what the algorithm asked for.
     pub acted: bool,
 }
 
 impl WorkspaceLimiter {
+    /// A limiter for a hexapod, its per-DoF limits and leg margin (m), stepping every `dt_s` (s),
+    /// starting from the neutral pose at rest.
     pub fn new(stewart: Stewart, limits: DofLimits, leg_margin_m: f64, dt_s: f64) -> Self {
         WorkspaceLimiter {
             stewart,
@@ -62,6 +68,7 @@ impl WorkspaceLimiter {
         }
     }
 
+    /// Back to the neutral pose at rest, as at construction.
     pub fn reset(&mut self) {
         self.last = PlatformCommand::default();
         self.last_rate = Vector6::zeros();
@@ -169,6 +176,8 @@ impl WorkspaceLimiter {
         self.scale_into_legs(&clamped)
     }
 
+    /// The command issued for `desired`: `desired` itself when it fits the workspace and the rate
+    /// limits from the last command issued, otherwise the nearest that does (`acted` is then true).
     pub fn apply(&mut self, desired: &PlatformCommand) -> Limited {
         if self.acceptable(desired) {
             self.last_rate = (desired.pose - self.last.pose) / self.dt_s;

@@ -21,10 +21,12 @@ pub use crate::vocab::{AlgorithmId, SolveStatus};
 pub struct Setting {
     /// The step every algorithm runs at (s).
     pub dt_s: f64,
+    /// The platform driven: its hexapod, limits and leg margin.
     pub platform: Platform,
     /// Pilot's head relative to the centre of the platform joint plane, platform frame
     /// (x forward, y right, z down) (m).
     pub eye_point_m: Vector3<f64>,
+    /// The pilot's vestibular model, which the MPCs predict perception with.
     pub vestibular: VestibularParams,
 }
 
@@ -32,16 +34,22 @@ pub struct Setting {
 /// the pilot's head (head frame).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CueSample {
+    /// Δf: the specific force less its value at rest, head frame (m/s²).
     pub delta_f_mps2: Vector3<f64>,
+    /// ω: the angular velocity, head frame (rad/s).
     pub angular_velocity_radps: Vector3<f64>,
 }
 
 /// Everything an algorithm is given at step k.
 #[derive(Clone, Copy, Debug)]
 pub struct CueInput<'a> {
+    /// Index of the step, from 0.
     pub k: usize,
+    /// Time of the step, k · dt (s).
     pub t_s: f64,
+    /// The step (s).
     pub dt_s: f64,
+    /// The aircraft motion to cue at this step.
     pub sample: CueSample,
     /// The samples after this one (k+1, k+2, …), for algorithms that may look ahead; shorter
     /// near the end of the trace. A live simulator has none.
@@ -54,12 +62,16 @@ pub struct CueInput<'a> {
 /// their first and second derivatives (Euler-angle rates).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PlatformCommand {
+    /// x, y, z (m) and roll, pitch, yaw (rad) from neutral, inertial frame.
     pub pose: Vector6<f64>,
+    /// The pose's rate: m/s and Euler-angle rates (rad/s).
     pub velocity: Vector6<f64>,
+    /// The pose's second derivative: m/s² and Euler-angle accelerations (rad/s²).
     pub acceleration: Vector6<f64>,
 }
 
 impl PlatformCommand {
+    /// Whether every component is finite (a command that is not never reaches the platform).
     pub fn is_finite(&self) -> bool {
         self.pose
             .iter()
@@ -88,6 +100,7 @@ pub enum Mode {
 }
 
 impl Mode {
+    /// The word recordings and the JSON output store (`washout`, `mpc`, `cotc`, …).
     pub fn word(self) -> &'static str {
         match self {
             Mode::Washout => "washout",
@@ -122,24 +135,31 @@ pub struct SolverReport {
     pub name: String,
     /// How the solve ended; recordings store its word, e.g. `solved`, `primal_infeasible`.
     pub status: SolveStatus,
+    /// Solver iterations of the solve.
     pub iterations: u32,
+    /// Wall time of the solve (µs).
     pub solve_time_us: f64,
 }
 
 /// The state an algorithm exposes to the console and the recording (docs/design.md §5).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct AlgorithmState {
+    /// The controller in charge.
     pub mode: Mode,
     /// Blend weight w of the S-MPC's mixer while blending (0 = previous controller, 1 = next).
     pub blend: Option<f64>,
+    /// Time since the mode last changed (s).
     pub time_in_mode_s: f64,
+    /// Controller switches since the start.
     pub switch_count: u32,
     /// The text of the supervisor's last [`crate::vocab::SwitchReason`], as recordings store it.
     pub last_switch_reason: Option<String>,
+    /// One report per QP solved at the step (none for the CWF).
     pub solvers: Vec<SolverReport>,
 }
 
 impl AlgorithmState {
+    /// The state of an algorithm with no switch and no QP, in `mode`.
     pub fn simple(mode: Mode) -> Self {
         AlgorithmState {
             mode,
@@ -154,9 +174,11 @@ impl AlgorithmState {
 
 /// A motion cueing algorithm: aircraft motion in, platform command out, one sample at a time.
 pub trait MotionCueing: Send {
+    /// Which algorithm this is.
     fn id(&self) -> AlgorithmId;
     /// The raw command for step k; the engine's limiter follows.
     fn step(&mut self, input: &CueInput) -> PlatformCommand;
+    /// Its state after the last step, for the console and the recording.
     fn state(&self) -> AlgorithmState;
     /// Back to rest at neutral, as at the start of a trace.
     fn reset(&mut self);
@@ -187,10 +209,12 @@ pub trait MotionCueing: Send {
 pub struct AlgorithmSnapshot(Box<dyn std::any::Any + Send + Sync>);
 
 impl AlgorithmSnapshot {
+    /// A snapshot holding `state`.
     pub fn new<T: std::any::Any + Send + Sync>(state: T) -> Self {
         AlgorithmSnapshot(Box::new(state))
     }
 
+    /// The state, if it is a `T`.
     pub fn get<T: std::any::Any>(&self) -> Option<&T> {
         self.0.downcast_ref()
     }
@@ -205,15 +229,22 @@ impl std::fmt::Debug for AlgorithmSnapshot {
 /// Error building an algorithm.
 #[derive(Debug, thiserror::Error)]
 pub enum BuildError {
+    /// The profile lacks a section the algorithm is built from.
     #[error("profile `{profile}` has no [{section}] section, which {algorithm} needs")]
     MissingSection {
+        /// The profile's name.
         profile: String,
+        /// The section missing, e.g. `smpc`.
         section: &'static str,
+        /// The algorithm that needs it.
         algorithm: AlgorithmId,
     },
+    /// The algorithm could not be set up from its parameters.
     #[error("{algorithm}: {reason}")]
     Setup {
+        /// The algorithm.
         algorithm: AlgorithmId,
+        /// Why, in a sentence.
         reason: String,
     },
 }

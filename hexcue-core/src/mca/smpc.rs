@@ -19,6 +19,39 @@ use super::switching::{
 use super::{AlgorithmId, AlgorithmState, CueInput, Mode, MotionCueing, PlatformCommand, Setting};
 use crate::model::stewart::Stewart;
 
+/// The switchable MPC: an MPC with terminal conditions (COTC) in charge while its QP is
+/// solved, a free MPC without them when it is not, switched with hysteresis and blended
+/// (docs/design.md §5). Built by `Profile::algorithm(AlgorithmId::Smpc)`.
+///
+/// ```
+/// use hexcue_core::mca::{CueInput, CueSample, Mode, PlatformCommand};
+/// use hexcue_core::vocab::AlgorithmId;
+/// use nalgebra::Vector3;
+///
+/// let profile = hexcue_core::testing::full_flight();
+/// let mut smpc = profile.algorithm(AlgorithmId::Smpc).unwrap();
+/// assert_eq!(smpc.id(), AlgorithmId::Smpc);
+/// // A gentle roll onset: COTC stays solved and in charge.
+/// let sample = CueSample {
+///     delta_f_mps2: Vector3::zeros(),
+///     angular_velocity_radps: Vector3::new(0.05, 0.0, 0.0),
+/// };
+/// let mut applied = PlatformCommand::default();
+/// for k in 0..50 {
+///     let input = CueInput {
+///         k,
+///         t_s: k as f64 * profile.dt_s(),
+///         dt_s: profile.dt_s(),
+///         sample,
+///         preview: &[],
+///         applied: &applied,
+///     };
+///     applied = smpc.step(&input);
+/// }
+/// assert_eq!(smpc.state().mode, Mode::Cotc);
+/// assert_eq!(smpc.state().switch_count, 0);
+/// assert!(applied.pose[3] > 0.0, "rolled right with the aircraft");
+/// ```
 pub struct Smpc {
     cotc: Mpc,
     free: Mpc,
@@ -78,6 +111,7 @@ impl Smpc {
         })
     }
 
+    /// The controller in charge at the last step.
     pub fn active(&self) -> Controller {
         self.supervisor.active()
     }

@@ -8,6 +8,8 @@ use super::mpc::CotcOverrides;
 use super::PlatformCommand;
 use crate::vocab::{positive, ProfileError, SolveStatus, SwitchReason};
 
+/// The `[smpc]` section of a profile: the supervisor's hysteresis, the mixer's blend and the
+/// adaptive weight regulator (docs/design.md §5).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SwitchingParams {
@@ -65,6 +67,7 @@ fn default_backoff_hold_s() -> f64 {
 }
 
 impl SwitchingParams {
+    /// `Ok` when every value is in range, else an error naming the key under `section`.
     pub fn validate(&self, section: &str) -> Result<(), ProfileError> {
         let key = |k: &str| format!("{section}.{k}");
         positive(&key("epsilon_mps2"), self.epsilon_mps2)?;
@@ -170,13 +173,16 @@ pub struct SupervisorInput {
     pub free_solved: bool,
     /// Longitudinal and lateral perceived specific-force errors, reference − simulator (m/s²).
     pub error_x_mps2: f64,
+    /// Lateral perceived specific-force error, reference − simulator (m/s²).
     pub error_y_mps2: f64,
 }
 
 /// A decision to change controller, with the reason for the operator.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SwitchDecision {
+    /// The controller to change to.
     pub to: Controller,
+    /// Why.
     pub reason: SwitchReason,
 }
 
@@ -209,6 +215,7 @@ pub struct Supervisor {
 }
 
 impl Supervisor {
+    /// A supervisor with COTC in charge.
     pub fn new(params: &SwitchingParams) -> Self {
         Supervisor {
             epsilon_mps2: params.epsilon_mps2,
@@ -229,6 +236,7 @@ impl Supervisor {
         }
     }
 
+    /// COTC in charge again, no switch counted, the back-off forgotten.
     pub fn reset(&mut self) {
         self.active = Controller::Cotc;
         self.time_in_state_s = 0.0;
@@ -240,15 +248,19 @@ impl Supervisor {
         self.last_reason = None;
     }
 
+    /// The controller in charge.
     pub fn active(&self) -> Controller {
         self.active
     }
+    /// Time since the last switch (s).
     pub fn time_in_state_s(&self) -> f64 {
         self.time_in_state_s
     }
+    /// Switches since the start.
     pub fn switch_count(&self) -> u32 {
         self.switch_count
     }
+    /// Why the last switch happened; `None` before the first.
     pub fn last_reason(&self) -> Option<&SwitchReason> {
         self.last_reason.as_ref()
     }
@@ -335,6 +347,7 @@ pub struct SwitchMixer {
 }
 
 impl SwitchMixer {
+    /// A mixer that is not blending.
     pub fn new(params: &SwitchingParams) -> Self {
         SwitchMixer {
             transition_s: params.transition_s,
@@ -342,6 +355,7 @@ impl SwitchMixer {
         }
     }
 
+    /// Stops any blend.
     pub fn reset(&mut self) {
         self.elapsed_s = None;
     }
@@ -357,6 +371,7 @@ impl SwitchMixer {
         });
     }
 
+    /// Whether a blend is under way.
     pub fn is_blending(&self) -> bool {
         self.elapsed_s.is_some()
     }
@@ -420,6 +435,7 @@ pub struct AdaptiveWeightRegulator {
 }
 
 impl AdaptiveWeightRegulator {
+    /// A regulator at the nominal weights (scale 1).
     pub fn new(params: &SwitchingParams) -> Self {
         AdaptiveWeightRegulator {
             usage_start: params.awr_usage_start,
@@ -431,6 +447,7 @@ impl AdaptiveWeightRegulator {
         }
     }
 
+    /// Back to the nominal weights.
     pub fn reset(&mut self) {
         self.scale = 1.0;
     }

@@ -16,6 +16,8 @@ use crate::model::lti::{LtiFilter, StateSpace};
 use crate::vocab::{positive, ProfileError};
 use crate::G_MPS2;
 
+/// The `[cwf]` section of a profile: the classical washout filter's scales, filters and tilt
+/// limits (docs/design.md §3).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct WashoutParams {
@@ -25,11 +27,13 @@ pub struct WashoutParams {
     pub angular_velocity_scale: [f64; 3],
     /// Natural frequency of the 2nd-order translational high-pass per axis (rad/s).
     pub translational_hp_wn_radps: [f64; 3],
+    /// Damping ratio of the 2nd-order translational high-passes.
     pub translational_hp_zeta: f64,
     /// Break frequency of the 1st-order translational high-pass (rad/s).
     pub translational_hp_break_radps: f64,
     /// Natural frequency of the 2nd-order tilt-coordination low-pass (rad/s).
     pub tilt_lp_wn_radps: f64,
+    /// Damping ratio of the tilt-coordination low-pass.
     pub tilt_lp_zeta: f64,
     /// Tilt rate kept below the canals' threshold (°/s).
     pub tilt_rate_limit_dps: f64,
@@ -39,10 +43,13 @@ pub struct WashoutParams {
     pub tilt_limit_deg: f64,
     /// Natural frequency of the 2nd-order rotational high-pass (rad/s).
     pub rotational_hp_wn_radps: f64,
+    /// Damping ratio of the rotational high-pass.
     pub rotational_hp_zeta: f64,
 }
 
 impl WashoutParams {
+    /// `Ok` when every scale, frequency, damping ratio and limit can describe a filter, else an
+    /// error naming the `cwf.` key.
     pub fn validate(&self) -> Result<(), ProfileError> {
         for i in 0..3 {
             for (name, v) in [
@@ -153,8 +160,11 @@ pub fn rotational_channel(wn_radps: f64, zeta: f64) -> StateSpace {
 /// How far and how fast tilt coordination may tilt.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TiltLimits {
+    /// Largest tilt angle (rad).
     pub angle_rad: f64,
+    /// Largest tilt rate (rad/s).
     pub rate_radps: f64,
+    /// Largest tilt acceleration (rad/s²).
     pub acceleration_radps2: f64,
 }
 
@@ -241,6 +251,8 @@ pub struct TiltCoordination {
 }
 
 impl TiltCoordination {
+    /// Tilt coordination through the continuous low-pass `lowpass`, discretised (zero-order hold)
+    /// at the step `dt_s` (s), within `limits`; starts level at rest.
     pub fn new(lowpass: &StateSpace, limits: TiltLimits, dt_s: f64) -> Self {
         let discrete = lowpass.discretise_zoh(dt_s);
         TiltCoordination {
@@ -279,6 +291,7 @@ impl TiltCoordination {
         })
     }
 
+    /// Back to level at rest, the filters' states cleared.
     pub fn reset(&mut self) {
         self.lowpass.iter_mut().for_each(LtiFilter::reset);
         self.tracker = Default::default();
@@ -286,6 +299,39 @@ impl TiltCoordination {
     }
 }
 
+/// The classical washout filter (CWF): high-passed specific force and angular velocity for
+/// the onsets, tilt coordination for sustained surge and sway (docs/design.md §3). Built by
+/// `Profile::algorithm(AlgorithmId::Cwf)`.
+///
+/// ```
+/// use hexcue_core::mca::{CueInput, CueSample, PlatformCommand};
+/// use hexcue_core::profile::text::default_profile;
+/// use hexcue_core::vocab::AlgorithmId;
+/// use nalgebra::Vector3;
+///
+/// let profile = default_profile();
+/// let mut cwf = profile.algorithm(AlgorithmId::Cwf).unwrap();
+/// // Two seconds of a sustained 1 m/s² forward specific force (head frame).
+/// let sample = CueSample {
+///     delta_f_mps2: Vector3::new(1.0, 0.0, 0.0),
+///     angular_velocity_radps: Vector3::zeros(),
+/// };
+/// let mut applied = PlatformCommand::default();
+/// for k in 0..200 {
+///     let input = CueInput {
+///         k,
+///         t_s: k as f64 * profile.dt_s(),
+///         dt_s: profile.dt_s(),
+///         sample,
+///         preview: &[],
+///         applied: &applied,
+///     };
+///     // A loop of one's own limits the command here before it is applied.
+///     applied = cwf.step(&input);
+/// }
+/// // Tilt coordination pitches the cabin nose up, so that gravity gives the sustained part.
+/// assert!(applied.pose[4] > 0.0);
+/// ```
 #[derive(Clone, Debug)]
 pub struct Washout {
     params: WashoutParams,
@@ -298,6 +344,7 @@ pub struct Washout {
 }
 
 impl Washout {
+    /// A CWF with the filters of `params` discretised at the setting's step, at rest.
     pub fn new(params: &WashoutParams, setting: &Setting) -> Self {
         let dt = setting.dt_s;
         Washout {

@@ -6,29 +6,41 @@ use nalgebra::{Complex, DMatrix, DVector};
 /// Continuous-time system ẋ = A x + B u, y = C x + D u.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StateSpace {
+    /// State matrix A (n × n).
     pub a: DMatrix<f64>,
+    /// Input matrix B (n × m).
     pub b: DMatrix<f64>,
+    /// Output matrix C (p × n).
     pub c: DMatrix<f64>,
+    /// Feedthrough matrix D (p × m).
     pub d: DMatrix<f64>,
 }
 
-/// Discrete-time system x[k+1] = A x[k] + B u[k], y[k] = C x[k] + D u[k].
+/// Discrete-time system x\[k+1\] = A x\[k\] + B u\[k\], y\[k\] = C x\[k\] + D u\[k\].
 #[derive(Clone, Debug, PartialEq)]
 pub struct DiscreteStateSpace {
+    /// State matrix A (n × n).
     pub a: DMatrix<f64>,
+    /// Input matrix B (n × m).
     pub b: DMatrix<f64>,
+    /// Output matrix C (p × n).
     pub c: DMatrix<f64>,
+    /// Feedthrough matrix D (p × m).
     pub d: DMatrix<f64>,
+    /// Sample period T (s).
     pub dt_s: f64,
 }
 
 impl StateSpace {
+    /// Number of states n.
     pub fn n_states(&self) -> usize {
         self.a.nrows()
     }
+    /// Number of inputs m.
     pub fn n_inputs(&self) -> usize {
         self.b.ncols()
     }
+    /// Number of outputs p.
     pub fn n_outputs(&self) -> usize {
         self.c.nrows()
     }
@@ -135,6 +147,7 @@ impl StateSpace {
 }
 
 impl DiscreteStateSpace {
+    /// Number of states n.
     pub fn n_states(&self) -> usize {
         self.a.nrows()
     }
@@ -166,6 +179,7 @@ pub struct LtiFilter {
 }
 
 impl LtiFilter {
+    /// A filter over `sys`, starting from the zero state.
     pub fn new(sys: DiscreteStateSpace) -> Self {
         let (n, m, p) = (sys.a.nrows(), sys.b.ncols(), sys.c.nrows());
         LtiFilter {
@@ -177,14 +191,17 @@ impl LtiFilter {
         }
     }
 
+    /// The system it steps.
     pub fn system(&self) -> &DiscreteStateSpace {
         &self.sys
     }
 
+    /// Its state x\[k\].
     pub fn state(&self) -> &DVector<f64> {
         &self.x
     }
 
+    /// Back to the zero state.
     pub fn reset(&mut self) {
         self.x.fill(0.0);
     }

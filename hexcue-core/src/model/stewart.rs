@@ -150,17 +150,43 @@ impl Geometry {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum KinematicsError {
     #[error("forward kinematics did not converge (residual {residual_m:.3e} m after {iterations} iterations)")]
-    NoConvergence { residual_m: f64, iterations: usize },
+    /// Newton's method stopped short of the lengths asked for.
+    NoConvergence {
+        /// Largest leg-length error left (m).
+        residual_m: f64,
+        /// Newton iterations run.
+        iterations: usize,
+    },
 }
 
 /// A hexapod with its joints placed; every query is a pure function of a pose.
+///
+/// ```
+/// use hexcue_core::profile::text::default_profile;
+/// use nalgebra::Vector6;
+///
+/// let profile = default_profile();
+/// let stewart = profile.stewart();
+/// // Neutral: every leg at its neutral length.
+/// let neutral = Vector6::zeros();
+/// assert_eq!(stewart.leg_lengths(&neutral), stewart.neutral_lengths_m);
+/// // 10 cm forward and 3° nose up (x, y, z in m; roll, pitch, yaw in rad).
+/// let pose = Vector6::new(0.10, 0.0, 0.0, 0.0, 3f64.to_radians(), 0.0);
+/// let legs_m = stewart.leg_lengths(&pose);
+/// assert!(stewart.margins(&legs_m).min() > 0.0, "inside the stroke");
+/// // Forward kinematics gives the pose back from the legs.
+/// let back = stewart.forward(&legs_m, &neutral).unwrap();
+/// assert!((back - pose).norm() < 1e-9);
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct Stewart {
     /// Base joints in the inertial frame (m).
     pub base_joints_m: [Vector3<f64>; 6],
     /// Platform joints in the platform frame (m).
     pub platform_joints_m: [Vector3<f64>; 6],
+    /// Shortest length a leg reaches, at its lower end stop (m).
     pub leg_min_m: f64,
+    /// Longest length a leg reaches, at its upper end stop (m).
     pub leg_max_m: f64,
     /// Leg lengths at the neutral pose (m).
     pub neutral_lengths_m: Vector6<f64>,
@@ -276,6 +302,7 @@ pub fn head_motion(
 }
 
 impl Stewart {
+    /// The hexapod of a profile's `[geometry]`: its joints placed and its neutral leg lengths.
     pub fn new(g: &Geometry) -> Self {
         let (base_joints_m, platform_joints_m) = g.joints();
         let mut s = Stewart {
@@ -316,6 +343,8 @@ impl Stewart {
         j
     }
 
+    /// The six leg velocities (m/s) at `pose` for the pose's velocity `vel` (m/s, and Euler-angle
+    /// rates in rad/s): J·vel.
     pub fn leg_velocities(&self, pose: &Vector6<f64>, vel: &Vector6<f64>) -> Vector6<f64> {
         self.jacobian(pose) * vel
     }
@@ -351,6 +380,7 @@ impl Stewart {
         })
     }
 
+    /// Whether every leg at `pose` keeps at least `margin_m` (m) from both its end stops.
     pub fn fits(&self, pose: &Vector6<f64>, margin_m: f64) -> bool {
         self.margins(&self.leg_lengths(pose))
             .iter()

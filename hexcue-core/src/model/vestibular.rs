@@ -55,6 +55,7 @@ impl Default for VestibularParams {
 }
 
 impl VestibularParams {
+    /// The canals' perception thresholds per axis in rad/s (the profile states them in °/s).
     pub fn canal_threshold_radps(&self) -> Vector3<f64> {
         Vector3::from(self.canal_threshold_dps.map(f64::to_radians))
     }
@@ -76,11 +77,13 @@ impl VestibularParams {
         (num, den)
     }
 
+    /// The canal of `axis` (0 x, 1 y, 2 z) as a continuous state space (`canal_tf`).
     pub fn canal(&self, axis: usize) -> StateSpace {
         let (n, d) = self.canal_tf(axis);
         StateSpace::from_transfer_function(&n, &d)
     }
 
+    /// The otolith as a continuous state space (`otolith_tf`).
     pub fn otolith(&self) -> StateSpace {
         let (n, d) = self.otolith_tf();
         StateSpace::from_transfer_function(&n, &d)
@@ -114,7 +117,9 @@ fn poly_mul(a: &[f64], b: &[f64]) -> Vec<f64> {
 /// What a pilot perceives: the otoliths' output for Δf and the canals' output for ω.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Perceived {
+    /// Perceived specific force f̂, head frame (m/s²).
     pub specific_force_mps2: Vector3<f64>,
+    /// Perceived angular velocity ω̂, head frame (rad/s).
     pub angular_velocity_radps: Vector3<f64>,
 }
 
@@ -128,18 +133,41 @@ impl Perceived {
         }
     }
 
+    /// The six channels in the order fx, fy, fz, wx, wy, wz (m/s², rad/s).
     pub fn channels(&self) -> [f64; 6] {
         std::array::from_fn(|i| self.channel(i))
     }
 }
 
 /// A running perception model at a fixed sample rate, starting from rest.
+///
+/// ```
+/// use hexcue_core::model::vestibular::{Vestibular, VestibularParams};
+/// use nalgebra::Vector3;
+///
+/// // A constant yaw rate of 0.2 rad/s from rest, at 100 Hz: felt at once, then the canals
+/// // adapt, and after 30 s the turn is felt, if at all, as a slight one the other way, below
+/// // the yaw threshold (why a simulator can wash out a sustained yaw).
+/// let mut vestibular = Vestibular::new(&VestibularParams::default(), 0.01);
+/// let (no_force, yaw) = (Vector3::zeros(), Vector3::new(0.0, 0.0, 0.2));
+/// let mut felt = |steps: usize| {
+///     (0..steps).map(|_| vestibular.step(&no_force, &yaw)).last().unwrap()
+/// };
+/// let after_1_s = felt(100);
+/// assert!(after_1_s.angular_velocity_radps.z > 0.15);
+/// let after_30_s = felt(2_900);
+/// let threshold_radps = VestibularParams::default().canal_threshold_radps().z;
+/// assert!(after_30_s.angular_velocity_radps.z < 0.0);
+/// assert!(after_30_s.angular_velocity_radps.z.abs() < threshold_radps);
+/// ```
 #[derive(Clone, Debug)]
 pub struct Vestibular {
     filter: LtiFilter,
 }
 
 impl Vestibular {
+    /// The perception model of `params`, discretised (zero-order hold) at the step `dt_s` (s),
+    /// at rest.
     pub fn new(params: &VestibularParams, dt_s: f64) -> Self {
         Vestibular {
             filter: LtiFilter::new(params.perception_model().discretise_zoh(dt_s)),
@@ -164,6 +192,7 @@ impl Vestibular {
         }
     }
 
+    /// Back to rest.
     pub fn reset(&mut self) {
         self.filter.reset();
     }
@@ -171,25 +200,41 @@ impl Vestibular {
 
 /// Index of each input of the integrated model.
 pub mod input {
+    /// Platform acceleration along x (m/s²).
     pub const ACCEL_X: usize = 0;
+    /// Platform acceleration along y (m/s²).
     pub const ACCEL_Y: usize = 1;
+    /// Platform acceleration along z (m/s²).
     pub const ACCEL_Z: usize = 2;
+    /// Tilt-channel roll rate (rad/s).
     pub const TILT_ROLL_RATE: usize = 3;
+    /// Tilt-channel pitch rate (rad/s).
     pub const TILT_PITCH_RATE: usize = 4;
+    /// Rotational-channel roll rate (rad/s).
     pub const ROT_ROLL_RATE: usize = 5;
+    /// Rotational-channel pitch rate (rad/s).
     pub const ROT_PITCH_RATE: usize = 6;
+    /// Rotational-channel yaw rate (rad/s).
     pub const ROT_YAW_RATE: usize = 7;
 }
 
 /// Index of each output of the integrated model.
 pub mod output {
+    /// Perceived specific force x (m/s²).
     pub const F_X: usize = 0;
+    /// Perceived specific force y (m/s²).
     pub const F_Y: usize = 1;
+    /// Perceived specific force z (m/s²).
     pub const F_Z: usize = 2;
+    /// Perceived angular velocity x (rad/s).
     pub const W_X: usize = 3;
+    /// Perceived angular velocity y (rad/s).
     pub const W_Y: usize = 4;
+    /// Perceived angular velocity z (rad/s).
     pub const W_Z: usize = 5;
+    /// Total roll angle β (tilt plus rotational channel) (rad).
     pub const ROLL: usize = 6;
+    /// Total pitch angle β (tilt plus rotational channel) (rad).
     pub const PITCH: usize = 7;
 }
 

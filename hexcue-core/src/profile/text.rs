@@ -8,23 +8,36 @@ pub const DEFAULT_PROFILE_TOML: &str = include_str!("../../../profiles/full-flig
 /// How the embedded default is named in messages and recordings.
 pub const DEFAULT_PROFILE_SOURCE: &str = "profiles/full-flight.toml (embedded)";
 
+/// Why a profile's text could not become a [`Profile`]; each names
+/// the source (a file's path, or the embedded default).
 #[derive(Debug, thiserror::Error)]
 pub enum ProfileLoadError {
+    /// The profile could not be read.
     #[error("{source_name}: cannot read the profile: {error}")]
     Io {
+        /// The file's path, or a name for the text.
         source_name: String,
+        /// What reading it said.
         error: std::io::Error,
     },
+    /// The text is not TOML, or a key has the wrong type or is unknown.
     #[error("{source_name}:{line}:{column}: {message}")]
     Syntax {
+        /// The file's path, or a name for the text.
         source_name: String,
+        /// Line of the error, from 1.
         line: usize,
+        /// Column of the error, from 1.
         column: usize,
+        /// What the parser expected.
         message: String,
     },
+    /// The values parse but one cannot describe a real simulator.
     #[error("{source_name}: {error}")]
     Invalid {
+        /// The file's path, or a name for the text.
         source_name: String,
+        /// The key and the reason.
         error: ProfileError,
     },
 }
@@ -60,6 +73,19 @@ fn key_at(text: &str, offset: usize) -> Option<String> {
 }
 
 /// Parses and validates a profile; `source_name` names it in every error.
+///
+/// ```
+/// use hexcue_core::profile::text::{parse_profile, DEFAULT_PROFILE_TOML};
+///
+/// // A lab's own simulator: the shipped profile at 60 Hz.
+/// let text = DEFAULT_PROFILE_TOML.replace("rate_hz = 100.0", "rate_hz = 60.0");
+/// let profile = parse_profile(&text, "lab.toml").unwrap();
+/// assert_eq!(profile.rate_hz, 60.0);
+///
+/// // A mistake is named with its source, line and column.
+/// let error = parse_profile("name = 3", "bad.toml").unwrap_err();
+/// assert!(error.to_string().starts_with("bad.toml:1:"), "{error}");
+/// ```
 pub fn parse_profile(text: &str, source_name: &str) -> Result<Profile, ProfileLoadError> {
     let profile: Profile = toml::from_str(text).map_err(|e| {
         let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));

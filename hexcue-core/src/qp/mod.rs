@@ -28,7 +28,9 @@ pub enum QpStatus {
     Solved,
     /// No point satisfies the rows (the dual is unbounded).
     Infeasible,
+    /// The iteration cap of [`QpSettings`] was reached.
     MaxIterations,
+    /// The wall-time limit of [`QpSettings`] was reached.
     MaxTime,
     /// Non-finite data, no factored Hessian, or a breakdown in the factor updates.
     NumericalError,
@@ -74,7 +76,9 @@ pub enum Side {
 /// One row of a working set.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ActiveRow {
+    /// Index of the row.
     pub row: usize,
+    /// Which of its bounds is held.
     pub side: Side,
 }
 
@@ -104,10 +108,21 @@ impl Default for QpSettings {
 /// The Hessian given to [`ActiveSetQp::set_hessian`] was rejected.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum QpError {
+    /// The Hessian's values are not n × n.
     #[error("Hessian: expected {expected} values (n × n, column-major), got {got}")]
-    Dimension { expected: usize, got: usize },
+    Dimension {
+        /// n², the values expected.
+        expected: usize,
+        /// The values given.
+        got: usize,
+    },
+    /// The Cholesky factorisation met a pivot that is not positive.
     #[error("Hessian is not positive definite (pivot {column})")]
-    NotPositiveDefinite { column: usize },
+    NotPositiveDefinite {
+        /// The column of that pivot.
+        column: usize,
+    },
+    /// A value of the Hessian is NaN or infinite.
     #[error("Hessian holds a non-finite value")]
     NonFinite,
 }
@@ -198,6 +213,7 @@ impl ActiveSetQp {
         }
     }
 
+    /// Number of variables n.
     pub fn n_vars(&self) -> usize {
         self.n
     }
@@ -301,6 +317,7 @@ impl ActiveSetQp {
         &mut self.rows[k * n..(k + 1) * n]
     }
 
+    /// Coefficients a_k of row k (length n).
     pub fn row(&self, k: usize) -> &[f64] {
         &self.rows[k * self.n..(k + 1) * self.n]
     }
@@ -312,6 +329,7 @@ impl ActiveSetQp {
         self.hi[k] = hi;
     }
 
+    /// Bounds (lo, hi) of row k.
     pub fn bounds(&self, k: usize) -> (f64, f64) {
         (self.lo[k], self.hi[k])
     }
@@ -326,15 +344,18 @@ impl ActiveSetQp {
         self.warm.extend_from_slice(rows);
     }
 
+    /// The working set the next solve starts from ([`ActiveSetQp::set_warm_start`]).
     pub fn warm_start(&self) -> &[ActiveRow] {
         &self.warm
     }
 
+    /// The next solve starts from an empty working set.
     pub fn clear_warm_start(&mut self) {
         self.factor_reusable = false;
         self.warm.clear();
     }
 
+    /// The solution u of the last solve (valid after `Solved`).
     pub fn solution(&self) -> &[f64] {
         &self.x
     }

@@ -11,7 +11,7 @@
 //!    moves one way only, so it cannot overshoot neutral.
 //!
 //! Each phase is closed form, so a plan costs a few hundred floating-point operations and no
-//! allocation; the ladder of [`plan_return`] tries (A, J) from gentle to the DoF's limit
+//! allocation; the ladder of [`TransitionLimits::plan_dof`] tries (A, J) from gentle to the DoF's limit
 //! and keeps the gentlest whose path stays inside the excursion and the velocity limit and
 //! ends within the return time. Hand-written rather than a trajectory crate: the crates
 //! found (ruckig's Rust ports) plan to a target state over a fixed horizon with their own
@@ -25,8 +25,11 @@ use crate::model::platform::DofLimits;
 /// Position, velocity and acceleration of one DoF (m or rad, and their derivatives).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DofState {
+    /// Position (m or rad).
     pub p: f64,
+    /// Velocity (m/s or rad/s).
     pub v: f64,
+    /// Acceleration (m/s² or rad/s²).
     pub a: f64,
 }
 
@@ -34,8 +37,11 @@ pub struct DofState {
 /// phase's cruise at most `velocity`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
+    /// Largest acceleration (m/s² or rad/s²).
     pub acceleration: f64,
+    /// Largest jerk (m/s³ or rad/s³).
     pub jerk: f64,
+    /// Largest velocity of the cruise (m/s or rad/s).
     pub velocity: f64,
 }
 
@@ -326,6 +332,7 @@ pub enum Escalation {
 }
 
 impl Escalation {
+    /// The word summaries and events store (`excursion`, `velocity`, …).
     pub fn word(self) -> &'static str {
         match self {
             Escalation::Excursion => "excursion",
@@ -341,13 +348,18 @@ impl Escalation {
 /// `[safety]`, its limits, and the step.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TransitionLimits {
+    /// Per DoF, the acceleration a gentle return keeps within (m/s², rad/s²).
     pub gentle_acceleration: Vector6<f64>,
     /// The acceleration the hard rungs try not to pass before they must (the hand-over's
     /// bound, issue 34's 2 m/s² and 30 °/s² by default).
     pub bound_acceleration: Vector6<f64>,
+    /// Per DoF, the jerk a gentle return keeps within (m/s³, rad/s³).
     pub gentle_jerk: Vector6<f64>,
+    /// How long a return to neutral should take at most (s).
     pub return_time_s: f64,
+    /// The platform's per-DoF excursion and velocity limits.
     pub limits: DofLimits,
+    /// The step the paths are sampled at (s).
     pub dt_s: f64,
 }
 
@@ -367,11 +379,13 @@ pub const TOP_RAMP_STEPS: f64 = 2.0;
 /// limits (and why).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DofPlan {
+    /// The path from the state at the start to neutral at rest.
     pub path: DofPath,
     /// The (A, J) it uses.
     pub bounds: Bounds,
     /// Its rung: a fraction of the gentle limits up to 1, above 1 the hard rungs.
     pub rung: f64,
+    /// Why it needed more than the gentle limits; `None` when it did not.
     pub escalation: Option<Escalation>,
 }
 

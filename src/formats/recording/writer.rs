@@ -191,12 +191,7 @@ impl Recorder {
             .chunk_size(Some(CHUNK_SIZE))
             // Worker threads would compete with the solvers for the two cores.
             .compression_threads(0)
-            .compression_level(
-                std::env::var("HEXCUE_ZSTD_LEVEL")
-                    .ok()
-                    .and_then(|v| v.parse().ok())
-                    .unwrap_or(ZSTD_LEVEL),
-            )
+            .compression_level(ZSTD_LEVEL)
             // Chunks are assembled in memory and written whole, so the file never holds a
             // half-written chunk for a reader to stumble on.
             .disable_seeking(true)

@@ -64,11 +64,6 @@ impl Driver {
         self.fault.as_ref().map(|(why, _)| why.as_str())
     }
 
-    /// The last reply.
-    pub fn last_status(&self) -> Option<&BaseStatus> {
-        self.last.as_ref()
-    }
-
     /// A status reply arrived at `t_s`.
     pub fn reply(&mut self, t_s: f64, status: BaseStatus) {
         self.last_reply_s = Some(t_s);

@@ -12,6 +12,9 @@ use crate::model::lti::{DiscreteStateSpace, StateSpace};
 /// Interval lengths closer than this are the same length (s).
 const SAME_LENGTH_S: f64 = 1e-12;
 
+/// The prediction model of an MPC and its discretisation for each interval length of its
+/// grid, computed once when the MPC is built (shared by the S-MPC's two controllers) so that
+/// no step discretises anything.
 pub struct PredictionCache {
     pub(super) model: PredictionModel,
     /// The interval lengths discretised, in the order of the vectors below (s).

@@ -59,16 +59,28 @@ struct RowMap {
 /// Why the sparse QP cannot be condensed.
 #[derive(Debug, thiserror::Error)]
 pub enum CondenseError {
+    /// The dynamics rows do not have one row per state.
     #[error("{states} state columns but {rows} dynamics rows")]
-    Shape { states: usize, rows: usize },
+    Shape {
+        /// Number of state columns.
+        states: usize,
+        /// Number of dynamics rows.
+        rows: usize,
+    },
+    /// A_x, the dynamics rows' state columns, cannot be inverted: the states are not determined
+    /// by the inputs.
     #[error("the dynamics rows are singular in the states")]
     Singular,
+    /// A constraint's triplet names a row past the QP's last.
     #[error("a constraint entry lies beyond the {0} rows")]
     Layout(usize),
+    /// The condensed Hessian TᵀPT could not be factorised.
     #[error("the condensed Hessian is not positive definite: {0}")]
     Hessian(#[from] crate::qp::QpError),
 }
 
+/// The MPC's QP with its states eliminated (x = Γu + x̄), posed over the inputs alone and
+/// solved by the dual active set (`crate::qp`); built once per grid, updated each step.
 pub struct CondensedQp {
     vars: Vec<Var>,
     n_u: usize,
@@ -177,6 +189,7 @@ impl CondensedQp {
         Ok(cq)
     }
 
+    /// Number of inputs u the condensed QP is posed over.
     pub fn n_inputs(&self) -> usize {
         self.n_u
     }
@@ -457,6 +470,7 @@ impl CondensedQp {
         &self.z
     }
 
+    /// Active-set iterations of the last solve.
     pub fn iterations(&self) -> u32 {
         self.qp.iterations()
     }

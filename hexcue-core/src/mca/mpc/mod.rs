@@ -76,10 +76,13 @@ impl Terminal {
 /// Error building an MPC.
 #[derive(Debug, thiserror::Error)]
 pub enum MpcError {
+    /// The terminal weight's Riccati equation has no usable solution.
     #[error("terminal weight: {0}")]
     Riccati(#[from] riccati::RiccatiError),
+    /// Clarabel refused the QP's set-up (its message).
     #[error("QP setup rejected by the solver: {0}")]
     Solver(String),
+    /// A shared cache was built without an interval length of this MPC's grid.
     #[error("the shared prediction cache lacks an interval length of this MPC's grid")]
     Cache,
 }
@@ -87,6 +90,7 @@ pub enum MpcError {
 /// Result of one MPC step.
 #[derive(Clone, Debug)]
 pub struct MpcOutcome {
+    /// The command before the limiter.
     pub command: PlatformCommand,
     /// The solver's outcome for this step's QP.
     pub report: SolverReport,
@@ -100,6 +104,42 @@ pub struct MpcOutcome {
     pub reference_f_mps2: Vector3<f64>,
 }
 
+/// A model predictive controller (docs/design.md §4): over a horizon of non-uniform
+/// intervals it predicts the pilot's perception of the platform and of the aircraft, and
+/// solves a QP for the platform motion that matches them within the limits. Without terminal
+/// conditions it is the MPC of `Profile::algorithm(AlgorithmId::Mpc)`; with them (COTC) and
+/// without, it is the two controllers of the S-MPC.
+///
+/// ```
+/// use hexcue_core::mca::{CueInput, CueSample, Mode, PlatformCommand, SolveStatus};
+/// use hexcue_core::vocab::AlgorithmId;
+/// use nalgebra::Vector3;
+///
+/// // The shipped profile without its wall-clock limit on a solve (a test's choice: a loaded
+/// // machine must not change the result); a lab keeps the limit.
+/// let profile = hexcue_core::testing::full_flight();
+/// let mut mpc = profile.algorithm(AlgorithmId::Mpc).unwrap();
+/// let sample = CueSample {
+///     delta_f_mps2: Vector3::new(1.5, 0.0, 0.0),
+///     angular_velocity_radps: Vector3::zeros(),
+/// };
+/// let mut applied = PlatformCommand::default();
+/// for k in 0..50 {
+///     let input = CueInput {
+///         k,
+///         t_s: k as f64 * profile.dt_s(),
+///         dt_s: profile.dt_s(),
+///         sample,
+///         preview: &[],
+///         applied: &applied,
+///     };
+///     applied = mpc.step(&input);
+/// }
+/// let state = mpc.state();
+/// assert_eq!(state.mode, Mode::Mpc);
+/// assert_eq!(state.solvers[0].status, SolveStatus::Solved);
+/// assert!(applied.is_finite());
+/// ```
 pub struct Mpc {
     params: MpcParams,
     terminal: Terminal,
@@ -188,6 +228,8 @@ fn total_rates(u: &[f64]) -> Vector3<f64> {
 }
 
 impl Mpc {
+    /// An MPC for `setting` with its own prediction cache; an error when the terminal weight or
+    /// the QP cannot be set up.
     pub fn new(
         params: &MpcParams,
         setting: &Setting,
@@ -295,6 +337,7 @@ impl Mpc {
         }
     }
 
+    /// With terminal conditions (COTC) or without.
     pub fn terminal(&self) -> Terminal {
         self.terminal
     }
@@ -304,6 +347,7 @@ impl Mpc {
         &self.cache
     }
 
+    /// Its parameters.
     pub fn params(&self) -> &MpcParams {
         &self.params
     }
@@ -313,22 +357,27 @@ impl Mpc {
         &self.grid
     }
 
+    /// Length of the prediction horizon (s).
     pub fn horizon_s(&self) -> f64 {
         self.grid.iter().sum()
     }
 
+    /// The motion planned by the last solve over the horizon.
     pub fn plan(&self) -> &Plan {
         &self.run.plan
     }
 
+    /// The last solve's report.
     pub fn report(&self) -> &SolverReport {
         &self.run.report
     }
 
+    /// The mode of the last step (`Mpc`/`Cotc` when solved, `Fallback` otherwise).
     pub fn mode(&self) -> Mode {
         self.run.mode
     }
 
+    /// Sets the reference over the horizon from the next step on.
     pub fn set_reference_mode(&mut self, mode: ReferenceMode) {
         self.params.reference = mode;
     }
@@ -361,6 +410,7 @@ impl Mpc {
         }
     }
 
+    /// The factor on the washout weights (1 unless the regulator raised them).
     pub fn washout_gain(&self) -> f64 {
         self.washout_gain
     }
@@ -642,6 +692,7 @@ impl Mpc {
         self.run.report.solve_time_us = 0.0;
     }
 
+    /// Back to rest at neutral: every running state cleared, the QP's structure kept.
     pub fn reset_state(&mut self) {
         if let Some(c) = self.condensed.as_mut() {
             c.clear_warm_start();
@@ -675,6 +726,7 @@ impl Mpc {
         }
     }
 
+    /// Returns to a state [`Mpc::running_state`] took.
     pub fn restore_running_state(&mut self, s: &MpcRunningState) {
         self.run.clone_from(&s.run);
         // Through the setter, which also writes the scaled weights into the solver.

@@ -15,15 +15,23 @@ use nalgebra::{DMatrix, DVector};
 use crate::model::lti::{DiscreteStateSpace, StateSpace};
 use crate::model::vestibular::{integrated_model, VestibularParams};
 
+/// Number of states of the prediction model: platform position and velocity (6), tilt roll
+/// and pitch and yaw (3), the integrated vestibular model (21).
 pub const NX: usize = 30;
+/// Number of inputs of the prediction model (the integrated vestibular model's order).
 pub const NU: usize = 8;
 
 /// Index of each state.
 pub mod state {
+    /// Platform position x, y, z (m), inertial frame.
     pub const POS: usize = 0;
+    /// Platform velocity x, y, z (m/s), inertial frame.
     pub const VEL: usize = 3;
+    /// Tilt-coordination roll angle (rad).
     pub const TILT_ROLL: usize = 6;
+    /// Tilt-coordination pitch angle (rad).
     pub const TILT_PITCH: usize = 7;
+    /// Yaw angle (rad).
     pub const YAW: usize = 8;
     /// First state of the integrated vestibular model.
     pub const VEST: usize = 9;
@@ -42,10 +50,12 @@ pub mod input {
 /// (f̂ 3, ω̂ 3, total roll and pitch 2).
 #[derive(Clone, Debug)]
 pub struct PredictionModel {
+    /// The continuous-time state space (A, B, C, D).
     pub continuous: StateSpace,
 }
 
 impl PredictionModel {
+    /// The prediction model for these vestibular parameters.
     pub fn new(vestibular: &VestibularParams) -> Self {
         let vest = integrated_model(vestibular);
         let mut a = DMatrix::zeros(NX, NX);

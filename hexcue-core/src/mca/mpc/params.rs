@@ -56,6 +56,8 @@ fn default_reference_decay_s() -> [f64; 6] {
     [0.3; 6]
 }
 
+/// The `[mpc]` section of a profile: the prediction grid, the reference over the horizon,
+/// the weights of the cost and the solver's limits (docs/design.md §4, docs/profiles.md).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MpcParams {
@@ -238,6 +240,7 @@ impl MpcParams {
         }
     }
 
+    /// The length of the prediction horizon: the sum of the grid's interval lengths (s).
     pub fn horizon_s(&self) -> f64 {
         self.grid().iter().sum()
     }

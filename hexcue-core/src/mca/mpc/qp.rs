@@ -6,28 +6,35 @@ use clarabel::algebra::CscMatrix;
 /// Entries pushed in a fixed order; duplicates are summed.
 #[derive(Clone, Debug, Default)]
 pub struct Triplets {
+    /// Row of each entry.
     pub rows: Vec<usize>,
+    /// Column of each entry.
     pub cols: Vec<usize>,
+    /// Value of each entry.
     pub vals: Vec<f64>,
 }
 
 impl Triplets {
+    /// Empties the list, keeping its capacity.
     pub fn clear(&mut self) {
         self.rows.clear();
         self.cols.clear();
         self.vals.clear();
     }
 
+    /// Adds `val` at (`row`, `col`).
     pub fn push(&mut self, row: usize, col: usize, val: f64) {
         self.rows.push(row);
         self.cols.push(col);
         self.vals.push(val);
     }
 
+    /// Number of entries pushed.
     pub fn len(&self) -> usize {
         self.vals.len()
     }
 
+    /// Whether no entry was pushed.
     pub fn is_empty(&self) -> bool {
         self.vals.is_empty()
     }
@@ -36,7 +43,9 @@ impl Triplets {
 /// The compressed-column structure of a triplet list and where each triplet lands in it.
 #[derive(Clone, Debug)]
 pub struct CscPattern {
+    /// Number of rows of the matrix.
     pub nrows: usize,
+    /// Number of columns of the matrix.
     pub ncols: usize,
     colptr: Vec<usize>,
     rowval: Vec<usize>,
@@ -47,6 +56,7 @@ pub struct CscPattern {
 }
 
 impl CscPattern {
+    /// The structure of `t` in an `nrows` × `ncols` matrix (duplicates share a slot).
     pub fn new(nrows: usize, ncols: usize, t: &Triplets) -> Self {
         let mut order: Vec<usize> = (0..t.len()).collect();
         order.sort_by_key(|&i| (t.cols[i], t.rows[i]));
@@ -76,6 +86,7 @@ impl CscPattern {
         }
     }
 
+    /// Number of stored nonzeros.
     pub fn nnz(&self) -> usize {
         self.rowval.len()
     }
@@ -99,6 +110,7 @@ impl CscPattern {
         true
     }
 
+    /// The matrix with this structure and the values `nzval` (in compressed-column order).
     pub fn matrix(&self, nzval: Vec<f64>) -> CscMatrix<f64> {
         CscMatrix::new(
             self.nrows,

@@ -5,10 +5,13 @@ use nalgebra::DMatrix;
 /// Why the Riccati equation has no usable solution.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum RiccatiError {
+    /// R is not positive definite, so the problem has no unique optimal gain.
     #[error("input weight R is not positive definite")]
     InputWeightNotPositive,
+    /// I + G·H was singular at the iteration given.
     #[error("structured doubling broke down (singular I + G·H at iteration {0})")]
     Singular(usize),
+    /// The doubling had not converged after the number of iterations given.
     #[error("no convergence after {0} doubling iterations")]
     NoConvergence(usize),
 }
