@@ -21,15 +21,19 @@ use crate::G_MPS2;
 /// A closed interval [lo, hi].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Interval {
+    /// The lower end.
     pub lo: f64,
+    /// The upper end, ≥ `lo`.
     pub hi: f64,
 }
 
 impl Interval {
+    /// The interval [lo, hi].
     pub fn new(lo: f64, hi: f64) -> Self {
         Interval { lo, hi }
     }
 
+    /// The single point x.
     pub fn point(x: f64) -> Self {
         Interval { lo: x, hi: x }
     }
@@ -39,6 +43,7 @@ impl Interval {
         Interval { lo: -m, hi: m }
     }
 
+    /// Whether x lies in the interval, ends included.
     pub fn contains(&self, x: f64) -> bool {
         self.lo <= x && x <= self.hi
     }

@@ -73,7 +73,9 @@ pub struct Lower {
 /// A true lower bound of the exact kinematics: per channel alone and jointly.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ValidLower {
+    /// Each channel's own optimum (`fx` … `wz`): no motion's error on that channel is lower.
     pub channel: BTreeMap<String, f64>,
+    /// The joint optimum, weighted as `score_terms.error` sums the channels.
     pub total: f64,
 }
 
