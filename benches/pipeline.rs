@@ -77,6 +77,7 @@ fn main() {
                 trace_sidecar: None,
                 algorithms: algorithms.to_vec(),
                 rate_hz: profile.rate_hz,
+                profile: Some(profile.clone()),
             };
             Recorder::create(&path, &meta).expect("recorder")
         });

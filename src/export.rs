@@ -12,6 +12,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use serde::de::{self, Deserialize, Deserializer, MapAccess, SeqAccess, Visitor};
 
+use crate::channels::json::resolution::position;
 use crate::formats::recording::{JsonMessage, Recording};
 
 /// A JSON value with its object keys in the order written, so that columns follow the
@@ -193,15 +194,54 @@ fn qualified(topic: &str, column: &str) -> String {
     format!("{}_{column}", stem.join("_"))
 }
 
-fn parse(recording: &Path, m: &JsonMessage) -> Result<Node> {
-    serde_json::from_slice(&m.data).with_context(|| {
+/// A message as written, with the leg margins that recordings of format 2 no longer write
+/// (docs/recordings.md, "Leg margins") computed from its lengths and the attached profile's
+/// stroke as `review` does, so that `/ALG/actuators` has the same columns in every recording.
+fn parse(recording: &Recording, m: &JsonMessage) -> Result<Node> {
+    let mut node: Node = serde_json::from_slice(&m.data).with_context(|| {
         format!(
             "{}: a message on {} at log time {} ns is not JSON",
-            recording.display(),
+            recording.path.display(),
             m.topic,
             m.log_time_ns
         )
-    })
+    })?;
+    if topic_kind(&m.topic) == "actuators" {
+        if let (Node::Object(fields), Ok(profile)) = (&mut node, &recording.profile) {
+            with_margins(fields, profile);
+        }
+    }
+    Ok(node)
+}
+
+/// Adds `margin` after `velocity` when the message has lengths but no margins.
+fn with_margins(fields: &mut Vec<(String, Node)>, profile: &hexcue_core::profile::Profile) {
+    if fields.iter().any(|(k, _)| k == "margin") {
+        return;
+    }
+    let Some(Node::Array(lengths)) = fields.iter().find(|(k, _)| k == "length").map(|f| &f.1)
+    else {
+        return;
+    };
+    let stewart = profile.stewart();
+    let margins = lengths
+        .iter()
+        .map(|l| match l {
+            Node::Number(text) => match text.parse::<f64>() {
+                Ok(l) => {
+                    let m = (l - stewart.leg_min_m).min(stewart.leg_max_m - l);
+                    Node::Number(format!("{:?}", position(m)))
+                }
+                Err(_) => Node::Null,
+            },
+            _ => Node::Null,
+        })
+        .collect();
+    let at = fields
+        .iter()
+        .position(|(k, _)| k == "velocity")
+        .map_or(fields.len(), |i| i + 1);
+    fields.insert(at, ("margin".to_string(), Node::Array(margins)));
 }
 
 /// First pass: every topic's columns, in the order they first appear.
@@ -209,7 +249,7 @@ pub fn columns(recording: &Recording) -> Result<BTreeMap<String, Vec<Column>>> {
     let mut out: BTreeMap<String, (Vec<Column>, HashSet<String>)> = BTreeMap::new();
     for m in recording.json_messages()? {
         let m = m?;
-        let node = parse(&recording.path, &m)?;
+        let node = parse(recording, &m)?;
         let (cols, seen) = out.entry(m.topic.clone()).or_default();
         for (name, key, _) in flatten(topic_kind(&m.topic), &node) {
             if seen.insert(name.clone()) {
@@ -332,7 +372,7 @@ pub fn export_one(
                 continue;
             }
             let mut row = vec![String::new(); cols.len()];
-            for (name, _, text) in flatten(topic_kind(topic), &parse(&recording.path, &m)?) {
+            for (name, _, text) in flatten(topic_kind(topic), &parse(recording, &m)?) {
                 if let Some(&i) = index.get(name.as_str()) {
                     row[i] = text;
                 }
@@ -386,7 +426,7 @@ pub fn export_fields(
                 row.iter_mut().for_each(String::clear);
             }
             step = Some(m.log_time_ns);
-            for (name, _, text) in flatten(topic_kind(&m.topic), &parse(&recording.path, &m)?) {
+            for (name, _, text) in flatten(topic_kind(&m.topic), &parse(recording, &m)?) {
                 if name == "t_s" && row[0].is_empty() {
                     row[0] = text.clone();
                 }

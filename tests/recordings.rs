@@ -302,8 +302,15 @@ fn transcode_with(
         attachment(&mut a);
         w.attach(&a).unwrap();
     }
-    for m in mcap::MessageStream::new(&bytes).unwrap() {
-        let m = m.unwrap();
+    // In log-time order, as a tool that rewrites a recording through an indexed reader gives
+    // them: since format 2 hexcue groups a chunk's messages by topic, and restores the order
+    // only within a chunk (docs/recordings.md, "Format 2").
+    let mut messages: Vec<_> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| m.unwrap())
+        .collect();
+    messages.sort_by_key(|m| m.log_time);
+    for m in messages {
         let owned: Cow<'static, [u8]> = Cow::Owned(m.data.into_owned());
         w.write(&mcap::Message {
             data: data(&m.channel.topic, owned),

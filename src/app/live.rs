@@ -89,7 +89,7 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
     if let Some(path) = &args.record {
         session.add_frame_sink(Box::new(LiveRecording::create(
             path,
-            &profile.name,
+            &profile,
             &profile_toml,
             &args.input,
             &algorithms,

@@ -10,11 +10,11 @@ use crate::app::common::{
     check_session_outputs, headless_or_console, inputs, progress_bar, stop_flag,
 };
 use crate::cli::{parse_algorithms, PlayArgs};
-use crate::formats::recording::{Recorder, RecordingMeta};
+use crate::formats::recording::{Recorder, RecordingMeta, TraceCopy};
 use crate::formats::trace::default_trace;
 use crate::foxglove::FoxgloveServer;
 use crate::session::{player, FrameSink, Runner, SinkFailure};
-use crate::sinks::recorder::{McapSink, ProgressSink, Quiet};
+use crate::sinks::recorder::{McapSink, ProgressSink, Quiet, RecordedAndServed};
 use crate::tui::terminal::{exit_for_signal, require_terminal};
 use crate::tui::{self, LiveConfig, SessionInfo};
 use hexcue_core::engine::Engine;
@@ -67,11 +67,16 @@ pub struct PlaySource {
 }
 
 /// Opens `--trace` as a stream: checked whole on a first pass, then read as it is stepped, so
-/// memory does not grow with its length (docs/performance.md).
-pub fn open_play_source(args: &PlayArgs, rate_hz: f64) -> Result<PlaySource> {
+/// memory does not grow with its length (docs/performance.md). The first pass hands the
+/// file's bytes to `copy` when given (the recording's compressed, hashed attachment).
+pub fn open_play_source(
+    args: &PlayArgs,
+    rate_hz: f64,
+    copy: Option<&mut dyn std::io::Write>,
+) -> Result<PlaySource> {
     Ok(match &args.trace {
         Some(path) => {
-            let file = crate::sources::trace_file::TraceFile::open(path, rate_hz)?;
+            let file = crate::sources::trace_file::TraceFile::open_copying(path, rate_hz, copy)?;
             let plan = file.plan().clone();
             PlaySource {
                 source: Box::new(file),
@@ -113,7 +118,8 @@ fn recording_meta(
 }
 
 /// A recorder for a play session: the trace file attached as read, streamed from the file
-/// (a trace of hours need not fit in memory), or the embedded trace's text.
+/// (a trace of hours need not fit in memory), or the embedded trace's text. (A headless run
+/// compresses the file while checking it: [`run_headless`].)
 fn create_recorder(
     path: &std::path::Path,
     meta: &mut RecordingMeta,
@@ -132,7 +138,17 @@ fn create_recorder(
 
 pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
     let (profile, profile_toml, algorithms) = load_play(args)?;
-    let play = open_play_source(args, profile.rate_hz)?;
+    // The trace file is read twice, whatever its length: once to check it, which also
+    // compresses and hashes it for the recording, and once as it is stepped.
+    let mut copy = match (&args.record, &args.trace) {
+        (Some(record), Some(_)) => Some(TraceCopy::beside(record)?),
+        _ => None,
+    };
+    let play = open_play_source(
+        args,
+        profile.rate_hz,
+        copy.as_mut().map(|c| c as &mut dyn std::io::Write),
+    )?;
     for notice in &play.notices {
         eprintln!("note: {}: {notice}", play.name);
     }
@@ -140,11 +156,11 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
     let recorder = match &args.record {
         Some(path) => {
             let mut meta = recording_meta(&profile, profile_toml, &play, &algorithms);
-            Some(McapSink::headless(create_recorder(
-                path,
-                &mut meta,
-                args.trace.as_deref(),
-            )?))
+            let recorder = match copy {
+                Some(copy) => Recorder::create_with_compressed_trace(path, &meta, copy.finish()?),
+                None => create_recorder(path, &mut meta, None),
+            };
+            Some(McapSink::headless(recorder?))
         }
         None => None,
     };
@@ -159,12 +175,23 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
         bar.set_message(name.clone());
         sinks.push(Box::new(ProgressSink::whole(bar)));
     }
-    if let Some(addr) = args.foxglove {
-        let server = start_foxglove(addr, &profile, &algorithms, None)?;
-        sinks.push(Box::new(Quiet(Box::new(server))));
-    }
-    if let Some(recorder) = recorder {
-        sinks.push(Box::new(recorder));
+    let server = match args.foxglove {
+        Some(addr) => Some(start_foxglove(addr, &profile, &algorithms, None)?),
+        None => None,
+    };
+    match (recorder, server) {
+        // One encoding of each frame for both.
+        (Some(recorder), Some(server)) => {
+            sinks.push(Box::new(RecordedAndServed::new(recorder, server)))
+        }
+        (recorder, server) => {
+            if let Some(server) = server {
+                sinks.push(Box::new(Quiet(Box::new(server))));
+            }
+            if let Some(recorder) = recorder {
+                sinks.push(Box::new(recorder));
+            }
+        }
     }
     // Paced only for a Foxglove viewer to follow; otherwise as fast as possible.
     let pace = args.foxglove.and(player::pace(args.start.speed));
@@ -222,7 +249,7 @@ fn bound_of(
 pub fn run_console(args: &PlayArgs) -> Result<()> {
     require_terminal()?;
     let (profile, profile_toml, algorithms) = load_play(args)?;
-    let play = open_play_source(args, profile.rate_hz)?;
+    let play = open_play_source(args, profile.rate_hz, None)?;
     let info = SessionInfo::described(&play.name, play.info.as_ref(), &profile.name);
     let mut meta = recording_meta(&profile, profile_toml, &play, &algorithms);
     let trace_path = args.trace.clone();

@@ -7,7 +7,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Deserializer, Serialize};
 
 use hexcue_core::engine::{Frame, LaneFrame, Legs};
-use hexcue_core::mca::PlatformCommand;
+use hexcue_core::mca::{AlgorithmState, PlatformCommand, SolverReport};
 use hexcue_core::model::vestibular::Perceived;
 
 use super::{Channel, Kind};
@@ -192,7 +192,6 @@ macro_rules! array_at {
 }
 array_at!(position_array, resolution::position);
 array_at!(velocity_array, resolution::velocity);
-array_at!(margin_array, resolution::margin);
 array_at!(acceleration_array, resolution::acceleration);
 array_at!(signal_array, resolution::signal);
 
@@ -347,12 +346,24 @@ pub struct ActuatorsMsg {
     #[serde(deserialize_with = "nan_array", serialize_with = "velocity_array")]
     #[schemars(with = "[Option<f64>; 6]", description = "leg velocities (m/s)")]
     pub velocity: [f64; 6],
-    #[serde(deserialize_with = "nan_array", serialize_with = "margin_array")]
+    /// Not written since format 2: each is `min(length − leg_min_m, leg_max_m − length)`,
+    /// which readers compute from `length` and the attached profile (docs/recordings.md,
+    /// "Leg margins"). Files written before carry it, and it is read from them; absent, it
+    /// reads as NaN until the reader fills it.
+    #[serde(
+        default = "absent_margins",
+        deserialize_with = "nan_array",
+        skip_serializing
+    )]
     #[schemars(
-        with = "[Option<f64>; 6]",
-        description = "distance to the nearer end stop (m); < 0 outside"
+        with = "Option<[Option<f64>; 6]>",
+        description = "distance to the nearer end stop (m); < 0 outside; only in files of format 1, computed from length since"
     )]
     pub margin: [f64; 6],
+}
+
+fn absent_margins() -> [f64; 6] {
+    [f64::NAN; 6]
 }
 
 impl ActuatorsMsg {
@@ -418,41 +429,109 @@ pub struct ControllerMsg {
     pub solvers: Vec<SolverMsg>,
 }
 
-impl ControllerMsg {
-    pub fn new(t: f64, lane: &LaneFrame) -> Self {
+/// A lane's `/ALG/controller` message as a step writes it: borrowed from the frame, so that
+/// building it allocates nothing (the owned [`ControllerMsg`] is what a reader gets back, and
+/// its serde form is the same JSON: test `the_borrowed_controller_writes_the_owned_json`).
+#[derive(Debug, Serialize)]
+pub struct ControllerOut<'a> {
+    t: f64,
+    mode: &'static str,
+    blend: Option<f64>,
+    status: StatusWords<'a>,
+    iterations: u64,
+    #[serde(serialize_with = "duration_us")]
+    solve_time_us: f64,
+    limiter_active: bool,
+    #[serde(serialize_with = "duration_us")]
+    step_time_us: f64,
+    #[serde(serialize_with = "time_s")]
+    time_in_mode_s: f64,
+    switch_count: u32,
+    last_switch_reason: Option<&'a str>,
+    solvers: SolversOut<'a>,
+}
+
+/// The words of a lane's state that the JSON carries, where the core's types become text: the
+/// switch reason, and each solver's name and status. The one place to change if those
+/// become enums (their JSON words must stay).
+fn state_words(state: &AlgorithmState) -> Option<&str> {
+    state.last_switch_reason.as_deref()
+}
+
+/// A solver's name and status word (see [`state_words`]).
+fn solver_words(report: &SolverReport) -> (&str, &'static str) {
+    (report.name.as_str(), report.status.as_str())
+}
+
+impl<'a> ControllerOut<'a> {
+    pub fn new(t: f64, lane: &'a LaneFrame) -> Self {
         let s = &lane.state;
-        let status = if s.solvers.is_empty() {
-            "none".to_string()
-        } else {
-            s.solvers
-                .iter()
-                .map(|r| r.status.as_str())
-                .collect::<Vec<_>>()
-                .join("+")
-        };
-        ControllerMsg {
+        ControllerOut {
             t,
-            mode: s.mode.word().to_string(),
+            mode: s.mode.word(),
             blend: s.blend,
-            status,
+            status: StatusWords(&s.solvers),
             iterations: s.solvers.iter().map(|r| u64::from(r.iterations)).sum(),
             solve_time_us: s.solvers.iter().map(|r| r.solve_time_us).sum(),
             limiter_active: lane.limiter_active,
             step_time_us: lane.step_time_us,
             time_in_mode_s: s.time_in_mode_s,
             switch_count: s.switch_count,
-            last_switch_reason: s.last_switch_reason.clone(),
-            solvers: s
-                .solvers
-                .iter()
-                .map(|r| SolverMsg {
-                    name: r.name.clone(),
-                    status: r.status.to_string(),
-                    iterations: r.iterations,
-                    solve_time_us: r.solve_time_us,
-                })
-                .collect(),
+            last_switch_reason: state_words(s),
+            solvers: SolversOut(&s.solvers),
         }
+    }
+}
+
+/// The solvers' statuses joined by `+`, `none` without a QP: written straight into the
+/// output (serde_json's `collect_str` escapes as it goes, without a `String`).
+#[derive(Debug)]
+struct StatusWords<'a>(&'a [SolverReport]);
+
+impl std::fmt::Display for StatusWords<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.0.is_empty() {
+            return f.write_str("none");
+        }
+        for (i, r) in self.0.iter().enumerate() {
+            if i > 0 {
+                f.write_str("+")?;
+            }
+            f.write_str(solver_words(r).1)?;
+        }
+        Ok(())
+    }
+}
+
+impl Serialize for StatusWords<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+#[derive(Debug)]
+struct SolversOut<'a>(&'a [SolverReport]);
+
+#[derive(Serialize)]
+struct SolverOut<'a> {
+    name: &'a str,
+    status: &'static str,
+    iterations: u32,
+    #[serde(serialize_with = "duration_us")]
+    solve_time_us: f64,
+}
+
+impl Serialize for SolversOut<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(self.0.iter().map(|r| {
+            let (name, status) = solver_words(r);
+            SolverOut {
+                name,
+                status,
+                iterations: r.iterations,
+                solve_time_us: r.solve_time_us,
+            }
+        }))
     }
 }
 
@@ -483,15 +562,15 @@ pub fn schema_of(kind: Kind) -> Option<Vec<u8>> {
 /// One message on a JSON topic, serialised as the message itself.
 #[derive(Debug, Serialize)]
 #[serde(untagged)]
-pub enum Message {
+pub enum Message<'a> {
     Aircraft(AircraftMsg),
     Perceived(PerceivedMsg),
     Platform(PlatformMsg),
     Actuators(ActuatorsMsg),
-    Controller(ControllerMsg),
+    Controller(ControllerOut<'a>),
 }
 
-impl Message {
+impl Message<'_> {
     /// The message's JSON as a recording (and the Foxglove server) sends it: the fields and
     /// values of its serde form, each number in its quantity's fixed format
     /// ([`resolution`]); the controller's through serde.
@@ -500,7 +579,6 @@ impl Message {
         let fixed = |decimals| move |out: &mut Vec<u8>, x| write_fixed(out, x, decimals);
         let position = fixed(resolution::POSITION_DECIMALS);
         let velocity = fixed(resolution::VELOCITY_DECIMALS);
-        let margin = fixed(resolution::MARGIN_DECIMALS);
         let acceleration = fixed(resolution::ACCELERATION_DECIMALS);
         let t = |out: &mut Vec<u8>, t: f64| {
             out.extend_from_slice(b"{\"t\":");
@@ -532,7 +610,6 @@ impl Message {
                 t(out, m.t);
                 array(out, "length", &m.length, position);
                 array(out, "velocity", &m.velocity, velocity);
-                array(out, "margin", &m.margin, margin);
             }
             Message::Controller(m) => return serde_json::to_writer(out, m),
         }
@@ -557,7 +634,7 @@ fn array(out: &mut Vec<u8>, key: &str, values: &[f64], number: impl Fn(&mut Vec<
 
 /// A frame's messages on hexcue's own topics, in the order the recorder writes them: the
 /// aircraft, the reference, then each lane's four kinds in the frame's lane order.
-pub fn messages(frame: &Frame) -> impl Iterator<Item = (Channel, Message)> + '_ {
+pub fn messages(frame: &Frame) -> impl Iterator<Item = (Channel, Message<'_>)> + '_ {
     let t = frame.t_s;
     let common = [
         (
@@ -586,7 +663,7 @@ pub fn messages(frame: &Frame) -> impl Iterator<Item = (Channel, Message)> + '_ 
             ),
             (
                 on(Kind::Controller),
-                Message::Controller(ControllerMsg::new(t, lane)),
+                Message::Controller(ControllerOut::new(t, lane)),
             ),
         ]
     });
@@ -656,6 +733,98 @@ mod tests {
         }
         assert_eq!(resolution::duration_us(133.726_999_999_999_98), 134.0);
         assert_eq!(shortest(resolution::time_s(30.010_000_000_001_89)), "30.01");
+    }
+
+    /// The controller message as it was built before it was borrowed: owned Strings.
+    fn owned_controller(t: f64, lane: &LaneFrame) -> ControllerMsg {
+        let s = &lane.state;
+        let status = if s.solvers.is_empty() {
+            "none".to_string()
+        } else {
+            s.solvers
+                .iter()
+                .map(|r| r.status.as_str())
+                .collect::<Vec<_>>()
+                .join("+")
+        };
+        ControllerMsg {
+            t,
+            mode: s.mode.word().to_string(),
+            blend: s.blend,
+            status,
+            iterations: s.solvers.iter().map(|r| u64::from(r.iterations)).sum(),
+            solve_time_us: s.solvers.iter().map(|r| r.solve_time_us).sum(),
+            limiter_active: lane.limiter_active,
+            step_time_us: lane.step_time_us,
+            time_in_mode_s: s.time_in_mode_s,
+            switch_count: s.switch_count,
+            last_switch_reason: s.last_switch_reason.clone(),
+            solvers: s
+                .solvers
+                .iter()
+                .map(|r| SolverMsg {
+                    name: r.name.clone(),
+                    status: r.status.to_string(),
+                    iterations: r.iterations,
+                    solve_time_us: r.solve_time_us,
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn the_borrowed_controller_writes_the_owned_json() {
+        use hexcue_core::mca::{AlgorithmId, Mode};
+        use hexcue_core::vocab::SolveStatus;
+        let profile = hexcue_core::testing::full_flight();
+        let trace = std::sync::Arc::new(hexcue_core::testing::manoeuvre());
+        let mut engine =
+            hexcue_core::engine::Engine::new(&profile, trace, &[AlgorithmId::Cwf]).unwrap();
+        let frame = engine.step().unwrap();
+        let mut lane = frame.lanes[0].clone();
+        let report = |name: &str, status, iterations, solve_time_us| SolverReport {
+            name: name.to_string(),
+            status,
+            iterations,
+            solve_time_us,
+        };
+        let cases = [
+            (Mode::Washout, None, Vec::new(), None),
+            (
+                Mode::Blend,
+                Some(0.25),
+                vec![
+                    report("cotc", SolveStatus::PrimalInfeasible, 7, 133.726_999_999_98),
+                    report("fr\"ee", SolveStatus::Standby, 0, f64::NAN),
+                ],
+                Some("cotc infeasible: \"x\" ≥ 3".to_string()),
+            ),
+            (
+                Mode::Mpc,
+                None,
+                vec![report("mpc", SolveStatus::SolvedClarabel, 31, 1.5e3)],
+                None,
+            ),
+        ];
+        for (mode, blend, solvers, reason) in cases {
+            lane.state.mode = mode;
+            lane.state.blend = blend;
+            lane.state.solvers = solvers;
+            lane.state.last_switch_reason = reason;
+            lane.state.time_in_mode_s = 30.010_000_000_001_89;
+            lane.step_time_us = 12.345_6;
+            let mut written = Vec::new();
+            Message::Controller(ControllerOut::new(1.25, &lane))
+                .write_json(&mut written)
+                .unwrap();
+            let owned = serde_json::to_vec(&owned_controller(1.25, &lane)).unwrap();
+            assert_eq!(
+                String::from_utf8(written.clone()).unwrap(),
+                String::from_utf8(owned).unwrap()
+            );
+            let back: ControllerMsg = serde_json::from_slice(&written).unwrap();
+            assert_eq!(back.mode, mode.word());
+        }
     }
 
     #[test]

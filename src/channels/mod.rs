@@ -227,6 +227,21 @@ pub fn algorithm_rgb(id: AlgorithmId) -> (u8, u8, u8) {
     PALETTE[i % PALETTE.len()]
 }
 
+/// Where a recorder hands each message it has encoded, so that a live viewer fed the same
+/// frames gets the same bytes at the same log times without encoding them again
+/// (`play --headless --record --foxglove`: `sinks::recorder::RecordedAndServed`).
+pub trait MessageTap {
+    /// Whether anyone listens on `channel`; a message nobody wants is not handed over.
+    fn wants(&mut self, channel: Channel) -> bool;
+    /// Whether the 3D topics should be drawn at this step though the recording skips it (a
+    /// live viewer shows every step).
+    fn wants_every_scene(&mut self) -> bool;
+    /// One encoded message on `channel`.
+    fn message(&mut self, channel: Channel, bytes: &[u8], log_time_ns: u64);
+    /// Every message of the step at `log_time_ns` has been handed over.
+    fn step_done(&mut self, log_time_ns: u64);
+}
+
 /// One of Foxglove's well-known messages of a step, to encode for its channel.
 #[derive(Clone, Copy, Debug)]
 pub enum SceneMessage<'a> {
@@ -265,10 +280,10 @@ impl SceneMessage<'_> {
 }
 
 impl scene::StepMessages {
-    /// The step's messages by channel: each lane's transforms and scene when `draw`, then
-    /// the events (never skipped).
-    pub fn by_channel(&self, draw: bool) -> impl Iterator<Item = (Channel, SceneMessage<'_>)> {
-        let lanes = self.lanes.iter().filter(move |_| draw).flat_map(|lane| {
+    /// The step's messages by channel: each lane's transforms and scene when they were drawn,
+    /// then the events.
+    pub fn by_channel(&self) -> impl Iterator<Item = (Channel, SceneMessage<'_>)> {
+        let lanes = self.lanes.iter().flat_map(|lane| {
             [
                 (
                     Channel::lane(Kind::Tf, lane.id),

@@ -318,21 +318,27 @@ impl SceneBuilder {
         self.memory.clear();
     }
 
-    /// The messages of one frame, stamped `log_time_ns`.
-    pub fn step(&mut self, frame: &Frame, log_time_ns: u64) -> StepMessages {
+    /// The messages of one frame, stamped `log_time_ns`: the events every step (a change is
+    /// never skipped), each lane's transforms and scene only when `draw` (a recording writes
+    /// them every few steps, and building them was most of a skipped step's cost).
+    pub fn step(&mut self, frame: &Frame, log_time_ns: u64, draw: bool) -> StepMessages {
         let mut events = Vec::new();
-        let lanes = frame
-            .lanes
-            .iter()
-            .map(|lane| {
-                self.note_changes(lane, frame.t_s, log_time_ns, &mut events);
-                LaneMessages {
+        for lane in &frame.lanes {
+            self.note_changes(lane, frame.t_s, log_time_ns, &mut events);
+        }
+        let lanes = if draw {
+            frame
+                .lanes
+                .iter()
+                .map(|lane| LaneMessages {
                     id: lane.id,
                     transforms: self.transforms(lane, log_time_ns),
                     scene: self.scene(lane, log_time_ns),
-                }
-            })
-            .collect();
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         StepMessages { lanes, events }
     }
 
@@ -634,14 +640,14 @@ mod tests {
         frame.lanes[0].id = AlgorithmId::Smpc;
         frame.lanes[0].state.mode = Mode::Cotc;
         assert!(
-            b.step(&frame, 1).events.is_empty(),
+            b.step(&frame, 1, true).events.is_empty(),
             "the first frame is no change"
         );
         frame.lanes[0].state.mode = Mode::Blend;
         frame.lanes[0].state.switch_count = 1;
         frame.lanes[0].state.last_switch_reason = Some("cotc infeasible".into());
         frame.lanes[0].limiter_active = true;
-        let events = b.step(&frame, 2).events;
+        let events = b.step(&frame, 2, false).events;
         assert_eq!(events.len(), 2, "{events:?}");
         assert_eq!(events[0].name, "smpc");
         assert_eq!(
@@ -650,13 +656,24 @@ mod tests {
         );
         assert_eq!(events[1].message, "limiter acting");
         assert_eq!(events[1].level, log::Level::Warning as i32);
-        assert!(b.step(&frame, 3).events.is_empty(), "no change, no event");
+        assert!(
+            b.step(&frame, 3, true).events.is_empty(),
+            "no change, no event"
+        );
         frame.t_s += 0.5;
         frame.lanes[0].limiter_active = false;
-        let events = b.step(&frame, 4).events;
+        let events = b.step(&frame, 4, false).events;
         assert_eq!(events[0].message, "limiter released after 0.50 s");
         b.reset();
         frame.lanes[0].state.mode = Mode::Free;
-        assert!(b.step(&frame, 5).events.is_empty(), "a rewind is no change");
+        assert!(
+            b.step(&frame, 5, true).events.is_empty(),
+            "a rewind is no change"
+        );
+        assert!(
+            b.step(&frame, 6, false).lanes.is_empty(),
+            "not drawn, not built"
+        );
+        assert_eq!(b.step(&frame, 7, true).lanes.len(), 1);
     }
 }

@@ -19,7 +19,7 @@ use ::foxglove::{
 };
 
 use crate::channels::scene::{self, SceneBuilder, SESSION_SOURCE};
-use crate::channels::{self, json, Channel, SceneMessage};
+use crate::channels::{self, json, Channel, Kind, MessageTap, SceneMessage};
 use hexcue_core::engine::Frame;
 use hexcue_core::events::EventLevel;
 use hexcue_core::mca::AlgorithmId;
@@ -199,8 +199,8 @@ impl FoxgloveServer {
                 }
             }
         }
-        let step = self.builder.step(frame, t_ns);
-        for (channel, message) in step.by_channel(true) {
+        let step = self.builder.step(frame, t_ns, true);
+        for (channel, message) in step.by_channel() {
             self.send_scene(channel, message, t_ns);
         }
         if let Some(handle) = &self.handle {
@@ -225,6 +225,34 @@ impl FoxgloveServer {
     pub fn stop(mut self) {
         if let Some(handle) = self.handle.take() {
             handle.stop().wait_blocking();
+        }
+    }
+}
+
+/// Fed by a recorder (`Recorder::record_with`): the recording's bytes and log times, sent
+/// to the clients subscribed, instead of [`FoxgloveServer::publish`] encoding the frame again.
+impl MessageTap for FoxgloveServer {
+    fn wants(&mut self, channel: Channel) -> bool {
+        self.channel(channel).is_ok_and(|raw| raw.has_sinks())
+    }
+
+    fn wants_every_scene(&mut self) -> bool {
+        self.channels
+            .iter()
+            .any(|(c, raw)| matches!(c.kind, Kind::Tf | Kind::Scene) && raw.has_sinks())
+    }
+
+    fn message(&mut self, channel: Channel, bytes: &[u8], log_time_ns: u64) {
+        if let Some(raw) = self.channels.get(&channel) {
+            raw.log_with_meta(bytes, PartialMetadata::with_log_time(log_time_ns));
+        }
+    }
+
+    fn step_done(&mut self, log_time_ns: u64) {
+        // Session events go out at the last frame's time, as with `publish`.
+        self.clock.last_ns = Some(log_time_ns);
+        if let Some(handle) = &self.handle {
+            handle.broadcast_time(log_time_ns);
         }
     }
 }

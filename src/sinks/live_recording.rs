@@ -15,6 +15,7 @@ use crate::formats::trace::NATIVE_HEADER;
 use crate::session::FrameSink;
 use hexcue_core::engine::Frame;
 use hexcue_core::mca::AlgorithmId;
+use hexcue_core::profile::Profile;
 
 pub struct LiveRecording {
     recorder: Recorder,
@@ -27,7 +28,7 @@ impl LiveRecording {
     /// Creates `path`, and `path` + `.input.csv` beside it for the input until the end.
     pub fn create(
         path: &Path,
-        profile_name: &str,
+        profile: &Profile,
         profile_toml: &str,
         input_url: &str,
         algorithms: &[AlgorithmId],
@@ -36,7 +37,7 @@ impl LiveRecording {
     ) -> Result<Self> {
         let header = format!("{NATIVE_HEADER}\n");
         let meta = RecordingMeta {
-            profile_name: profile_name.to_string(),
+            profile_name: profile.name.clone(),
             profile_toml: profile_toml.to_string(),
             trace_name: input_url.to_string(),
             // Known only at the end; a file cut short keeps this header-only trace.
@@ -44,6 +45,7 @@ impl LiveRecording {
             trace_sidecar: None,
             algorithms: algorithms.to_vec(),
             rate_hz,
+            profile: Some(profile.clone()),
         };
         let recorder = Recorder::create(path, &meta)?;
         let mut log_name = path.as_os_str().to_owned();

@@ -3,6 +3,7 @@
 use anyhow::{Context, Result};
 
 use crate::formats::recording::{Recorder, RecordingStats};
+use crate::foxglove::FoxgloveServer;
 use crate::session::FrameSink;
 use hexcue_core::engine::Frame;
 
@@ -48,6 +49,42 @@ impl FrameSink for McapSink {
             .finish()
             .with_context(|| format!("{path}: cannot finish the recording"))?;
         Ok((self.said)(&path, &stats))
+    }
+}
+
+/// A recording and a live Foxglove server fed the same frames (`play --headless --record
+/// --foxglove`): each message is encoded once, for the file, and the server sends those
+/// bytes at the recording's log times (`channels::MessageTap`). The 3D topics are drawn at
+/// every step only while a client subscribes to them; the file keeps its rate.
+pub struct RecordedAndServed {
+    recording: McapSink,
+    server: FoxgloveServer,
+}
+
+impl RecordedAndServed {
+    pub fn new(recording: McapSink, server: FoxgloveServer) -> Self {
+        RecordedAndServed { recording, server }
+    }
+}
+
+impl FrameSink for RecordedAndServed {
+    fn record(&mut self, frame: &Frame) -> Result<()> {
+        if self.recording.recorder.draws_scene() {
+            Ok(self
+                .recording
+                .recorder
+                .record_with(frame, Some(&mut self.server))?)
+        } else {
+            // No rigs in the recording (its profile is unknown): the server draws its own.
+            self.server.publish(frame);
+            Ok(self.recording.recorder.record(frame)?)
+        }
+    }
+
+    fn finish(self: Box<Self>) -> Result<String> {
+        let RecordedAndServed { recording, server } = *self;
+        server.stop();
+        Box::new(recording).finish()
     }
 }
 

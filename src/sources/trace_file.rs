@@ -10,7 +10,7 @@ use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use crate::formats::trace::{
-    open_grid, scan_trace_file, GridMark, GridSamples, TraceError, TracePlan,
+    open_grid, scan_trace_file_copying, GridMark, GridSamples, TraceError, TracePlan,
 };
 use hexcue_core::source::{SampleSource, SourceError};
 use hexcue_core::trace::AircraftSample;
@@ -31,7 +31,17 @@ impl TraceFile {
     /// Checks the whole file (every refusal names its line and column, as for a trace read
     /// into memory) and opens it at its first sample.
     pub fn open(path: &Path, rate_hz: f64) -> Result<Self, TraceError> {
-        let plan = scan_trace_file(path, rate_hz)?;
+        Self::open_copying(path, rate_hz, None)
+    }
+
+    /// [`TraceFile::open`], handing the file's bytes to `copy` as the checks read them (a
+    /// recording's hash and compressed attachment, in the same read).
+    pub fn open_copying(
+        path: &Path,
+        rate_hz: f64,
+        copy: Option<&mut dyn std::io::Write>,
+    ) -> Result<Self, TraceError> {
+        let plan = scan_trace_file_copying(path, rate_hz, copy)?;
         let grid = open_grid(path, &plan)?;
         let marks = vec![grid.mark()];
         Ok(TraceFile {

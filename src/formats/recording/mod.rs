@@ -29,7 +29,7 @@ use hexcue_core::trace::TraceInfo;
 
 pub use reader::{plural, Damage, Frames, JsonMessage, JsonMessages, LostSteps, Recording};
 pub use recover::{recover, RecoverStats};
-pub use writer::Recorder;
+pub use writer::{CompressedTrace, Recorder, TraceCopy};
 
 /// Name of the metadata record hexcue writes.
 pub const METADATA_NAME: &str = "hexcue";
@@ -43,8 +43,10 @@ pub const TRACE_ATTACHMENT: &str = "trace.csv";
 pub const TRACE_ZSTD_ATTACHMENT: &str = "trace.csv.zst";
 /// Attachment holding the trace's JSON sidecar, when it had one.
 pub const SIDECAR_ATTACHMENT: &str = "trace.json";
-/// Version of the topic layout below; bumped when a field changes meaning.
-pub const FORMAT_VERSION: &str = "1";
+/// Version of the topic layout below; bumped when a field changes meaning. 2: the leg
+/// margins are no longer written in `/ALG/actuators` (readers compute them from the lengths)
+/// and a chunk's messages are grouped by topic (readers restore log-time order).
+pub const FORMAT_VERSION: &str = "2";
 
 #[derive(Debug, thiserror::Error)]
 pub enum RecordingError {
@@ -121,6 +123,9 @@ pub struct RecordingMeta {
     pub trace_sidecar: Option<String>,
     pub algorithms: Vec<AlgorithmId>,
     pub rate_hz: f64,
+    /// The profile the session ran, from which the recorder draws the rigs of the 3D topics;
+    /// `None` (a recording whose attached profile no longer loads) records without them.
+    pub profile: Option<Profile>,
 }
 
 impl RecordingMeta {
@@ -143,6 +148,7 @@ impl RecordingMeta {
             trace_sidecar: sidecar.and_then(|i| serde_json::to_string_pretty(i).ok()),
             algorithms: algorithms.to_vec(),
             rate_hz: profile.rate_hz,
+            profile: Some(profile.clone()),
         }
     }
 }
@@ -287,6 +293,7 @@ mod tests {
             trace_sidecar: Some(r#"{"aircraft": "synthetic"}"#.into()),
             algorithms: vec![AlgorithmId::Cwf],
             rate_hz: 100.0,
+            profile: Some(hexcue_core::profile::text::default_profile()),
         }
     }
 
@@ -317,7 +324,8 @@ mod tests {
                     let l = &mut lane.legs;
                     l.length_m = l.length_m.map(resolution::position);
                     l.velocity_mps = l.velocity_mps.map(resolution::velocity);
-                    l.margin_m = l.margin_m.map(resolution::margin);
+                    // Not recorded: the reader computes them from the lengths (format 2).
+                    l.margin_m = full_flight().stewart().margins(&l.length_m);
                     lane.step_time_us = resolution::duration_us(lane.step_time_us);
                     let s = &mut lane.state;
                     s.time_in_mode_s = resolution::time_s(s.time_in_mode_s);
@@ -658,7 +666,27 @@ mod tests {
             "{:?}",
             rec.notices
         );
-        assert_eq!(read_all(&rec), frames[..50]);
+        // Without the profile's stroke, the margins (not recorded) are unknown: NaN.
+        let mut back = read_all(&rec);
+        let mut expected = frames[..50].to_vec();
+        for lane in back
+            .iter_mut()
+            .chain(&mut expected)
+            .flat_map(|f| &mut f.lanes)
+        {
+            assert!(
+                lane.legs.margin_m.iter().all(|m| m.is_nan()) || expected_margins(lane),
+                "{:?}",
+                lane.legs.margin_m
+            );
+            lane.legs.margin_m = nalgebra::Vector6::zeros();
+        }
+        assert_eq!(back, expected);
+    }
+
+    /// Whether a lane's margins are those of the full-flight rig for its lengths.
+    fn expected_margins(lane: &hexcue_core::engine::LaneFrame) -> bool {
+        lane.legs.margin_m == full_flight().stewart().margins(&lane.legs.length_m)
     }
 
     #[test]

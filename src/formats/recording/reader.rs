@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use mcap::records::Record;
 use mcap::McapError;
+use nalgebra::Vector6;
 use serde::Deserialize;
 
 use super::source::{Item, RecordSource, Skip, SourceError};
@@ -581,6 +582,7 @@ impl Recording {
             pending: None,
             next_k: 0,
             done: false,
+            stewart: self.profile.as_ref().ok().map(|p| p.stewart()),
         })
     }
 
@@ -630,6 +632,7 @@ impl Recording {
             trace_sidecar: self.trace_sidecar.clone(),
             algorithms: self.algorithms.clone(),
             rate_hz: self.rate_hz,
+            profile: self.profile.as_ref().ok().cloned(),
         }
     }
 }
@@ -748,6 +751,8 @@ pub struct Frames {
     pending: Option<PendingStep>,
     next_k: usize,
     done: bool,
+    /// The rig of the attached profile, for the leg margins (not recorded since format 2).
+    stewart: Option<hexcue_core::model::stewart::Stewart>,
 }
 
 impl Frames {
@@ -796,6 +801,19 @@ impl Frames {
             }
         }
         Ok(())
+    }
+
+    /// The legs' margins: as recorded (format 1), or, not written since, from the lengths
+    /// and the attached profile's stroke, as the engine computes them (NaN when the profile
+    /// no longer loads).
+    fn margins(&self, actuators: &ActuatorsMsg) -> Vector6<f64> {
+        let recorded: Vector6<f64> = actuators.margin.into();
+        match &self.stewart {
+            Some(stewart) if recorded.iter().all(|m| m.is_nan()) => {
+                stewart.margins(&actuators.length.into())
+            }
+            _ => recorded,
+        }
     }
 
     /// The frame of a step that has every message, or the topic it lacks.
@@ -862,7 +880,7 @@ impl Frames {
                     legs: Legs {
                         length_m: actuators.length.into(),
                         velocity_mps: actuators.velocity.into(),
-                        margin_m: actuators.margin.into(),
+                        margin_m: self.margins(actuators),
                     },
                     state: AlgorithmState {
                         mode,

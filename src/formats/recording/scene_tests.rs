@@ -36,6 +36,7 @@ fn recorded() -> &'static (Vec<Frame>, Vec<u8>) {
             trace_sidecar: None,
             algorithms,
             rate_hz: 100.0,
+            profile: Some(full_flight()),
         };
         let mut rec = Recorder::create(&path, &meta).unwrap();
         for f in &frames {
@@ -246,6 +247,7 @@ fn session_events_are_recorded_as_logs() {
         trace_sidecar: None,
         algorithms: vec![AlgorithmId::Cwf, AlgorithmId::Mpc],
         rate_hz: 100.0,
+        profile: Some(full_flight()),
     };
     let mut rec = Recorder::create(&path, &meta).unwrap();
     rec.record(&frames[0]).unwrap();

@@ -101,7 +101,20 @@ fn open_chunk(record: &[u8]) -> Result<Vec<Record<'static>>, McapError> {
             }
         }
     }
+    in_log_time_order(&mut records);
     Ok(records)
+}
+
+/// A chunk's messages in log-time order, after its other records (schemas and channels,
+/// which the messages use): hexcue writes a chunk's messages grouped by topic
+/// (`writer.rs`, `Pending`), and MCAP lets a chunk hold them in any order. Stable, so the
+/// messages of one step keep their order, and a chunk written in time order (every file
+/// written before) is unchanged.
+fn in_log_time_order(records: &mut [Record<'static>]) {
+    records.sort_by_key(|r| match r {
+        Record::Message { header, .. } => (1, header.log_time),
+        _ => (0, 0),
+    });
 }
 
 /// A record's body parsed, for the opcodes the MCAP specification defines.

@@ -18,14 +18,23 @@ use super::{
 };
 use crate::channels::json::{self, Message};
 use crate::channels::scene::{self, SceneBuilder};
-use crate::channels::{self, Channel, EncodeError, Kind, SceneMessage};
+use crate::channels::{self, Channel, EncodeError, Kind, MessageTap, SceneMessage};
 use hexcue_core::engine::Frame;
 use hexcue_core::events::EventLevel;
-use hexcue_core::profile::text::parse_profile;
+use hexcue_core::mca::AlgorithmId;
 
-/// Uncompressed chunk size. The one-second flush normally closes chunks first (a step of
-/// three algorithms is about 5 KB of JSON); this bounds the writer's memory otherwise.
-const CHUNK_SIZE: u64 = 512 * 1024;
+/// Uncompressed chunk size: above [`PENDING_BYTES`], so that the messages of one flush
+/// always make one chunk (their order is only restored within a chunk).
+const CHUNK_SIZE: u64 = 4 * 1024 * 1024;
+/// The messages held until the next flush are written (and their chunk closed) once they
+/// reach this many bytes with their record headers. The one-second flush normally comes first:
+/// a second of three algorithms at 100 Hz with the 3D topics is about 500 KB; the bound was
+/// 512 KB a chunk before, and chunks were then cut by size in the busiest flights
+/// (docs/recordings.md, "Messages grouped by topic").
+const PENDING_BYTES: usize = 2 * 1024 * 1024;
+/// An MCAP message record's bytes besides its data: opcode, length, channel, sequence and
+/// the two times.
+const MESSAGE_RECORD_BYTES: usize = 1 + 8 + 2 + 4 + 8 + 8;
 /// Longest stretch of data, in wall time and in trace time, that a crash may lose.
 const FLUSH_INTERVAL: Duration = Duration::from_secs(1);
 const FLUSH_INTERVAL_S: f64 = 1.0;
@@ -93,6 +102,48 @@ impl Seek for SessionFile {
     }
 }
 
+/// One message held for the chunk: where its data is in [`Pending::data`], and its header.
+struct PendingMessage {
+    /// Where it goes in the chunk: its topic's group, then its place in time.
+    order: (u8, u8, u64),
+    header: MessageHeader,
+    data: std::ops::Range<usize>,
+}
+
+/// The messages of the chunk being assembled, written grouped by topic kind (each lane's
+/// platform messages of the second together, then its legs', …) when the chunk closes: the
+/// JSON of one topic at consecutive steps differs in a few digits, and zstd finds those
+/// matches better next to each other than across the other topics of a step (docs/
+/// recordings.md, "Messages grouped by topic"). Readers restore log-time order within the
+/// chunk (`source.rs`, `open_chunk`); the buffers are kept, so a step allocates nothing once
+/// they have grown.
+#[derive(Default)]
+struct Pending {
+    messages: Vec<PendingMessage>,
+    data: Vec<u8>,
+}
+
+impl Pending {
+    fn bytes(&self) -> usize {
+        self.data.len() + MESSAGE_RECORD_BYTES * self.messages.len()
+    }
+}
+
+/// A topic's group in a chunk: the kinds in their table order (the aircraft's perceived
+/// motion beside the platforms'), then the algorithms in the session's order (`lanes`), which
+/// is the order a reader gives a step's lanes in.
+fn chunk_order(channel: Channel, sequence: u64, lanes: &[AlgorithmId]) -> (u8, u8, u64) {
+    let kind = match channel.kind {
+        Kind::Reference => Kind::Perceived,
+        kind => kind,
+    };
+    let lane = channel.lane.map_or(0, |id| {
+        let at = lanes.iter().position(|a| *a == id).unwrap_or(lanes.len());
+        (1 + at).min(usize::from(u8::MAX)) as u8
+    });
+    (kind as u8, lane, sequence)
+}
+
 /// Writes frames to one MCAP file. Call [`Recorder::finish`] on every way out: dropping it
 /// finishes the file too, but cannot report an error.
 pub struct Recorder {
@@ -117,6 +168,12 @@ pub struct Recorder {
     scene: Option<SceneBuilder>,
     /// Every how many steps the 3D topics are written ([`scene_every_steps`]).
     scene_every: u64,
+    /// The messages since the last flush, written grouped when it closes their chunk.
+    pending: Pending,
+    /// Messages added since the last flush, for the order of equal keys.
+    pending_count: u64,
+    /// The algorithms in the order of the frames' lanes (a lane not announced is added).
+    lanes: Vec<AlgorithmId>,
 }
 
 impl Recorder {
@@ -131,32 +188,39 @@ impl Recorder {
     /// [`Recorder::create`] for a session whose trace is the file `trace` (`meta.trace_csv`
     /// is not read): the trace is compressed and hashed in one pass through a scratch file
     /// beside the recording and attached from it, so that a trace of any length is attached
-    /// without being held in memory (a 10 h trace at 100 Hz is 340 MB of text).
+    /// without being held in memory (a 10 h trace at 100 Hz is 340 MB of text). A session
+    /// that reads the trace anyway hands it to a [`TraceCopy`] as it reads it instead
+    /// ([`Recorder::create_with_compressed_trace`]).
     pub fn create_with_trace_file(
         path: &Path,
         meta: &RecordingMeta,
         trace: &Path,
     ) -> Result<Recorder, RecordingError> {
-        let mut zst_name = path.as_os_str().to_owned();
-        zst_name.push(".trace.zst");
-        let zst_path = PathBuf::from(zst_name);
-        let made = compress_and_hash(trace, &zst_path)
-            .map_err(|error| RecordingError::Io {
-                path: trace.display().to_string(),
-                action: "compress the trace for the recording",
-                error,
-            })
-            .and_then(|sha| {
-                let start_ns = SystemTime::now()
-                    .duration_since(UNIX_EPOCH)
-                    .map_or(1, |d| d.as_nanos().min(u128::from(u64::MAX / 2)) as u64);
-                let mut metadata = session_metadata(meta, start_ns);
-                metadata.insert("trace_sha256".into(), sha);
-                Self::create_from(path, meta, start_ns, metadata, Some(&zst_path))
-            });
-        // The compressed copy is a scratch file whatever happened.
-        let _ = std::fs::remove_file(&zst_path);
-        made
+        let failed = |error| RecordingError::Io {
+            path: trace.display().to_string(),
+            action: "compress the trace for the recording",
+            error,
+        };
+        let mut copy = TraceCopy::beside(path)?;
+        File::open(trace)
+            .and_then(|mut file| io::copy(&mut file, &mut copy))
+            .map_err(failed)?;
+        Self::create_with_compressed_trace(path, meta, copy.finish()?)
+    }
+
+    /// [`Recorder::create`] with the trace attachment made by a [`TraceCopy`]
+    /// (`meta.trace_csv` is not read); its scratch file is removed.
+    pub fn create_with_compressed_trace(
+        path: &Path,
+        meta: &RecordingMeta,
+        trace: CompressedTrace,
+    ) -> Result<Recorder, RecordingError> {
+        let start_ns = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(1, |d| d.as_nanos().min(u128::from(u64::MAX / 2)) as u64);
+        let mut metadata = session_metadata(meta, start_ns);
+        metadata.insert("trace_sha256".into(), trace.sha256.clone());
+        Self::create_from(path, meta, start_ns, metadata, Some(&trace.path))
     }
 
     pub(super) fn create_with(
@@ -264,6 +328,9 @@ impl Recorder {
             metadata: metadata_kept,
             scene: None,
             scene_every: scene_every_steps(meta.rate_hz),
+            pending: Pending::default(),
+            pending_count: 0,
+            lanes: meta.algorithms.clone(),
         };
         if let Some(zst) = trace_zst {
             recorder.attach_file(zst)?;
@@ -282,16 +349,16 @@ impl Recorder {
         for &channel in session.iter().filter(|c| c.kind.is_json()) {
             recorder.channel_id(channel)?;
         }
-        // The rigs are drawn from the attached profile, so that a recovered copy gets the
-        // same scene as the original.
-        if let Ok(profile) = parse_profile(&meta.profile_toml, PROFILE_ATTACHMENT) {
+        // The rigs are drawn from the session's profile (a recovered copy's is the one its
+        // original attached, so it gets the same scene).
+        if let Some(profile) = &meta.profile {
             for kind in Kind::SCENE_SCHEMAS {
                 recorder.schema_id(kind)?;
             }
             for &channel in session.iter().filter(|c| !c.kind.is_json()) {
                 recorder.channel_id(channel)?;
             }
-            recorder.scene = Some(SceneBuilder::new(&profile, &meta.algorithms));
+            recorder.scene = Some(SceneBuilder::new(profile, &meta.algorithms));
         }
         Ok(recorder)
     }
@@ -350,7 +417,6 @@ impl Recorder {
         log_time: u64,
         message: &Message,
     ) -> Result<(), RecordingError> {
-        let channel_id = self.channel_id(channel)?;
         self.buf.clear();
         message
             .write_json(&mut self.buf)
@@ -359,11 +425,12 @@ impl Recorder {
                 action: "encode a message",
                 error: e.into(),
             })?;
-        self.write_buf(channel_id, log_time)
+        self.write_buf(channel, log_time)
     }
 
-    /// Writes `self.buf` as a message on `channel_id`.
-    fn write_buf(&mut self, channel_id: u16, log_time: u64) -> Result<(), RecordingError> {
+    /// Adds `self.buf` as a message on `channel` to the chunk being assembled.
+    fn write_buf(&mut self, channel: Channel, log_time: u64) -> Result<(), RecordingError> {
+        let channel_id = self.channel_id(channel)?;
         let header = MessageHeader {
             channel_id,
             // MCAP sequences are u32; wrapping after 2^32 steps (over a year at 100 Hz) is fine.
@@ -371,19 +438,64 @@ impl Recorder {
             log_time,
             publish_time: log_time,
         };
-        let writer = self
-            .writer
-            .as_mut()
-            .unwrap_or_else(|| unreachable!("the recorder is finished"));
-        if let Err(e) = writer.write_to_known_channel(&header, &self.buf) {
-            return Err(self.write_error(e));
-        }
+        let start = self.pending.data.len();
+        self.pending.data.extend_from_slice(&self.buf);
+        self.pending.messages.push(PendingMessage {
+            order: chunk_order(channel, self.pending_count, &self.lanes),
+            header,
+            data: start..self.pending.data.len(),
+        });
+        self.pending_count += 1;
         self.messages += 1;
+        if self.pending.bytes() >= PENDING_BYTES {
+            self.flush()?;
+        }
         Ok(())
+    }
+
+    /// Writes the pending messages into the open chunk, grouped.
+    fn write_pending(&mut self) -> Result<(), RecordingError> {
+        let Some(writer) = self.writer.as_mut() else {
+            return Ok(());
+        };
+        let pending = &mut self.pending;
+        // Stable and by a key unique to each message: the same bytes for the same frames.
+        pending.messages.sort_unstable_by_key(|m| m.order);
+        let mut failed = None;
+        for m in &pending.messages {
+            if let Err(e) = writer.write_to_known_channel(&m.header, &pending.data[m.data.clone()])
+            {
+                failed = Some(e);
+                break;
+            }
+        }
+        pending.messages.clear();
+        pending.data.clear();
+        self.pending_count = 0;
+        match failed {
+            Some(e) => Err(self.write_error(e)),
+            None => Ok(()),
+        }
     }
 
     /// Writes one step: a message on every topic.
     pub fn record(&mut self, frame: &Frame) -> Result<(), RecordingError> {
+        self.record_with(frame, None)
+    }
+
+    /// Whether the recording has the 3D topics (the session's profile was known).
+    pub fn draws_scene(&self) -> bool {
+        self.scene.is_some()
+    }
+
+    /// [`Recorder::record`], handing each message, as encoded for the file, to `tap` when it
+    /// wants it, with the 3D topics drawn at every step it asks for them (recorded every
+    /// [`scene_every_steps`] only): one encoding for the file and a live viewer.
+    pub fn record_with(
+        &mut self,
+        frame: &Frame,
+        mut tap: Option<&mut (dyn MessageTap + 'static)>,
+    ) -> Result<(), RecordingError> {
         let t = frame.t_s;
         if !t.is_finite() || t < 0.0 {
             return Err(RecordingError::BadTime {
@@ -394,15 +506,33 @@ impl Recorder {
         let log_time = self
             .start_ns
             .saturating_add((t * 1e9).round().min(u64::MAX as f64 / 2.0) as u64);
+        for lane in &frame.lanes {
+            if !self.lanes.contains(&lane.id) {
+                self.lanes.push(lane.id);
+            }
+        }
         for (channel, message) in json::messages(frame) {
             self.write_json(channel, log_time, &message)?;
+            if let Some(tap) = tap
+                .as_deref_mut()
+                .and_then(|tap| tap.wants(channel).then_some(tap))
+            {
+                tap.message(channel, &self.buf, log_time);
+            }
         }
         if let Some(mut scene) = self.scene.take() {
-            let draw = self.steps.is_multiple_of(self.scene_every);
-            let step = scene.step(frame, log_time);
-            let written = self.write_scene(step.by_channel(draw), log_time);
+            let recorded = self.steps.is_multiple_of(self.scene_every);
+            let served = tap
+                .as_deref_mut()
+                .is_some_and(|tap| tap.wants_every_scene());
+            let step = scene.step(frame, log_time, recorded || served);
+            let written =
+                self.write_scene(step.by_channel(), log_time, recorded, tap.as_deref_mut());
             self.scene = Some(scene);
             written?;
+        }
+        if let Some(tap) = tap {
+            tap.step_done(log_time);
         }
         self.steps += 1;
         self.first_t.get_or_insert(t);
@@ -431,22 +561,42 @@ impl Recorder {
             .saturating_add((t_s.max(0.0) * 1e9).round().min(u64::MAX as f64 / 2.0) as u64);
         if self.scene.is_some() {
             let log = scene::event(log_time, level, source, text);
-            self.write_scene([(Channel::EVENTS, SceneMessage::Log(&log))], log_time)?;
+            self.write_scene(
+                [(Channel::EVENTS, SceneMessage::Log(&log))],
+                log_time,
+                true,
+                None,
+            )?;
         }
         Ok(())
     }
 
+    /// Encodes Foxglove's messages of a step once each, writes the events and, when
+    /// `recorded`, the 3D topics, and hands `tap` those it wants.
     fn write_scene<'a>(
         &mut self,
         messages: impl IntoIterator<Item = (Channel, SceneMessage<'a>)>,
         log_time: u64,
+        recorded: bool,
+        mut tap: Option<&mut (dyn MessageTap + 'static)>,
     ) -> Result<(), RecordingError> {
         for (channel, message) in messages {
-            let channel_id = self.channel_id(channel)?;
+            let record = recorded || channel.kind == Kind::Events;
+            let tap = tap
+                .as_deref_mut()
+                .and_then(|tap| tap.wants(channel).then_some(tap));
+            if !record && tap.is_none() {
+                continue;
+            }
             message
                 .encode(&mut self.buf)
                 .map_err(|e| encode_error(&self.path, e))?;
-            self.write_buf(channel_id, log_time)?;
+            if record {
+                self.write_buf(channel, log_time)?;
+            }
+            if let Some(tap) = tap {
+                tap.message(channel, &self.buf, log_time);
+            }
         }
         Ok(())
     }
@@ -454,6 +604,7 @@ impl Recorder {
     /// Closes the open chunk and hands it to the OS. `record` does this every second; a
     /// console that pauses should call it too, so the pause loses nothing.
     pub fn flush(&mut self) -> Result<(), RecordingError> {
+        self.write_pending()?;
         self.flushed_wall = Instant::now();
         self.flushed_t = self.last_t;
         self.writer().flush().map_err(|e| RecordingError::Write {
@@ -490,16 +641,14 @@ impl Recorder {
         // attachment's length comes before its bytes, and an hour's log need not fit in memory.
         let mut zst_name = trace_csv.as_os_str().to_owned();
         zst_name.push(".zst");
-        let zst_path = PathBuf::from(zst_name);
-        let sha = compress_and_hash(trace_csv, &zst_path)
-            .map_err(|e| failed("compress the input log", e));
-        let attached = sha.and_then(|sha| {
-            let attached = self.attach_file(&zst_path);
-            attached.map(|()| sha)
-        });
-        // The compressed copy is a scratch file whatever happened.
-        let _ = std::fs::remove_file(&zst_path);
-        let sha = attached?;
+        let mut copy = TraceCopy::to(PathBuf::from(zst_name))?;
+        File::open(trace_csv)
+            .and_then(|mut file| io::copy(&mut file, &mut copy))
+            .map_err(|e| failed("compress the input log", e))?;
+        let compressed = copy.finish()?;
+        self.write_pending()?;
+        self.attach_file(&compressed.path)?;
+        let sha = compressed.sha256.clone();
         let mut metadata = self.metadata.clone();
         metadata.insert("trace_sha256".into(), sha);
         for (k, v) in extra {
@@ -558,6 +707,7 @@ impl Recorder {
 
     /// Writes the summary section and closes the file.
     pub fn finish(mut self) -> Result<RecordingStats, RecordingError> {
+        self.write_pending()?;
         let path = shown(&self.path);
         let mut writer = self
             .writer
@@ -592,38 +742,113 @@ impl Recorder {
     }
 }
 
-/// Compresses the text at `from` into `to` (one zstd frame) and returns its SHA-256.
-fn compress_and_hash(from: &Path, to: &Path) -> io::Result<String> {
-    struct Tee<W> {
-        hasher: Sha256,
-        out: W,
+impl Drop for Recorder {
+    /// A recorder dropped without [`Recorder::finish`] still hands its pending messages to
+    /// the MCAP writer, whose own drop finishes the file (as before they were held).
+    fn drop(&mut self) {
+        let _ = self.write_pending();
     }
-    impl<W: Write> Write for Tee<W> {
-        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-            let n = self.out.write(buf)?;
-            self.hasher.update(&buf[..n]);
-            Ok(n)
-        }
-        fn flush(&mut self) -> io::Result<()> {
-            self.out.flush()
+}
+
+/// A trace on its way into a recording: compressed (one zstd frame) into a scratch file
+/// and hashed (SHA-256) as its bytes are written in, so that whoever reads the trace feeds
+/// both in the same pass and nothing grows with its length. [`TraceCopy::finish`] gives the
+/// [`CompressedTrace`] to attach; a copy given up is removed.
+pub struct TraceCopy {
+    path: PathBuf,
+    hasher: Sha256,
+    out: Option<zstd::stream::Encoder<'static, BufWriter<File>>>,
+}
+
+impl TraceCopy {
+    /// A scratch file beside the recording at `recording` (its name + `.trace.zst`).
+    pub fn beside(recording: &Path) -> Result<Self, RecordingError> {
+        let mut name = recording.as_os_str().to_owned();
+        name.push(".trace.zst");
+        Self::to(PathBuf::from(name))
+    }
+
+    /// A scratch file at `path`.
+    pub fn to(path: PathBuf) -> Result<Self, RecordingError> {
+        let out = File::create(&path)
+            .and_then(|file| zstd::stream::Encoder::new(BufWriter::new(file), ZSTD_LEVEL as i32));
+        match out {
+            Ok(out) => Ok(TraceCopy {
+                path,
+                hasher: Sha256::new(),
+                out: Some(out),
+            }),
+            Err(error) => Err(RecordingError::Io {
+                path: shown(&path),
+                action: "create the compressed trace",
+                error,
+            }),
         }
     }
-    let out = BufWriter::new(File::create(to)?);
-    let mut tee = Tee {
-        hasher: Sha256::new(),
-        out: zstd::stream::Encoder::new(out, ZSTD_LEVEL as i32)?,
-    };
-    io::copy(&mut File::open(from)?, &mut tee)?;
-    let Tee { hasher, out } = tee;
-    out.finish()?
-        .into_inner()
-        .map_err(|e| e.into_error())?
-        .sync_all()?;
-    Ok(hasher
-        .finalize()
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect())
+
+    /// Ends the zstd frame and syncs the file: the attachment and the hash of what was written.
+    pub fn finish(mut self) -> Result<CompressedTrace, RecordingError> {
+        let path = std::mem::take(&mut self.path);
+        let failed = |error| RecordingError::Io {
+            path: shown(&path),
+            action: "write the compressed trace",
+            error,
+        };
+        let ended = match self.out.take() {
+            Some(out) => out
+                .finish()
+                .and_then(|w| w.into_inner().map_err(|e| e.into_error())),
+            None => Err(io::Error::other("already finished")),
+        };
+        let trace = CompressedTrace {
+            sha256: std::mem::take(&mut self.hasher)
+                .finalize()
+                .iter()
+                .map(|b| format!("{b:02x}"))
+                .collect(),
+            path: path.clone(),
+        };
+        ended.and_then(|file| file.sync_all()).map_err(failed)?;
+        Ok(trace)
+    }
+}
+
+impl Write for TraceCopy {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        let out = self
+            .out
+            .as_mut()
+            .ok_or_else(|| io::Error::other("the compressed trace is finished"))?;
+        let n = out.write(buf)?;
+        self.hasher.update(&buf[..n]);
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.out.as_mut().map_or(Ok(()), |out| out.flush())
+    }
+}
+
+impl Drop for TraceCopy {
+    fn drop(&mut self) {
+        // Given up before `finish` (the trace was refused): the scratch file goes too.
+        if !self.path.as_os_str().is_empty() {
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
+}
+
+/// A trace compressed into a scratch file by a [`TraceCopy`], with the SHA-256 of its text;
+/// the file is removed when this is dropped, attached or not.
+pub struct CompressedTrace {
+    path: PathBuf,
+    sha256: String,
+}
+
+impl Drop for CompressedTrace {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
 }
 
 fn session_metadata(meta: &RecordingMeta, start_ns: u64) -> BTreeMap<String, String> {

@@ -2,6 +2,7 @@
 //! whole or streamed.
 
 use super::*;
+use std::io::{Seek, SeekFrom, Write};
 
 /// Parses a trace (native or JSBSim CSV) and puts it on the uniform grid of `target_rate_hz`.
 /// `source_name` names the file in every error; `name` is the trace's name for the user.
@@ -537,14 +538,48 @@ const MAX_UPSAMPLING: f64 = 1000.0;
 /// Checks a trace file row by row without holding it, and reads its sidecar: the plan to
 /// stream it with [`open_grid`]. Memory does not grow with the file's length.
 pub fn scan_trace_file(path: &Path, target_rate_hz: f64) -> Result<TracePlan, TraceError> {
+    scan_trace_file_copying(path, target_rate_hz, None)
+}
+
+/// [`scan_trace_file`], handing every byte of the file, as this pass reads it, to `copy`: a
+/// recording's hash and compressed attachment made in the same read as the checks
+/// (`formats::recording::TraceCopy`). On success `copy` has had the whole file.
+pub fn scan_trace_file_copying(
+    path: &Path,
+    target_rate_hz: f64,
+    copy: Option<&mut dyn Write>,
+) -> Result<TracePlan, TraceError> {
     let source_name = path.display().to_string();
     let name = path
         .file_stem()
         .map_or_else(|| "trace".to_string(), |s| s.to_string_lossy().into_owned());
+    let io = |error| TraceError::Io {
+        source_name: source_name.clone(),
+        error,
+    };
+    let copied = std::cell::Cell::new(0u64);
+    // Only the first opening (the scan) copies; a second is for a refusal's line numbers.
+    let copy = std::cell::RefCell::new(copy);
     // No cap on the file's size or length: nothing here grows with it (docs/design.md §9).
     // A file that is not a trace is refused by its first lines.
-    let open = || open_file(path, &source_name);
+    let open = || {
+        let file = File::open(path).map_err(io)?;
+        Ok(BufReader::with_capacity(
+            64 * 1024,
+            Copying {
+                file,
+                copy: copy.borrow_mut().take(),
+                copied: &copied,
+            },
+        ))
+    };
     let mut plan = scan(&open, &source_name, &name, target_rate_hz, usize::MAX)?;
+    if let Some(copy) = copy.into_inner() {
+        // The scan reads to the end of the file; had it stopped short, the copy completes it.
+        let mut rest = File::open(path).map_err(io)?;
+        rest.seek(SeekFrom::Start(copied.get())).map_err(io)?;
+        std::io::copy(&mut rest, copy).map_err(io)?;
+    }
     let mut trace = Trace {
         name: name.clone(),
         rate_hz: target_rate_hz,
@@ -696,6 +731,24 @@ fn seconds(s: f64) -> String {
         text.trim_end_matches('0').trim_end_matches('.').to_string()
     } else {
         text
+    }
+}
+
+/// A file read that hands what it reads to `copy` (when there is one) and counts it.
+struct Copying<'c, 'w> {
+    file: File,
+    copy: Option<&'w mut dyn Write>,
+    copied: &'c std::cell::Cell<u64>,
+}
+
+impl Read for Copying<'_, '_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.file.read(buf)?;
+        if let Some(copy) = self.copy.as_deref_mut() {
+            copy.write_all(&buf[..n])?;
+            self.copied.set(self.copied.get() + n as u64);
+        }
+        Ok(n)
     }
 }
 
