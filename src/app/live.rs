@@ -59,7 +59,7 @@ pub struct LiveSetup {
 
 /// Opens the input, the outputs and the recording of `hexcue live`.
 pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
-    use crate::live::{live_profile, LiveSession};
+    use crate::live::LiveSession;
     use crate::sinks::live_recording::LiveRecording;
     if let Some(d) = args.duration {
         if !(d.is_finite() && d > 0.0) {
@@ -78,7 +78,6 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
         text: profile_toml.clone(),
         name: profile.name.clone(),
     };
-    let profile = live_profile(&profile);
     let algorithms = parse_algorithms(&args.algorithms)?;
     let drive = AlgorithmId::from_key(&args.drive)
         .with_context(|| format!("--drive {}: expected smpc, mpc or cwf", args.drive))?;
