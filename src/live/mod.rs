@@ -1341,6 +1341,83 @@ mod tests {
         assert!(!live.realtime.requested);
     }
 
+    /// The comparison lanes step on their own thread exactly as they would in the driving
+    /// lane's engine: every frame the sinks get has every lane in the order asked, and the
+    /// MPC's commands (a comparison lane here, its time limit off) are those of an engine
+    /// stepping the same samples with the same cue gains and resets, bit for bit.
+    #[test]
+    fn the_comparison_lanes_step_on_their_own_thread_as_in_one_engine() {
+        let input = LiveInput::with_decoder(
+            "jsbsim://127.0.0.1:0",
+            Box::new(Jsbsim::default()),
+            Endpoint::Listen("127.0.0.1:0".parse().unwrap()),
+        )
+        .unwrap();
+        let addr = input.local_addr().unwrap();
+        let profile = full_flight();
+        let order = [AlgorithmId::Mpc, AlgorithmId::Cwf];
+        let mut s = LiveSession::new(&profile, &order, AlgorithmId::Cwf, input).unwrap();
+        let sender = std::thread::spawn(move || {
+            let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+            for k in 0..300 {
+                let t = k as f64 * 0.01;
+                let line = format!("{t},{},0,-40.0,0,0.05,0.1,0.2,0,0\n", 6.0 * (2.0 * t).sin());
+                tx.send_to(line.as_bytes(), addr).unwrap();
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        });
+        let mut seen = Vec::new();
+        let mut asked = 0;
+        run(
+            &mut s,
+            |_| {
+                asked += 1;
+                if asked > 250 {
+                    Control::Stop
+                } else {
+                    Control::Continue
+                }
+            },
+            |r| {
+                let ids: Vec<AlgorithmId> = r.frame.lanes.iter().map(|l| l.id).collect();
+                assert_eq!(ids, order, "step {}", r.frame.k);
+                let mpc = r.frame.lane(AlgorithmId::Mpc).unwrap().command;
+                seen.push((r.frame.aircraft, r.lanes, mpc));
+            },
+        )
+        .unwrap();
+        sender.join().unwrap();
+        assert_eq!(s.stats().frames_dropped, 0);
+        assert_eq!(seen.len() as u64, s.stats().commands_out);
+        let mut alone = Engine::with_source(
+            &profile,
+            Box::new(HeldSample::new("alone", profile.rate_hz)),
+            &[AlgorithmId::Mpc],
+        )
+        .unwrap();
+        alone.set_parallel(false);
+        let (mut resets, mut moved) = (0, false);
+        for (k, (aircraft, orders, mpc)) in seen.iter().enumerate() {
+            if orders.resets != resets {
+                alone.reset_lanes();
+                resets = orders.resets;
+            }
+            alone.set_cue_gain(orders.cue_gain);
+            alone.push_sample(*aircraft);
+            let frame = alone.step().unwrap();
+            assert_eq!(frame.lanes[0].command, *mpc, "step {k}");
+            moved |= mpc.pose.amax() > 1e-4;
+        }
+        assert!(moved, "the MPC never moved: nothing was compared");
+        let summary = s.summary();
+        assert_eq!(summary.algorithms.len(), 2);
+        let live = summary.live.unwrap();
+        assert_eq!(
+            live.deadline_share.keys().collect::<Vec<_>>(),
+            ["cwf", "mpc"]
+        );
+    }
+
     /// The fade-in on engage: a steady turn's cue (1.5 g, a yaw rate, banked) arrives at once
     /// from parked, and the cue gain's C² ramp lets it in without a jolt: the commanded
     /// acceleration (second difference of the poses) within the 2 m/s² and 30 °/s²,
