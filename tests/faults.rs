@@ -434,6 +434,11 @@ fn console_record_then_signal(sig: i32, name: &str) {
     wait_for_recorded_steps(&file, 100, &mut s.child, Duration::from_secs(60));
     signal(&s.child, sig);
     let status = wait_with_timeout(&mut s.child, Duration::from_secs(30));
+    // The pseudo-terminal's reader may not have read the last bytes when the exit is seen.
+    s.wait_for(
+        &format!("stopped by {}", name.to_uppercase()),
+        Duration::from_secs(10),
+    );
     let text = s.text();
     assert!(!text.contains("panicked"), "{text}");
     // A session ended by a signal says so and exits as shells report that signal (128 + n),
