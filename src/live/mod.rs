@@ -462,23 +462,38 @@ impl LiveSession {
 
     /// Waits for the step of the period that starts at `start`: until a sample newer than
     /// the last step's has arrived (and `start` has come), or until `hold_at`, whichever is
-    /// first. Sleeps in `poll(2)` on the input socket in between, reading what arrives
+    /// first. A newer sample that arrived before the previous period's hold point (`hold_at`
+    /// − the period) came early in a period whose step had already been taken (a burst, a
+    /// faster simulator, or steps that run a period behind the simulator's phase): it starts
+    /// the step only once the next sample is overdue (a period and a tenth after it), and a
+    /// sample arriving before then starts it instead, which moves the steps onto the
+    /// arrivals. Sleeps in `poll(2)` on the input socket in between, reading what arrives
     /// within the step's budget of reads; past that budget (a flood) it sleeps without
     /// reading.
     pub fn await_step(&mut self, start: Instant, hold_at: Instant) -> Result<()> {
+        let early_before = hold_at.checked_sub(self.period).unwrap_or(start);
+        let overdue = self.period + self.period / 10;
         loop {
             let now = Instant::now();
             self.poll_input(now)?;
-            let newer = self
+            let ready_at = self
                 .input
                 .latest()
-                .is_some_and(|(_, at)| Some(at) != self.used_arrival);
-            if now >= hold_at || (newer && now >= start) {
+                .map(|(_, at)| at)
+                .filter(|at| Some(*at) != self.used_arrival)
+                .map(|at| {
+                    if at >= early_before {
+                        start
+                    } else {
+                        (at + overdue).clamp(start, hold_at)
+                    }
+                });
+            let until = ready_at.unwrap_or(hold_at).min(hold_at);
+            if now >= until {
                 return Ok(());
             }
-            let until = if newer { start } else { hold_at };
             if self.reads_left == 0 {
-                std::thread::sleep(until - now);
+                std::thread::sleep(until.saturating_duration_since(now));
             } else {
                 self.input
                     .wait(until)
