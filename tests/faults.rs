@@ -106,6 +106,23 @@ fn last_flushed_log_time(path: &Path) -> Option<u64> {
     newest
 }
 
+/// Waits until the recording at `path` holds at least `steps` steps on disk, read as
+/// `review` would, at most `limit`; the run must still be going (`child`).
+fn wait_for_recorded_steps(path: &Path, steps: u64, child: &mut Child, limit: Duration) {
+    let start = Instant::now();
+    while hexcue::formats::recording::Recording::open(path).map_or(0, |r| r.steps) < steps {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended before {steps} steps were recorded"
+        );
+        assert!(
+            start.elapsed() < limit,
+            "fewer than {steps} steps recorded after {limit:?}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
 fn metadata_start_ns(path: &Path) -> u64 {
     let out = hexcue(&["review".as_ref(), path.as_os_str(), "--headless".as_ref()]);
     assert!(out.status.success(), "{}", stderr(&out));
@@ -183,8 +200,9 @@ fn a_headless_recording_killed_mid_run_reviews_and_recovers() {
 fn a_headless_run_stopped_by_sigterm_or_sighup_finishes_its_recording() {
     for (sig, name) in [(libc::SIGTERM, "sigterm"), (libc::SIGHUP, "sighup")] {
         let file = scratch().join(format!("headless-{name}.mcap"));
-        // The MPC takes about a minute over this trace, so the signal lands mid-run (the CWF
-        // alone finishes in well under the 1.5 s wait).
+        // The MPC takes about a minute over this trace, so the signal lands mid-run, once
+        // steps are on disk.
+        let _ = std::fs::remove_file(&file);
         let mut child = Command::new(env!("CARGO_BIN_EXE_hexcue"))
             .args(["play", "--headless", "--algorithms", "mpc", "--trace"])
             .arg(long_trace())
@@ -195,7 +213,7 @@ fn a_headless_run_stopped_by_sigterm_or_sighup_finishes_its_recording() {
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
-        std::thread::sleep(Duration::from_millis(1500));
+        wait_for_recorded_steps(&file, 1, &mut child, Duration::from_secs(60));
         signal(&child, sig);
         let status = wait_with_timeout(&mut child, Duration::from_secs(30));
         let mut err = String::new();
@@ -412,9 +430,15 @@ fn console_record_then_signal(sig: i32, name: &str) {
         30,
     );
     s.wait_for("REC", Duration::from_secs(30));
-    std::thread::sleep(Duration::from_millis(1500));
+    // More than the 50 steps asked of the review below.
+    wait_for_recorded_steps(&file, 100, &mut s.child, Duration::from_secs(60));
     signal(&s.child, sig);
     let status = wait_with_timeout(&mut s.child, Duration::from_secs(30));
+    // The pseudo-terminal's reader may not have read the last bytes when the exit is seen.
+    s.wait_for(
+        &format!("stopped by {}", name.to_uppercase()),
+        Duration::from_secs(10),
+    );
     let text = s.text();
     assert!(!text.contains("panicked"), "{text}");
     // A session ended by a signal says so and exits as shells report that signal (128 + n),
@@ -463,7 +487,7 @@ fn a_console_recording_killed_loses_at_most_a_second() {
         30,
     );
     s.wait_for("REC", Duration::from_secs(30));
-    std::thread::sleep(Duration::from_millis(3500));
+    wait_for_recorded_steps(&file, 300, &mut s.child, Duration::from_secs(60));
     let killed_ns = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .unwrap()

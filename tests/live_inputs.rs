@@ -225,14 +225,6 @@ fn datagram(p: &Protocol, props: &HashMap<&str, f64>) -> Vec<u8> {
 
 // ---------------------------------------------------------------------------------------------
 
-fn free_port() -> u16 {
-    UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 /// `hexcue live --headless` with the CWF alone (a debug build keeps real time), recording
 /// to DIR/live.mcap and summarising to DIR/live.json.
 fn live(input: &str, duration_s: f64, dir: &Path) -> Child {
@@ -312,7 +304,7 @@ fn flightgear_datagrams_built_from_the_shipped_protocol_are_recorded_as_sent() {
     let (running, frozen) = (datagram(&proto, &flying), datagram(&proto, &paused));
 
     let dir = tempfile::tempdir().unwrap();
-    let port = free_port();
+    let port = free_udp_port();
     let url = format!("flightgear://127.0.0.1:{port}");
     let child = live(&url, 5.0, dir.path());
     let stop = Arc::new(AtomicBool::new(false));
@@ -413,7 +405,7 @@ fn inputs_at_60_120_and_250_hz_are_held_on_hexcues_100_hz_clock() {
         .into_iter()
         .map(|rate_hz| {
             let dir = tempfile::tempdir().unwrap();
-            let port = free_port();
+            let port = free_udp_port();
             let child = live(&format!("jsbsim://127.0.0.1:{port}"), 4.0, dir.path());
             let stop = Arc::new(AtomicBool::new(false));
             let sender = send_until(port, rate_hz, stop.clone(), move |k| {
@@ -496,7 +488,7 @@ fn timed_lines(err: &str) -> Vec<(f64, &str)> {
 #[test]
 fn a_session_with_no_input_says_so_while_waiting_and_is_not_called_clean() {
     let dir = tempfile::tempdir().unwrap();
-    let port = free_port();
+    let port = free_udp_port();
     let url = format!("jsbsim://127.0.0.1:{port}");
     let out = live(&url, 4.0, dir.path()).wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
@@ -532,7 +524,7 @@ fn a_session_with_no_input_says_so_while_waiting_and_is_not_called_clean() {
 #[test]
 fn malformed_input_is_reported_as_it_happens() {
     let dir = tempfile::tempdir().unwrap();
-    let port = free_port();
+    let port = free_udp_port();
     let child = live(&format!("flightgear://127.0.0.1:{port}"), 7.0, dir.path());
     let stop = Arc::new(AtomicBool::new(false));
     // 43 bytes: one short of the protocol's datagram.

@@ -29,14 +29,6 @@ const E11_NEUTRAL_HEAVE_M: f64 = -0.2286;
 /// One g in ft/s², as JSBSim sends `a-pilot-z` in level flight (negated).
 const G_FT_S2: f64 = 32.174;
 
-fn free_port() -> u16 {
-    UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 /// The shipped profile with Rev E11's neutral heave offset.
 fn e11_profile(dir: &Path) -> std::path::PathBuf {
     let text = std::fs::read_to_string(repo().join("profiles/full-flight.toml")).unwrap();
@@ -122,7 +114,7 @@ fn session(
     dir: &Path,
 ) -> (Output, Vec<Received>) {
     let base = FakeBase::start(config).unwrap();
-    let in_port = free_port();
+    let in_port = free_udp_port();
     let stop = Arc::new(AtomicBool::new(false));
     let sim = simulator(in_port, pull_up_s, stop.clone());
     let out = hexcue_live(&base, in_port, duration_s, dir);

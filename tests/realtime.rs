@@ -14,14 +14,6 @@ use std::time::{Duration, Instant};
 use common::*;
 use serde_json::Value;
 
-fn free_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 /// `hexcue live --headless` for `duration_s` with a recording and a summary in `dir`.
 fn live_command(dir: &Path, duration_s: f64, extra: &[&str]) -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_hexcue"));
@@ -34,9 +26,9 @@ fn live_command(dir: &Path, duration_s: f64, extra: &[&str]) -> Command {
         "cwf",
     ])
     .arg("--input")
-    .arg(format!("jsbsim://127.0.0.1:{}", free_port()))
+    .arg(format!("jsbsim://127.0.0.1:{}", free_udp_port()))
     .arg("--output")
-    .arg(format!("udp://127.0.0.1:{}", free_port()))
+    .arg(format!("udp://127.0.0.1:{}", free_udp_port()))
     .arg("--duration")
     .arg(duration_s.to_string())
     .arg("--record")

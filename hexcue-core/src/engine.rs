@@ -377,6 +377,14 @@ impl Engine {
         self.source.known_len()
     }
 
+    /// Offers the sample the next [`Engine::step`] uses to a source that takes pushes (a
+    /// live stream's [`crate::source::HeldSample`]): the loop that reads the simulator hands
+    /// each new sample over here, on the engine's own thread, without a lock or an
+    /// allocation. A source that reads its own samples (a trace) ignores it: `false`.
+    pub fn push_sample(&mut self, sample: AircraftSample) -> bool {
+        self.source.push(sample)
+    }
+
     /// Why the source stopped early, if it did: the run ended there.
     pub fn source_error(&self) -> Option<&SourceError> {
         self.source_error.as_ref()
@@ -773,13 +781,28 @@ pub(crate) mod tests {
     fn a_live_stream_refuses_to_restore_a_snapshot() {
         let profile = full_flight();
         let algorithms = [AlgorithmId::Mpc, AlgorithmId::Cwf];
-        let (live, _handle) = crate::source::HeldSample::new("sim", 100.0);
+        let live = crate::source::HeldSample::new("sim", 100.0);
         let mut live = Engine::with_source(&profile, Box::new(live), &algorithms).unwrap();
         let at_zero = live.snapshot().unwrap();
         live.step().unwrap();
         assert!(!live.restore(&at_zero), "a live stream cannot go back");
         assert_eq!(live.position(), 1);
-        assert!(live.step().is_some(), "and goes on");
+        // A pushed sample is the next step's aircraft, on the engine's clock.
+        let pushed = AircraftSample {
+            t_s: 99.0,
+            specific_force_mps2: Vector3::new(1.5, 0.0, -9.0),
+            ..Default::default()
+        };
+        assert!(live.push_sample(pushed));
+        let frame = live.step().expect("and goes on");
+        assert_eq!(
+            frame.aircraft.specific_force_mps2,
+            pushed.specific_force_mps2
+        );
+        assert_eq!(frame.t_s, 0.01);
+        // A trace reads its own samples.
+        let mut file = Engine::new(&profile, Arc::new(manoeuvre()), &[AlgorithmId::Cwf]).unwrap();
+        assert!(!file.push_sample(pushed));
     }
 
     #[test]

@@ -4,7 +4,7 @@
 //! the look-ahead window its algorithms may preview, so memory follows that window and the
 //! console's, never the flight's length.
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use crate::trace::{AircraftSample, Trace};
 
@@ -48,6 +48,13 @@ pub trait SampleSource: Send {
     /// cannot.
     fn can_seek(&self) -> bool {
         true
+    }
+    /// Offers the sample the next [`SampleSource::next_sample`] gives: a live stream's newest
+    /// sample, pushed by the loop that reads it (see [`crate::engine::Engine::push_sample`]).
+    /// Takes no allocation and no lock. A source that reads its own samples (a trace) ignores
+    /// it and returns `false`.
+    fn push(&mut self, _sample: AircraftSample) -> bool {
+        false
     }
 }
 
@@ -94,46 +101,28 @@ impl SampleSource for TraceSamples {
 }
 
 /// The latest sample of a live simulator, held between its arrivals (zero-order hold): the
-/// live clock sets it through a [`HeldSampleHandle`] before each step, the engine reads it.
-/// Its time is the engine's step time, not the simulator's: the clock is hexcue's.
+/// live loop pushes each new sample ([`SampleSource::push`], through
+/// [`crate::engine::Engine::push_sample`]) on the thread that steps the engine, which then
+/// reads it. Its time is the engine's step time, not the simulator's: the clock is hexcue's.
 pub struct HeldSample {
     name: String,
-    shared: Arc<Mutex<AircraftSample>>,
+    held: AircraftSample,
     k: usize,
     rate_hz: f64,
 }
 
-/// Sets the sample a [`HeldSample`] gives next.
-#[derive(Clone)]
-pub struct HeldSampleHandle(Arc<Mutex<AircraftSample>>);
-
-impl HeldSampleHandle {
-    /// The sample the [`HeldSample`] gives from its next step on (the previous one is replaced).
-    pub fn set(&self, sample: AircraftSample) {
-        match self.0.lock() {
-            Ok(mut s) => *s = sample,
-            Err(poisoned) => *poisoned.into_inner() = sample,
-        }
-    }
-}
-
 impl HeldSample {
-    /// A held source at rest (level, unaccelerated: f = (0, 0, −g)) until the first set.
-    pub fn new(name: &str, rate_hz: f64) -> (Self, HeldSampleHandle) {
-        let rest = AircraftSample {
-            specific_force_mps2: nalgebra::Vector3::new(0.0, 0.0, -crate::G_MPS2),
-            ..AircraftSample::default()
-        };
-        let shared = Arc::new(Mutex::new(rest));
-        (
-            HeldSample {
-                name: name.to_string(),
-                shared: shared.clone(),
-                k: 0,
-                rate_hz,
+    /// A held source at rest (level, unaccelerated: f = (0, 0, −g)) until the first push.
+    pub fn new(name: &str, rate_hz: f64) -> Self {
+        HeldSample {
+            name: name.to_string(),
+            held: AircraftSample {
+                specific_force_mps2: nalgebra::Vector3::new(0.0, 0.0, -crate::G_MPS2),
+                ..AircraftSample::default()
             },
-            HeldSampleHandle(shared),
-        )
+            k: 0,
+            rate_hz,
+        }
     }
 }
 
@@ -145,13 +134,13 @@ impl SampleSource for HeldSample {
         None
     }
     fn next_sample(&mut self) -> Result<Option<AircraftSample>, SourceError> {
-        let held = match self.shared.lock() {
-            Ok(s) => *s,
-            Err(poisoned) => *poisoned.into_inner(),
-        };
         let t_s = self.k as f64 / self.rate_hz;
         self.k += 1;
-        Ok(Some(AircraftSample { t_s, ..held }))
+        Ok(Some(AircraftSample { t_s, ..self.held }))
+    }
+    fn push(&mut self, sample: AircraftSample) -> bool {
+        self.held = sample;
+        true
     }
     fn rewind(&mut self) -> Result<(), SourceError> {
         Err(SourceError(format!(
@@ -173,7 +162,7 @@ mod tests {
 
     #[test]
     fn a_held_sample_repeats_on_the_engine_clock_until_replaced() {
-        let (mut src, handle) = HeldSample::new("sim", 100.0);
+        let mut src = HeldSample::new("sim", 100.0);
         let first = src.next_sample().unwrap().unwrap();
         assert_eq!(first.specific_force_mps2.z, -crate::G_MPS2);
         let s = AircraftSample {
@@ -181,7 +170,7 @@ mod tests {
             specific_force_mps2: nalgebra::Vector3::new(2.0, 0.0, -9.0),
             ..Default::default()
         };
-        handle.set(s);
+        assert!(src.push(s));
         for k in 1..4 {
             let got = src.next_sample().unwrap().unwrap();
             assert_eq!(got.specific_force_mps2.x, 2.0);
@@ -191,5 +180,16 @@ mod tests {
         assert!(src.rewind().is_err());
         assert!(src.seek(0).is_err() && !src.can_seek());
         assert_eq!(src.known_len(), None);
+        // A trace reads its own samples: a push is refused and changes nothing.
+        let trace = Arc::new(Trace {
+            name: "t".into(),
+            rate_hz: 100.0,
+            samples: vec![AircraftSample::default()],
+            info: None,
+            notices: Vec::new(),
+        });
+        let mut file = TraceSamples::new(trace);
+        assert!(!file.push(s));
+        assert_eq!(file.next_sample().unwrap(), Some(AircraftSample::default()));
     }
 }

@@ -146,6 +146,19 @@ pub struct LiveSummary {
     /// because the simulator sent none newer (ms).
     #[serde(default)]
     pub new_sample_latency_ms: Quantiles,
+    /// Per algorithm: the share of each step's deadline its step used (from the step's
+    /// start to the start of its period plus one period; 0.25 = a quarter of the time it
+    /// had). The driving algorithm's is the one the platform waits for; the comparison
+    /// lanes run on a thread of their own, and theirs is of the same budget.
+    #[serde(default)]
+    pub deadline_share: BTreeMap<String, Quantiles>,
+    /// Steps at which the comparison lanes (the algorithms not driving) finished after the
+    /// step's deadline, on their own thread: they lag the driving lane, which they never
+    /// delay; and the most they lagged (s).
+    #[serde(default)]
+    pub comparison_late_steps: u64,
+    #[serde(default)]
+    pub comparison_lag_max_s: f64,
     /// Steps with fresh input whose sample was older than one period: the simulator slower
     /// than hexcue's clock, or late.
     #[serde(default)]

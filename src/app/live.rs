@@ -58,7 +58,7 @@ pub struct LiveSetup {
 
 /// Opens the input, the outputs and the recording of `hexcue live`.
 pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
-    use crate::live::{live_profile, LiveSession};
+    use crate::live::LiveSession;
     use crate::sinks::live_recording::LiveRecording;
     if let Some(d) = args.duration {
         if !(d.is_finite() && d > 0.0) {
@@ -77,7 +77,6 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
         text: profile_toml.clone(),
         name: profile.name.clone(),
     };
-    let profile = live_profile(&profile);
     let algorithms = parse_algorithms(&args.algorithms)?;
     let drive = args.drive;
     let input = crate::sources::live::LiveInput::open(&args.input)?;

@@ -153,6 +153,15 @@ mod tests {
                 })
                 .collect(),
             platform: None,
+            step_us: 0.0,
+            latency_us: None,
+            deadline: std::time::Instant::now(),
+            budget_us: 0.0,
+            lanes: crate::live::LaneOrders {
+                cue_gain: 1.0,
+                resets: 0,
+                gains: nalgebra::Vector6::repeat(1.0),
+            },
         }
     }
 

@@ -2,23 +2,29 @@
 //!
 //! One thread keeps the clock, at real-time priority where the OS allows it
 //! ([`realtime`]). Each period it steps once: the latest input sample (held between
-//! arrivals) goes through the engine and every algorithm; the driving algorithm's command
-//! passes the safety stage ([`hexcue_core::safety`]) and a last workspace limiter, and goes to
-//! every output. Nothing else happens on that thread: the step's report is handed to a
-//! second thread ([`handoff`]) that feeds the frame sinks (the recording, Foxglove) and the
-//! caller's `on_step` (the console, stderr), and is dropped and counted rather than waited
-//! for when that thread is behind. A command leaves every step, from start to exit,
-//! whatever the input does.
+//! arrivals) goes through the engine and the driving algorithm; its command passes the
+//! safety stage ([`hexcue_core::safety`]) and a last workspace limiter, and goes to every
+//! output. Nothing else happens on that thread: the step's report is handed on ([`handoff`])
+//! to the comparison lanes' thread ([`lanes`], normal priority: the other algorithms, which
+//! reach no platform), then to the thread that feeds the frame sinks (the recording,
+//! Foxglove) and the caller's `on_step` (the console, stderr); a report is dropped and
+//! counted rather than waited for when they are behind. A command leaves every step, from
+//! start to exit, whatever the input does.
 //!
-//! While it waits for the next step it reads the input socket every millisecond, sleeping
-//! in between (never spinning: at real-time priority that would take a core from everyone),
-//! so a sample's arrival is known to a millisecond, with a bounded number of reads per step
-//! so that a flood of datagrams cannot stall the clock.
+//! Between steps it sleeps in `poll(2)` on the input socket ([`LiveSession::await_step`]):
+//! a period's step starts as soon as a sample newer than the last step's has arrived, or,
+//! when none comes, [`HOLD_AFTER`] of the period after its start with the last sample held.
+//! It reads a bounded number of datagrams per step, so that a flood cannot stall the clock.
+//! After warm-up it allocates nothing (`tests/live_alloc.rs`): no lock, no allocator, no
+//! page fault stands between a sample and its command.
 
 pub mod handoff;
 pub mod input_watch;
+pub mod lanes;
 pub mod realtime;
 
+use std::collections::BTreeMap;
+use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
@@ -28,7 +34,7 @@ use crate::session::FrameSink;
 use crate::sinks::{CommandSink, PlatformOutput, PlatformPhase, PlatformStatus};
 use crate::sources::live::LiveInput;
 use crate::tuning::{Shared, Tuner, TuningHandle};
-use hexcue_core::engine::{Engine, Frame};
+use hexcue_core::engine::{Engine, Frame, Retune};
 use hexcue_core::events::{Event, EventLevel};
 use hexcue_core::mca::limiter::WorkspaceLimiter;
 use hexcue_core::mca::AlgorithmId;
@@ -37,7 +43,7 @@ use hexcue_core::model::stewart::Stewart;
 use hexcue_core::profile::Profile;
 use hexcue_core::safety::path::Escalation;
 use hexcue_core::safety::{PlatformReadiness, Safety, SafetyState, DOF_NAMES};
-use hexcue_core::source::{HeldSample, HeldSampleHandle};
+use hexcue_core::source::HeldSample;
 use hexcue_core::summary::{
     HardBrake, LiveSummary, Quantiles, RealtimeSummary, Summary, SummaryBuilder, TransitionSummary,
 };
@@ -45,19 +51,11 @@ use input_watch::{InputCounts, InputWatch};
 
 /// Datagrams read at most per step: ten times what a simulator at 10× the step rate sends.
 pub const MAX_READS_PER_STEP: usize = 100;
-/// How often the input is read while waiting for the next step.
-const POLL_EVERY: Duration = Duration::from_millis(1);
-/// Share of the period the MPCs' solvers may spend on one QP: past it they stop with
-/// `max_time` and the S-MPC takes its fallback chain (free MPC, then washout).
-pub const SOLVER_SHARE: f64 = 0.4;
-
-/// The profile a live session runs: the MPCs' wall-clock limit fits the period.
-pub fn live_profile(profile: &Profile) -> Profile {
-    let mut p = profile.clone();
-    let budget_ms = SOLVER_SHARE * 1e3 / p.rate_hz;
-    p.mpc.time_limit_ms = p.mpc.time_limit_ms.min(budget_ms);
-    p
-}
+/// Share of the period, after its start, at which a step begins with the last sample held
+/// when no newer one has arrived: a sample that arrives before it is stepped at once, and
+/// the step always keeps at least the rest of the period before its deadline
+/// (docs/live.md, *The clock*).
+pub const HOLD_AFTER: f64 = 0.5;
 
 /// What the clock loop is asked from outside (keys, signals, the duration).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,6 +73,8 @@ pub const UNIT_CHECK_S: f64 = 10.0;
 /// One step as it happened: what the frame sinks, the console and the tests get. Owned, so
 /// that it moves to the sink thread without a copy of the frame.
 pub struct StepReport {
+    /// The driving lane's frame on the stepping thread; every lane's once the comparison
+    /// lanes' thread has added theirs ([`lanes`]).
     pub frame: Frame,
     pub output: PlatformOutput,
     /// Age of the held sample when the step began (s); `None` before the first.
@@ -88,6 +88,29 @@ pub struct StepReport {
     pub events: Vec<Event>,
     /// What the platform says of itself (the first output that answers: a Moog base).
     pub platform: Option<PlatformStatus>,
+    /// From the step's start to its command being sent (µs).
+    pub step_us: f64,
+    /// From the arrival of the sample used to the command being sent (µs), with fresh input.
+    pub latency_us: Option<f64>,
+    /// The step's deadline: the start of its period plus the period.
+    pub deadline: Instant,
+    /// From the step's start to its deadline (µs): the time a lane's step may take.
+    pub budget_us: f64,
+    /// What the comparison lanes need to step as the driving lane did.
+    pub lanes: LaneOrders,
+}
+
+/// What the driving lane's engine was told at one step, for the comparison lanes' engine:
+/// plain values, so that a report dropped on the way loses nothing the next one does not
+/// carry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LaneOrders {
+    /// The safety stage's cue gain at this step.
+    pub cue_gain: f64,
+    /// The lanes' resets so far (a new fade-in resets them all).
+    pub resets: u64,
+    /// The live gains' target (issue 36), all ones unless changed.
+    pub gains: nalgebra::Vector6<f64>,
 }
 
 /// The session's counters as of one step, small enough to go with every report.
@@ -99,8 +122,12 @@ pub struct LiveCounters {
     pub malformed: u64,
     /// Reports the sink thread did not get before this one.
     pub frames_dropped: u64,
+    /// Filled in off the stepping thread ([`lanes`]), over the reports that got there.
     pub latency_p99_ms: f64,
     pub step_p99_ms: f64,
+    /// Each lane's 99th percentile share of its step's deadline used, in the console's
+    /// order (filled in off the stepping thread, as above).
+    pub deadline_share_p99: Vec<(AlgorithmId, f64)>,
     /// The first seconds of input suggest a unit or sign mistake (the summary says which).
     pub unit_warning: bool,
     /// The outputs (bit i: the i-th `--output`) at whose address nothing listens.
@@ -117,6 +144,13 @@ pub struct LiveStats {
     /// The same, on the first step to use each sample only: hexcue's own delay, without
     /// the steps that hold a sample because the simulator sent no newer one.
     pub new_sample_latency: TimeHistogram,
+    /// Per lane: the share of its step's budget (deadline − step start) its step used, in
+    /// millionths (a [`TimeHistogram`] of ppm).
+    pub deadline_share: BTreeMap<AlgorithmId, TimeHistogram>,
+    /// Steps whose comparison lanes finished after the step's deadline, and by how much at
+    /// most (s): they lag the driving lane ([`lanes`]).
+    pub comparison_late_steps: u64,
+    pub comparison_lag_max_s: f64,
     pub input_lost_steps: u64,
     /// Steps with the held sample older than one period when used: the simulator is slower
     /// than hexcue, or late.
@@ -156,6 +190,20 @@ impl LiveStats {
             step_ms: ms(&self.step),
             latency_ms: ms(&self.latency),
             new_sample_latency_ms: ms(&self.new_sample_latency),
+            deadline_share: self
+                .deadline_share
+                .iter()
+                .map(|(id, h)| {
+                    let share = Quantiles {
+                        median: h.quantile(0.5) / 1e6,
+                        p99: h.quantile(0.99) / 1e6,
+                        max: h.summary().max / 1e6,
+                    };
+                    (id.key().to_string(), share)
+                })
+                .collect(),
+            comparison_late_steps: self.comparison_late_steps,
+            comparison_lag_max_s: self.comparison_lag_max_s,
             stale_steps: self.stale_steps,
             first_input_s: self.first_input_s,
             input_lost_s: self.input_lost_steps as f64 / rate_hz,
@@ -183,6 +231,8 @@ impl LiveStats {
         }
     }
 
+    /// The running counts; the quantiles are the comparison lanes' thread's to fill in (a
+    /// histogram's quantile scans its 4,200 buckets: not on the stepping thread).
     fn counters(&self) -> LiveCounters {
         LiveCounters {
             samples_in: self.samples_in,
@@ -190,8 +240,9 @@ impl LiveStats {
             deadline_misses: self.deadline_misses,
             malformed: self.malformed,
             frames_dropped: self.frames_dropped,
-            latency_p99_ms: self.latency.quantile(0.99) / 1e3,
-            step_p99_ms: self.step.quantile(0.99) / 1e3,
+            latency_p99_ms: 0.0,
+            step_p99_ms: 0.0,
+            deadline_share_p99: Vec::new(),
             unit_warning: self.unit_warning.is_some(),
             unreachable_outputs: 0,
         }
@@ -200,8 +251,20 @@ impl LiveStats {
 
 /// A live session: input, engine, safety, outputs and frame sinks (the recording, Foxglove).
 pub struct LiveSession {
+    /// The driving lane only: the one the platform gets, stepped on the stepping thread.
     engine: Engine,
-    held: HeldSampleHandle,
+    /// The other lanes, stepped on their own thread by [`run`] ([`lanes`]); `None` when the
+    /// driving algorithm runs alone, or while [`run`] has them.
+    comparison: Option<lanes::Comparison>,
+    /// Every algorithm, in the order asked (the console's).
+    order: Vec<AlgorithmId>,
+    /// Lane resets so far, the live gains' target, and the comparison lanes' retunes: what
+    /// the comparison lanes must do as the driving lane did.
+    resets: u64,
+    gains_target: nalgebra::Vector6<f64>,
+    retunes: mpsc::Sender<(usize, Box<Retune>)>,
+    /// When the sample the last step used arrived: a newer one starts the next step.
+    used_arrival: Option<Instant>,
     safety: Safety,
     /// The last stage: no command leaves the profile's limits, whatever came before.
     limiter: WorkspaceLimiter,
@@ -250,8 +313,8 @@ pub struct LiveSession {
 }
 
 impl LiveSession {
-    /// A session of `algorithms` (which must include `drive`) on `profile` (see
-    /// [`live_profile`]), parked, with no outputs or sinks yet.
+    /// A session of `algorithms` (which must include `drive`) on `profile`, parked, with no
+    /// outputs or sinks yet.
     pub fn new(
         profile: &Profile,
         algorithms: &[AlgorithmId],
@@ -262,10 +325,29 @@ impl LiveSession {
             algorithms.contains(&drive),
             "--drive {drive}: the algorithm driving the platform must be among --algorithms"
         );
-        let (source, held) = HeldSample::new(input.url(), profile.rate_hz);
-        let mut engine = Engine::with_source(profile, Box::new(source), algorithms)
+        let held = |name| Box::new(HeldSample::new(name, profile.rate_hz));
+        let mut engine = Engine::with_source(profile, held(input.url()), &[drive])
             .context("building the algorithms")?;
         engine.set_parallel(false);
+        let others: Vec<AlgorithmId> = algorithms.iter().copied().filter(|a| *a != drive).collect();
+        let (retunes, retunes_rx) = mpsc::channel();
+        let comparison = if others.is_empty() {
+            None
+        } else {
+            let mut engine = Engine::with_source(profile, held(input.url()), &others)
+                .context("building the algorithms")?;
+            engine.set_parallel(false);
+            Some(lanes::Comparison::new(
+                engine,
+                SummaryBuilder::new(profile, input.url()),
+                retunes_rx,
+                profile.safety.fade_in_s,
+            ))
+        };
+        let mut stats = LiveStats::default();
+        for id in algorithms {
+            stats.deadline_share.insert(*id, TimeHistogram::default());
+        }
         let dt = profile.dt_s();
         let watch = InputWatch::new(input.url(), &input.source_text());
         let actuators = profile.actuators().context("the profile's [actuators]")?;
@@ -274,7 +356,12 @@ impl LiveSession {
             tuning: Shared::handle(tuner),
             retune_blend_s: profile.safety.fade_in_s,
             engine,
-            held,
+            comparison,
+            order: algorithms.to_vec(),
+            resets: 0,
+            gains_target: nalgebra::Vector6::repeat(1.0),
+            retunes,
+            used_arrival: None,
             safety: Safety::new(profile.safety.params(&profile.limits.si(), dt))
                 .with_legs(profile.stewart(), profile.limiter.leg_margin_m),
             limiter: WorkspaceLimiter::new(
@@ -291,7 +378,7 @@ impl LiveSession {
             drive,
             period: Duration::from_secs_f64(dt),
             rate_hz: profile.rate_hz,
-            stats: LiveStats::default(),
+            stats,
             seq: 0,
             reads_left: MAX_READS_PER_STEP,
             first_sample_seen: false,
@@ -336,7 +423,7 @@ impl LiveSession {
     }
 
     pub fn algorithms(&self) -> Vec<AlgorithmId> {
-        self.engine.algorithms()
+        self.order.clone()
     }
 
     /// The parameters changed live: the console and the Foxglove server hold this.
@@ -373,16 +460,61 @@ impl LiveSession {
         Ok(())
     }
 
-    /// One step, due at `due`: input, safety, engine, limiter, outputs. The report is for
-    /// the frame sinks and the console ([`run`] hands it to the sink thread).
+    /// Waits for the step of the period that starts at `start`: until a sample newer than
+    /// the last step's has arrived (and `start` has come), or until `hold_at`, whichever is
+    /// first. A newer sample that arrived before the previous period's hold point (`hold_at`
+    /// − the period) came early in a period whose step had already been taken (a burst, a
+    /// faster simulator, or steps that run a period behind the simulator's phase): it starts
+    /// the step only once the next sample is overdue (a period and a tenth after it), and a
+    /// sample arriving before then starts it instead, which moves the steps onto the
+    /// arrivals. Sleeps in `poll(2)` on the input socket in between, reading what arrives
+    /// within the step's budget of reads; past that budget (a flood) it sleeps without
+    /// reading.
+    pub fn await_step(&mut self, start: Instant, hold_at: Instant) -> Result<()> {
+        let early_before = hold_at.checked_sub(self.period).unwrap_or(start);
+        let overdue = self.period + self.period / 10;
+        loop {
+            let now = Instant::now();
+            self.poll_input(now)?;
+            let ready_at = self
+                .input
+                .latest()
+                .map(|(_, at)| at)
+                .filter(|at| Some(*at) != self.used_arrival)
+                .map(|at| {
+                    if at >= early_before {
+                        start
+                    } else {
+                        (at + overdue).clamp(start, hold_at)
+                    }
+                });
+            let until = ready_at.unwrap_or(hold_at).min(hold_at);
+            if now >= until {
+                return Ok(());
+            }
+            if self.reads_left == 0 {
+                std::thread::sleep(until.saturating_duration_since(now));
+            } else {
+                self.input
+                    .wait(until)
+                    .with_context(|| format!("{}: waiting for input", self.input.url()))?;
+            }
+        }
+    }
+
+    /// One step of the period that started at `due`: input, safety, engine, limiter,
+    /// outputs. Its deadline is `due` + the period. The report is for the comparison lanes,
+    /// the frame sinks and the console ([`run`] hands it on).
     pub fn step(&mut self, due: Instant, control: Control) -> Result<StepReport> {
         let started = Instant::now();
+        let deadline = due + self.period;
         self.poll_input(started)?;
         self.reads_left = MAX_READS_PER_STEP;
         if control == Control::Stop {
             self.safety.estop();
         }
         let latest = self.input.latest();
+        self.used_arrival = latest.map(|(_, at)| at);
         let input_age_s = self.input.age_s(started);
         let fresh = input_age_s.is_some_and(|a| a <= self.safety.params().input_timeout_s);
         let input_ok = fresh && !self.input.paused();
@@ -426,16 +558,27 @@ impl LiveSession {
         }
         if plan.reset_algorithms {
             self.engine.reset_lanes();
+            self.resets += 1;
         }
         self.engine.set_cue_gain(plan.cue_gain);
         // Never wait for the lock on this thread, and take it only when a change is queued:
         // a change held up by another side's lock is applied a step later.
         if let Some(mut shared) = self.tuning.try_lock_pending() {
+            let k = self.engine.position();
+            let (gains_target, retunes) = (&mut self.gains_target, &self.retunes);
             let texts = crate::tuning::apply_pending(
                 &mut shared,
                 &mut self.engine,
                 t_s,
                 self.retune_blend_s,
+                |applied| match applied {
+                    crate::tuning::Applied::Gains(g) => *gains_target = g,
+                    // The comparison lanes' thread applies it at the same step; gone with
+                    // that thread (a sink failed), it has nothing left to retune.
+                    crate::tuning::Applied::Retune(r) => {
+                        let _ = retunes.send((k, r));
+                    }
+                },
             );
             self.events.extend(texts.into_iter().map(|text| Event {
                 t_s,
@@ -444,8 +587,11 @@ impl LiveSession {
             }));
         }
         if let Some((sample, _)) = latest {
-            self.held.set(sample);
+            self.engine.push_sample(sample);
         }
+        // DEADLINE (alloc37, wired at the merge): the one place the driving lane's engine
+        // steps; it gets `deadline` here (`self.engine.step_until(deadline)`), and every solve
+        // of the step shares it. Until then each QP has the profile's `time_limit_ms`.
         let frame = self
             .engine
             .step()
@@ -483,15 +629,23 @@ impl LiveSession {
         let sent = Instant::now();
         self.seq += 1;
         self.stats.commands_out += 1;
-        self.stats
-            .step
-            .push(sent.saturating_duration_since(started).as_secs_f64() * 1e6);
-        if sent > due + self.period {
+        let step_us = sent.saturating_duration_since(started).as_secs_f64() * 1e6;
+        self.stats.step.push(step_us);
+        if sent > deadline {
             self.stats.deadline_misses += 1;
         }
+        let budget_us = deadline.saturating_duration_since(started).as_secs_f64() * 1e6;
+        if let (Some(lane), Some(share)) = (
+            frame.lane(self.drive),
+            self.stats.deadline_share.get_mut(&self.drive),
+        ) {
+            share.push(lane_share(lane.step_time_us, budget_us) * 1e6);
+        }
+        let mut latency_us = None;
         if let (Some((_, arrival)), true) = (latest, input_ok) {
             let us = sent.saturating_duration_since(arrival).as_secs_f64() * 1e6;
             self.stats.latency.push(us);
+            latency_us = Some(us);
             if self.last_arrival.replace(arrival) != Some(arrival) {
                 self.stats.new_sample_latency.push(us);
             }
@@ -514,6 +668,15 @@ impl LiveSession {
             },
             events: std::mem::take(&mut self.events),
             platform: self.platform.clone(),
+            step_us,
+            latency_us,
+            deadline,
+            budget_us,
+            lanes: LaneOrders {
+                cue_gain: plan.cue_gain,
+                resets: self.resets,
+                gains: self.gains_target,
+            },
         })
     }
 
@@ -792,6 +955,9 @@ impl LiveSession {
     /// The summary so far, with its `live` block.
     pub fn summary(&self) -> Summary {
         let mut s = self.summary.finish();
+        if let Some(c) = &self.comparison {
+            s.algorithms.extend(c.summary().finish().algorithms);
+        }
         s.live = Some(self.stats.summary(self.rate_hz));
         s.mpc_reference = Some(self.summary.causal_mpc_reference().to_string());
         s.tuning = self.tuning.lock().ok().map(|shared| shared.tuner.summary());
@@ -833,6 +999,13 @@ impl LiveSession {
     }
 }
 
+/// The share of a step's budget (µs from its start to its deadline) a lane's step took. A
+/// step begun at or past its deadline had no budget: counted as 1 µs, so that its share is
+/// large rather than infinite (a histogram keeps finite numbers).
+pub fn lane_share(lane_us: f64, budget_us: f64) -> f64 {
+    lane_us / budget_us.max(1.0)
+}
+
 /// A platform's change of phase, for the operator.
 fn platform_event(t_s: f64, output: &str, status: &PlatformStatus) -> Event {
     let (level, what) = match status.phase {
@@ -855,8 +1028,9 @@ fn platform_event(t_s: f64, output: &str, status: &PlatformStatus) -> Event {
 
 /// The clock: steps `session` every period until `control` has asked it to stop and the
 /// platform is parked. `control` is asked before every step, on this thread; `on_step` sees
-/// every step's report after the frame sinks, on the sink thread, except reports dropped
-/// because that thread was [`handoff::CAPACITY_S`] behind. This thread is raised to real
+/// every step's report, with every lane, after the frame sinks, on the sink thread, except
+/// reports dropped because the comparison lanes or the sinks were [`handoff::CAPACITY_S`]
+/// behind. This thread is raised to real
 /// time for the loop if the session asks for it, and put back as it was on return. The frame
 /// sinks come back to the session open, for [`LiveSession::finish`] to record the way out
 /// (the platform parking, a fault) before closing them; if one failed, all are finished here.
@@ -868,7 +1042,13 @@ pub fn run(
     let sinks = std::mem::take(&mut session.frame_sinks);
     let capacity = (handoff::CAPACITY_S * session.rate_hz).ceil() as usize;
     let (mut handoff, rx) = handoff::Handoff::new(capacity);
+    let (to_sinks, from_lanes) = mpsc::sync_channel(capacity.max(1));
     let sinks_raised = session.realtime_priority.is_some();
+    let mut lanes = lanes::Lanes::new(
+        session.comparison.take(),
+        session.order.clone(),
+        session.drive,
+    );
     std::thread::scope(|scope| {
         // Started before this thread is raised (a thread inherits its creator's policy), and
         // raised to the lowest real-time priority of its own: below the stepping thread,
@@ -882,9 +1062,18 @@ pub fn run(
                     // Refused or not, the stepping thread's own request tells the operator.
                     let _ = realtime::raise_current_thread(realtime::SINKS_PRIORITY);
                 }
-                handoff::feed(rx, sinks, on_step)
+                handoff::feed(from_lanes, sinks, on_step)
             })
             .context("starting the sink thread")?;
+        // At normal priority (started before this thread is raised): the comparison lanes
+        // reach no platform, and may lag rather than delay the driving lane.
+        let comparing = std::thread::Builder::new()
+            .name("hexcue-live-lanes".into())
+            .spawn_scoped(scope, move || {
+                lanes.run(rx, to_sinks);
+                lanes
+            })
+            .context("starting the comparison lanes' thread")?;
         let stepped = {
             let guard = match session.realtime_priority {
                 Some(priority) => realtime::RealtimeGuard::enter(priority),
@@ -901,8 +1090,13 @@ pub fn run(
             clock_loop(session, control, &mut handoff)
         };
         session.stats.frames_dropped = handoff.dropped();
-        // Hang up: the sink thread drains what is queued, finishes the sinks and ends.
+        // Hang up: the lanes' thread steps what is queued and hangs up in turn; the sink
+        // thread drains what is queued, finishes the sinks and ends.
         drop(handoff);
+        let lanes = comparing
+            .join()
+            .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        lanes.finish(session);
         let fed = feeder
             .join()
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
@@ -924,17 +1118,10 @@ fn clock_loop(
     handoff: &mut handoff::Handoff,
 ) -> Result<()> {
     let period = session.period();
+    let hold_after = period.mul_f64(HOLD_AFTER);
     let mut due = Instant::now();
     loop {
-        // Wait for the step, reading the input as datagrams arrive.
-        loop {
-            let now = Instant::now();
-            if now >= due {
-                break;
-            }
-            session.poll_input(now)?;
-            std::thread::sleep(POLL_EVERY.min(due - now));
-        }
+        session.await_step(due, due + hold_after)?;
         let c = control(session);
         let report = session.step(due, c)?;
         if handoff.offer(report) == handoff::Offered::Closed {
@@ -947,6 +1134,8 @@ fn clock_loop(
         }
         due += period;
         let now = Instant::now();
+        // Started at the hold point, a step may end after its period's end: the next
+        // period has begun, and its step comes as soon as a sample does.
         if now > due + period {
             // Far behind (the machine stalled): start the schedule again from now rather
             // than send a burst of commands to catch up.
@@ -970,7 +1159,7 @@ mod tests {
         )
         .unwrap();
         let addr = input.local_addr().unwrap();
-        let profile = live_profile(&full_flight());
+        let profile = full_flight();
         let s = LiveSession::new(&profile, &[AlgorithmId::Cwf], AlgorithmId::Cwf, input).unwrap();
         (s, addr)
     }
@@ -1165,6 +1354,83 @@ mod tests {
         let live = summary.live.unwrap();
         assert_eq!(live.frames_dropped, 0);
         assert!(!live.realtime.requested);
+    }
+
+    /// The comparison lanes step on their own thread exactly as they would in the driving
+    /// lane's engine: every frame the sinks get has every lane in the order asked, and the
+    /// MPC's commands (a comparison lane here, its time limit off) are those of an engine
+    /// stepping the same samples with the same cue gains and resets, bit for bit.
+    #[test]
+    fn the_comparison_lanes_step_on_their_own_thread_as_in_one_engine() {
+        let input = LiveInput::with_decoder(
+            "jsbsim://127.0.0.1:0",
+            Box::new(Jsbsim::default()),
+            Endpoint::Listen("127.0.0.1:0".parse().unwrap()),
+        )
+        .unwrap();
+        let addr = input.local_addr().unwrap();
+        let profile = full_flight();
+        let order = [AlgorithmId::Mpc, AlgorithmId::Cwf];
+        let mut s = LiveSession::new(&profile, &order, AlgorithmId::Cwf, input).unwrap();
+        let sender = std::thread::spawn(move || {
+            let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+            for k in 0..300 {
+                let t = k as f64 * 0.01;
+                let line = format!("{t},{},0,-40.0,0,0.05,0.1,0.2,0,0\n", 6.0 * (2.0 * t).sin());
+                tx.send_to(line.as_bytes(), addr).unwrap();
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        });
+        let mut seen = Vec::new();
+        let mut asked = 0;
+        run(
+            &mut s,
+            |_| {
+                asked += 1;
+                if asked > 250 {
+                    Control::Stop
+                } else {
+                    Control::Continue
+                }
+            },
+            |r| {
+                let ids: Vec<AlgorithmId> = r.frame.lanes.iter().map(|l| l.id).collect();
+                assert_eq!(ids, order, "step {}", r.frame.k);
+                let mpc = r.frame.lane(AlgorithmId::Mpc).unwrap().command;
+                seen.push((r.frame.aircraft, r.lanes, mpc));
+            },
+        )
+        .unwrap();
+        sender.join().unwrap();
+        assert_eq!(s.stats().frames_dropped, 0);
+        assert_eq!(seen.len() as u64, s.stats().commands_out);
+        let mut alone = Engine::with_source(
+            &profile,
+            Box::new(HeldSample::new("alone", profile.rate_hz)),
+            &[AlgorithmId::Mpc],
+        )
+        .unwrap();
+        alone.set_parallel(false);
+        let (mut resets, mut moved) = (0, false);
+        for (k, (aircraft, orders, mpc)) in seen.iter().enumerate() {
+            if orders.resets != resets {
+                alone.reset_lanes();
+                resets = orders.resets;
+            }
+            alone.set_cue_gain(orders.cue_gain);
+            alone.push_sample(*aircraft);
+            let frame = alone.step().unwrap();
+            assert_eq!(frame.lanes[0].command, *mpc, "step {k}");
+            moved |= mpc.pose.amax() > 1e-4;
+        }
+        assert!(moved, "the MPC never moved: nothing was compared");
+        let summary = s.summary();
+        assert_eq!(summary.algorithms.len(), 2);
+        let live = summary.live.unwrap();
+        assert_eq!(
+            live.deadline_share.keys().collect::<Vec<_>>(),
+            ["cwf", "mpc"]
+        );
     }
 
     /// The fade-in on engage: a steady turn's cue (1.5 g, a yaw rate, banked) arrives at once

@@ -155,7 +155,7 @@ impl CommandSink for SerialActuators {
         self.fault.as_ref().map(|why| PlatformStatus {
             phase: PlatformPhase::Fault,
             in_phase_s: 0.0,
-            detail: why.clone(),
+            detail: why.as_str().into(),
             code: Some("PORT FAILED".into()),
         })
     }

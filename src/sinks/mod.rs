@@ -53,10 +53,11 @@ pub struct PlatformStatus {
     pub phase: PlatformPhase,
     /// Time in this phase (s).
     pub in_phase_s: f64,
-    /// What the platform last said, in words (its state, the fault and why).
-    pub detail: String,
+    /// What the platform last said, in words (its state, the fault and why). Shared, not
+    /// copied: the status goes with every step's report.
+    pub detail: std::sync::Arc<str>,
     /// A few characters for the console's header: the fault word, or `NO REPLY`.
-    pub code: Option<String>,
+    pub code: Option<std::sync::Arc<str>>,
 }
 
 impl PlatformStatus {

@@ -99,6 +99,9 @@ pub struct Jsbsim {
     map: Map,
     /// The map came from a labels line (else the shipped order is assumed).
     labelled: bool,
+    /// One line's numbers, kept from datagram to datagram: decoding allocates nothing once
+    /// it has seen a line (the live stepping thread decodes).
+    values: Vec<f64>,
 }
 
 impl Default for Jsbsim {
@@ -106,6 +109,7 @@ impl Default for Jsbsim {
         Jsbsim {
             map: Map::shipped(),
             labelled: false,
+            values: Vec::new(),
         }
     }
 }
@@ -132,11 +136,15 @@ impl Decoder for Jsbsim {
                 self.labelled = true;
                 continue;
             }
-            let values: Vec<f64> = line
-                .split(',')
-                .map(|v| v.trim().parse::<f64>())
-                .collect::<Result<_, _>>()
-                .map_err(|_| format!("`{}`: expected comma-separated numbers", short(line)))?;
+            self.values.clear();
+            for v in line.split(',') {
+                let v = v
+                    .trim()
+                    .parse::<f64>()
+                    .map_err(|_| format!("`{}`: expected comma-separated numbers", short(line)))?;
+                self.values.push(v);
+            }
+            let values = &self.values;
             if values.len() != self.map.width {
                 return Err(format!(
                     "{} values; expected {} ({})",

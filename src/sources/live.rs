@@ -161,6 +161,45 @@ impl LiveInput {
         Ok(())
     }
 
+    /// Blocks until a datagram waits in the socket or `until` passes, whichever comes first,
+    /// without reading it; returns whether one waits. The live loop sleeps here between
+    /// steps, so that it wakes when the simulator's sample arrives rather than on a timer
+    /// (docs/live.md, *The clock*). `ppoll(2)` on Linux (a nanosecond timeout), `poll(2)`
+    /// elsewhere (rounded up to the next millisecond, never early).
+    pub fn wait(&self, until: Instant) -> std::io::Result<bool> {
+        use std::os::fd::AsRawFd;
+        let left = until.saturating_duration_since(Instant::now());
+        let mut fd = libc::pollfd {
+            fd: self.socket.as_raw_fd(),
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        #[cfg(target_os = "linux")]
+        let rc = {
+            let timeout = libc::timespec {
+                tv_sec: left.as_secs() as libc::time_t,
+                tv_nsec: left.subsec_nanos() as libc::c_long,
+            };
+            // SAFETY: one valid pollfd, a valid timespec, no signal mask change.
+            unsafe { libc::ppoll(&mut fd, 1, &timeout, std::ptr::null()) }
+        };
+        #[cfg(not(target_os = "linux"))]
+        let rc = {
+            let ms = left.as_nanos().div_ceil(1_000_000).min(i32::MAX as u128) as i32;
+            // SAFETY: one valid pollfd.
+            unsafe { libc::poll(&mut fd, 1, ms) }
+        };
+        if rc >= 0 {
+            return Ok(rc > 0);
+        }
+        let e = std::io::Error::last_os_error();
+        if e.kind() == std::io::ErrorKind::Interrupted {
+            // A signal (SIGINT, SIGWINCH) woke it: the caller's loop looks again.
+            return Ok(false);
+        }
+        Err(e)
+    }
+
     /// The latest sample and when it arrived.
     pub fn latest(&self) -> Option<(AircraftSample, Instant)> {
         self.latest

@@ -48,6 +48,7 @@ impl LiveStatus {
             malformed: s.malformed,
             latency_p99_ms: s.latency_p99_ms,
             step_p99_ms: s.step_p99_ms,
+            deadline_share_p99: s.deadline_share_p99.clone(),
             stopping,
             unit_warning: s.unit_warning,
             unreachable: outputs
@@ -196,6 +197,19 @@ pub(super) fn header_line2(app: &App, live: &LiveStatus) -> Line<'static> {
         ),
         th.dim(),
     ));
+    // How much of its deadline each lane's step takes (p99): the driving lane's is the one
+    // the platform waits for; a comparison lane past 100 % lags on its own thread.
+    if !live.deadline_share_p99.is_empty() {
+        let shares: Vec<String> = live
+            .deadline_share_p99
+            .iter()
+            .map(|(id, share)| format!("{} {:.0}%", id.key(), share * 100.0))
+            .collect();
+        spans.push(Span::styled(
+            format!("  deadline p99 {}", shares.join(" ")),
+            th.dim(),
+        ));
+    }
     if let Some(r) = &s.recording {
         spans.push(Span::styled(
             format!(
@@ -607,6 +621,7 @@ mod tests {
             malformed: 2,
             latency_p99_ms: 9.8,
             step_p99_ms: 3.1,
+            deadline_share_p99: Vec::new(),
             stopping,
             unit_warning: false,
             unreachable: Vec::new(),
@@ -763,8 +778,8 @@ mod tests {
         let base = |phase, in_phase_s, code: Option<&str>| PlatformStatus {
             phase,
             in_phase_s,
-            detail: String::new(),
-            code: code.map(String::from),
+            detail: "".into(),
+            code: code.map(Into::into),
         };
         for (status, state, want) in [
             (

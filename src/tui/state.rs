@@ -159,6 +159,8 @@ pub struct LiveStatus {
     pub malformed: u64,
     pub latency_p99_ms: f64,
     pub step_p99_ms: f64,
+    /// Each lane's 99th percentile share of its step's deadline used (0.25: a quarter).
+    pub deadline_share_p99: Vec<(AlgorithmId, f64)>,
     /// An e-stop or quit was asked for: the platform is on its way to park.
     pub stopping: bool,
     /// The first seconds of input suggest a unit or sign mistake (the summary says which).

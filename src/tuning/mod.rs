@@ -120,8 +120,10 @@ pub enum ParamError {
 pub enum Apply {
     /// Send the gains (per DoF) toward these.
     Gains(Vector6<f64>),
-    /// Hand the rebuilt algorithms over.
-    Retune(Box<Retune>),
+    /// Hand the rebuilt algorithms over: one [`Retune`] per algorithm, so that a live
+    /// session hands each to the engine that steps it (the driving lane's on the stepping
+    /// thread, the comparison lanes' on theirs).
+    Retune(Vec<Retune>),
 }
 
 /// A change made, before the engine has applied it.
@@ -300,12 +302,17 @@ impl Tuner {
                 let profile: Profile =
                     toml::from_str(&doc.to_string()).map_err(|e| refused(e.to_string()))?;
                 profile.validate().map_err(|e| refused(e.to_string()))?;
-                let retune = Retune::build(&self.profile, &profile, &self.algorithms)
+                let retunes = self
+                    .algorithms
+                    .iter()
+                    .map(|id| Retune::build(&self.profile, &profile, &[*id]))
+                    .filter(|r| r.as_ref().map_or(true, |r| !r.algorithms().is_empty()))
+                    .collect::<Result<Vec<_>, _>>()
                     .map_err(|e| refused(e.to_string()))?;
                 self.doc = doc;
                 self.profile = profile;
                 self.values[index] = value;
-                Apply::Retune(Box::new(retune))
+                Apply::Retune(retunes)
             }
         };
         Ok(Change {
@@ -473,12 +480,14 @@ impl Shared {
 
 /// Applies queued changes to `engine` at session time `t_s`: the gains along their paths,
 /// a retune through a blend of `blend_s`. Returns each change's event text; the changes are
-/// recorded in the tuner for the summary.
+/// recorded in the tuner for the summary. What is also for lanes `engine` does not step goes
+/// to `elsewhere`: every new gain target, and each rebuilt algorithm not among `engine`'s.
 pub fn apply_pending(
     shared: &mut Shared,
     engine: &mut hexcue_core::engine::Engine,
     t_s: f64,
     blend_s: f64,
+    mut elsewhere: impl FnMut(Applied),
 ) -> Vec<String> {
     let mut texts = Vec::new();
     for change in shared.take_pending() {
@@ -489,11 +498,29 @@ pub fn apply_pending(
             Apply::Retune(_) => blend_s,
         };
         texts.push(change_text(&name, &change, follow_s));
-        if let Apply::Retune(r) = change.apply {
-            engine.retune(*r, blend_s);
+        match change.apply {
+            Apply::Gains(g) => elsewhere(Applied::Gains(g)),
+            Apply::Retune(retunes) => {
+                let here = engine.algorithms();
+                for r in retunes {
+                    if r.algorithms().iter().all(|id| here.contains(id)) {
+                        engine.retune(r, blend_s);
+                    } else {
+                        elsewhere(Applied::Retune(Box::new(r)));
+                    }
+                }
+            }
         }
     }
     texts
+}
+
+/// What [`apply_pending`] hands on for the lanes of another engine (a live session's
+/// comparison lanes): the new gains, which every lane's command takes, and the rebuilt
+/// algorithms that engine steps.
+pub enum Applied {
+    Gains(Vector6<f64>),
+    Retune(Box<Retune>),
 }
 
 /// The text of a change's event: what changed, and how long the command takes to follow.

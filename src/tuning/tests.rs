@@ -66,6 +66,18 @@ fn out_of_range_is_refused_with_the_range_and_changes_nothing() {
     assert!(t.undo().is_none());
 }
 
+/// The algorithms a change rebuilds, one [`hexcue_core::engine::Retune`] each.
+fn rebuilt(retunes: &[hexcue_core::engine::Retune]) -> Vec<AlgorithmId> {
+    retunes
+        .iter()
+        .map(|r| {
+            let ids = r.algorithms();
+            assert_eq!(ids.len(), 1, "one algorithm a retune: {ids:?}");
+            ids[0]
+        })
+        .collect()
+}
+
 #[test]
 fn a_key_changes_the_profile_and_undo_takes_it_back() {
     let mut t = tuner();
@@ -75,7 +87,7 @@ fn a_key_changes_the_profile_and_undo_takes_it_back() {
         (full_flight().cwf.specific_force_scale[0], 0.3, false)
     );
     match &c.apply {
-        Apply::Retune(r) => assert_eq!(r.algorithms(), [AlgorithmId::Cwf]),
+        Apply::Retune(r) => assert_eq!(rebuilt(r), [AlgorithmId::Cwf]),
         Apply::Gains(_) => panic!("a key retunes"),
     }
     assert_eq!(t.profile().cwf.specific_force_scale[0], 0.3);
@@ -83,7 +95,7 @@ fn a_key_changes_the_profile_and_undo_takes_it_back() {
     // [mpc] rebuilds the S-MPC (its two MPCs run on it).
     let c2 = t.set("mpc.specific_force_weight[0,1]", 2.0).unwrap();
     match &c2.apply {
-        Apply::Retune(r) => assert_eq!(r.algorithms(), [AlgorithmId::Smpc]),
+        Apply::Retune(r) => assert_eq!(rebuilt(r), [AlgorithmId::Smpc]),
         Apply::Gains(_) => panic!(),
     }
     assert_eq!(t.profile().mpc.specific_force_weight[..2], [2.0, 2.0]);
@@ -171,7 +183,7 @@ fn a_retune_mid_manoeuvre_is_bumpless_and_takes_effect() {
                 let mut s = shared.lock().unwrap();
                 s.set("cwf.specific_force_scale[1]", 0.2).unwrap();
                 s.set("cwf.tilt_lp_wn_radps", 2.0).unwrap();
-                let texts = apply_pending(&mut s, &mut engine, 12.0, 3.0);
+                let texts = apply_pending(&mut s, &mut engine, 12.0, 3.0, |_| {});
                 assert_eq!(texts.len(), 2);
                 assert!(texts[0].starts_with("parameter cwf.specific_force_scale[1] set: "));
             }
@@ -222,7 +234,7 @@ fn the_master_gain_halves_the_command_once_its_path_is_over() {
         if k == 1000 {
             let mut s = shared.lock().unwrap();
             s.set(MOTION_GAIN, 0.5).unwrap();
-            let texts = apply_pending(&mut s, &mut gained, 10.0, 3.0);
+            let texts = apply_pending(&mut s, &mut gained, 10.0, 3.0, |_| {});
             follow_s = texts[0]
                 .split("within ")
                 .nth(1)

@@ -10,6 +10,7 @@
 //! fault: latched, PARK from then on, never a pose again.
 
 use nalgebra::Vector6;
+use std::sync::Arc;
 
 use super::protocol::{self, mcw, BaseState, BaseStatus, MoogDofs};
 use crate::sinks::{PlatformPhase, PlatformStatus};
@@ -38,7 +39,22 @@ pub struct Driver {
     /// When the way out began (the first PARK).
     park_since_s: Option<f64>,
     /// Why it is a fault, and the short code for the header.
-    fault: Option<(String, String)>,
+    fault: Option<(Arc<str>, Arc<str>)>,
+    /// The words of the last status, kept while what they say (the fault, the machine
+    /// state, the latched faults) does not change: asked every step on the live stepping
+    /// thread, which must not allocate.
+    detail: Option<(DetailKey, Arc<str>)>,
+}
+
+/// What the status's words depend on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum DetailKey {
+    Fault,
+    Status {
+        machine_state: u32,
+        latched_faults: u32,
+    },
+    NoReply,
 }
 
 impl Driver {
@@ -52,6 +68,7 @@ impl Driver {
             last: None,
             park_since_s: None,
             fault: None,
+            detail: None,
         }
     }
 
@@ -61,7 +78,7 @@ impl Driver {
 
     /// Why the base is in fault, if it is.
     pub fn fault(&self) -> Option<&str> {
-        self.fault.as_ref().map(|(why, _)| why.as_str())
+        self.fault.as_ref().map(|(why, _)| &**why)
     }
 
     /// A status reply arrived at `t_s`.
@@ -83,7 +100,7 @@ impl Driver {
     }
 
     fn set_fault(&mut self, t_s: f64, why: String, code: String) {
-        self.fault = Some((why, code));
+        self.fault = Some((why.into(), code.into()));
         self.enter(t_s, PlatformPhase::Fault);
     }
 
@@ -221,10 +238,25 @@ impl Driver {
     /// The status for the session and the operator at `t_s`.
     pub fn status(&mut self, t_s: f64) -> PlatformStatus {
         self.update(t_s);
-        let detail = match (&self.fault, &self.last) {
-            (Some((why, _)), _) => why.clone(),
-            (None, Some(s)) => s.describe(),
-            (None, None) => "no status reply yet".into(),
+        let key = match (&self.fault, &self.last) {
+            (Some(_), _) => DetailKey::Fault,
+            (None, Some(s)) => DetailKey::Status {
+                machine_state: s.machine_state,
+                latched_faults: s.latched_faults,
+            },
+            (None, None) => DetailKey::NoReply,
+        };
+        let detail = match &self.detail {
+            Some((k, words)) if *k == key => words.clone(),
+            _ => {
+                let words: Arc<str> = match (&self.fault, &self.last) {
+                    (Some((why, _)), _) => why.clone(),
+                    (None, Some(s)) => s.describe().into(),
+                    (None, None) => "no status reply yet".into(),
+                };
+                self.detail = Some((key, words.clone()));
+                words
+            }
         };
         PlatformStatus {
             phase: self.phase,

@@ -87,14 +87,16 @@ impl Moog {
     fn status_now(&mut self) -> PlatformStatus {
         let t = self.now_s();
         let mut status = self.driver.status(t);
-        match &self.parked {
-            Some(ParkOutcome::Settled { after_s }) => status
-                .detail
-                .push_str(&format!("; settled {after_s:.2} s after PARK")),
-            Some(ParkOutcome::TimedOut) => status.detail.push_str("; PARK timed out"),
-            Some(ParkOutcome::NoReply) => status.detail.push_str("; no reply to PARK"),
-            None => {}
-        }
+        // Only after the way out: no more steps then.
+        let outcome = match &self.parked {
+            Some(ParkOutcome::Settled { after_s }) => {
+                format!("; settled {after_s:.2} s after PARK")
+            }
+            Some(ParkOutcome::TimedOut) => "; PARK timed out".to_string(),
+            Some(ParkOutcome::NoReply) => "; no reply to PARK".to_string(),
+            None => return status,
+        };
+        status.detail = format!("{}{outcome}", status.detail).into();
         status
     }
 }

@@ -1,0 +1,237 @@
+//! The comparison lanes: the algorithms a live session runs beside the driving one, for the
+//! recording, the console and the summary, but not for the platform. They step on a thread
+//! of their own at normal priority, between the stepping thread and the sink thread, so
+//! that however long they take they never delay the driving lane's command.
+//!
+//! Each step's report comes from the stepping thread with the driving lane's frame and what
+//! its engine was told ([`super::LaneOrders`]: the cue gain, resets, the live gains; retunes
+//! come on a channel of their own, tagged with their step). The comparison engine steps the
+//! same sample, and its lanes join the frame in the console's order before the report goes
+//! on to the sink thread. Here too the console's quantiles are computed (a histogram's
+//! quantile scans its buckets, which the stepping thread must not).
+//!
+//! They may lag: a report waits here while the lanes step, and when this thread falls
+//! [`super::handoff::CAPACITY_S`] behind, the stepping thread drops reports (counted in
+//! `live.frames_dropped`, as for a slow sink). A dropped step's sample is never seen here:
+//! the lanes step once for each step missed, holding the next report's sample, so that
+//! they stay on the session's clock. How far behind they were is in the summary
+//! (`live.comparison_late_steps`, `live.comparison_lag_max_s`).
+
+use std::collections::BTreeMap;
+use std::sync::mpsc::{Receiver, SyncSender};
+use std::time::Instant;
+
+use nalgebra::Vector6;
+
+use super::{lane_share, LiveSession, StepReport};
+use hexcue_core::engine::{Engine, Frame, Retune};
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::metrics::TimeHistogram;
+use hexcue_core::summary::SummaryBuilder;
+
+/// The console's quantiles are computed again after this many reports.
+const QUANTILES_EVERY: u64 = 10;
+
+/// The comparison lanes' engine and what it has been told.
+pub struct Comparison {
+    engine: Engine,
+    /// The comparison lanes' metrics, for the session's summary.
+    summary: SummaryBuilder,
+    retunes: Receiver<(usize, Box<Retune>)>,
+    /// Retunes received for a step the engine has not reached.
+    waiting: Vec<(usize, Box<Retune>)>,
+    blend_s: f64,
+    resets: u64,
+    gains: Vector6<f64>,
+}
+
+impl Comparison {
+    /// Lanes stepped by `engine` (a held source, as the driving lane's), their metrics in
+    /// `summary`, their retunes from `retunes`, blended in over `blend_s`.
+    pub fn new(
+        engine: Engine,
+        summary: SummaryBuilder,
+        retunes: Receiver<(usize, Box<Retune>)>,
+        blend_s: f64,
+    ) -> Self {
+        Comparison {
+            engine,
+            summary,
+            retunes,
+            waiting: Vec::new(),
+            blend_s,
+            resets: 0,
+            gains: Vector6::repeat(1.0),
+        }
+    }
+
+    pub fn summary(&self) -> &SummaryBuilder {
+        &self.summary
+    }
+
+    /// Steps the lanes to the report's step (once for each step whose report never came,
+    /// holding this one's sample); the frame of that step.
+    fn step(&mut self, report: &StepReport) -> Option<Frame> {
+        let orders = report.lanes;
+        if orders.resets != self.resets {
+            self.engine.reset_lanes();
+            self.resets = orders.resets;
+        }
+        if orders.gains != self.gains {
+            self.engine.set_gains(orders.gains);
+            self.gains = orders.gains;
+        }
+        self.engine.set_cue_gain(orders.cue_gain);
+        self.engine.push_sample(report.frame.aircraft);
+        let mut last = None;
+        while self.engine.position() <= report.frame.k {
+            self.apply_retunes();
+            // DEADLINE (alloc37, wired at the merge): the comparison lanes' engine steps
+            // here. They are bound to no platform's clock: give them a whole budget from
+            // their own start (`Instant::now() + budget`), not the driving step's deadline,
+            // which a lagging thread has passed and which would fail every solve.
+            let frame = self.engine.step()?;
+            self.summary.push(&frame);
+            last = Some(frame);
+        }
+        last
+    }
+
+    /// Hands the rebuilt algorithms due by the engine's step over to it.
+    fn apply_retunes(&mut self) {
+        self.waiting.extend(self.retunes.try_iter());
+        let at = self.engine.position();
+        let mut i = 0;
+        while i < self.waiting.len() {
+            if self.waiting[i].0 <= at {
+                let (_, r) = self.waiting.remove(i);
+                self.engine.retune(*r, self.blend_s);
+            } else {
+                i += 1;
+            }
+        }
+    }
+}
+
+/// The comparison lanes' thread: its engine, if there are lanes beside the driving one, and
+/// the console's view of the timings.
+pub struct Lanes {
+    comparison: Option<Comparison>,
+    order: Vec<AlgorithmId>,
+    drive: AlgorithmId,
+    step: TimeHistogram,
+    latency: TimeHistogram,
+    /// Per lane, the share of the step's budget used, in millionths.
+    share: BTreeMap<AlgorithmId, TimeHistogram>,
+    late_steps: u64,
+    lag_max_s: f64,
+    reports: u64,
+    /// The console's quantiles as last computed.
+    p99: (f64, f64, Vec<(AlgorithmId, f64)>),
+}
+
+impl Lanes {
+    pub fn new(
+        comparison: Option<Comparison>,
+        order: Vec<AlgorithmId>,
+        drive: AlgorithmId,
+    ) -> Self {
+        Lanes {
+            comparison,
+            share: order
+                .iter()
+                .map(|id| (*id, TimeHistogram::default()))
+                .collect(),
+            order,
+            drive,
+            step: TimeHistogram::default(),
+            latency: TimeHistogram::default(),
+            late_steps: 0,
+            lag_max_s: 0.0,
+            reports: 0,
+            p99: (0.0, 0.0, Vec::new()),
+        }
+    }
+
+    /// Takes every report in order, adds the comparison lanes and the console's quantiles,
+    /// and passes it to the sink thread (waiting for it: this thread is not the clock's),
+    /// until the stepping thread hangs up or the sink thread has stopped.
+    pub fn run(&mut self, rx: Receiver<StepReport>, tx: SyncSender<StepReport>) {
+        for mut report in rx.iter() {
+            self.add_lanes(&mut report);
+            self.count(&mut report);
+            if tx.send(report).is_err() {
+                return;
+            }
+        }
+    }
+
+    fn add_lanes(&mut self, report: &mut StepReport) {
+        let Some(comparison) = self.comparison.as_mut() else {
+            return;
+        };
+        let Some(theirs) = comparison.step(report) else {
+            return;
+        };
+        let now = Instant::now();
+        if now > report.deadline {
+            self.late_steps += 1;
+            let late_s = now.duration_since(report.deadline).as_secs_f64();
+            self.lag_max_s = self.lag_max_s.max(late_s);
+        }
+        let mut drive = std::mem::take(&mut report.frame.lanes).into_iter();
+        report.frame.lanes = self
+            .order
+            .iter()
+            .filter_map(|id| {
+                if *id == self.drive {
+                    drive.next()
+                } else {
+                    theirs.lane(*id).cloned()
+                }
+            })
+            .collect();
+    }
+
+    /// The console's timings: every lane's share of the step's budget, the step and the
+    /// latency, with their 99th percentiles every [`QUANTILES_EVERY`] reports.
+    fn count(&mut self, report: &mut StepReport) {
+        for lane in &report.frame.lanes {
+            if let Some(h) = self.share.get_mut(&lane.id) {
+                h.push(lane_share(lane.step_time_us, report.budget_us) * 1e6);
+            }
+        }
+        self.step.push(report.step_us);
+        if let Some(us) = report.latency_us {
+            self.latency.push(us);
+        }
+        if self.reports.is_multiple_of(QUANTILES_EVERY) {
+            self.p99 = (
+                self.latency.quantile(0.99) / 1e3,
+                self.step.quantile(0.99) / 1e3,
+                self.order
+                    .iter()
+                    .filter_map(|id| Some((*id, self.share.get(id)?.quantile(0.99) / 1e6)))
+                    .collect(),
+            );
+        }
+        self.reports += 1;
+        report.stats.latency_p99_ms = self.p99.0;
+        report.stats.step_p99_ms = self.p99.1;
+        report.stats.deadline_share_p99.clone_from(&self.p99.2);
+    }
+
+    /// Gives the session back its comparison lanes (their summary), their shares of the
+    /// deadline and how far they lagged. The driving lane's share stays the stepping
+    /// thread's, which saw every step.
+    pub fn finish(self, session: &mut LiveSession) {
+        for (id, h) in self.share {
+            if id != self.drive {
+                session.stats.deadline_share.insert(id, h);
+            }
+        }
+        session.stats.comparison_late_steps = self.late_steps;
+        session.stats.comparison_lag_max_s = self.lag_max_s;
+        session.comparison = self.comparison;
+    }
+}
