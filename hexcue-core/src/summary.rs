@@ -188,7 +188,10 @@ pub struct HardBrake {
     /// surge, sway, heave, roll, pitch or yaw.
     pub dof: String,
     /// What the gentle path would have broken: `excursion`, `velocity` or `return_time`; or
-    /// `inherited_acceleration` when the start's own acceleration was above the gentle limit.
+    /// `inherited_acceleration` when the start's own acceleration was above the gentle limit;
+    /// `legs` when the DoFs moved back together to keep the legs inside; `workspace` when,
+    /// while running, the workspace limiter braked beyond the hand-over's bound (then
+    /// `gentle_acceleration` is that bound).
     pub why: String,
     /// The path's peak |acceleration| (m/s² or deg/s²).
     pub peak_acceleration: f64,
