@@ -462,7 +462,8 @@ impl LiveSession {
             .drives
             .command(|id| frame.lane(id).map(|l| l.command).unwrap_or_default());
         self.drives.advance(self.period.as_secs_f64());
-        let command = self.limiter.apply(&self.safety.command(&wanted)).command;
+        let checked = self.safety.command_checked(&wanted, Some(&self.limiter));
+        let command = self.limiter.apply(&checked).command;
         self.safety.sent(&command);
         if let Some(b) = self.safety.take_workspace_brake() {
             let bound = self.safety.params().handover_acceleration;
