@@ -88,7 +88,7 @@ fn no_algorithm_beats_the_lower_bound_on_the_shipped_flights() {
         motions.push(("achieved", &achieved["error"]));
         for (who, error) in motions {
             let mut sum = 0.0;
-            for c in CHANNELS {
+            for c in Channel::ALL.map(Channel::key) {
                 let v = valid["channel"][c].as_f64().unwrap();
                 let err = error[c].as_f64().unwrap();
                 sum += err;

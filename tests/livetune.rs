@@ -75,7 +75,13 @@ fn parameter(msg: &Value, name: &str) -> Option<f64> {
         .and_then(|p| p["value"].as_f64())
 }
 
-fn spawn(in_port: u16, out_port: u16, dir: &std::path::Path) -> (Child, mpsc::Receiver<String>) {
+fn spawn(
+    in_port: u16,
+    out_port: u16,
+    dir: &std::path::Path,
+    algorithms: &str,
+    drive: &str,
+) -> (Child, mpsc::Receiver<String>) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_hexcue"))
         .args([
             "live",
@@ -85,9 +91,9 @@ fn spawn(in_port: u16, out_port: u16, dir: &std::path::Path) -> (Child, mpsc::Re
             "--output",
             &format!("udp://127.0.0.1:{out_port}"),
             "--algorithms",
-            "cwf",
+            algorithms,
             "--drive",
-            "cwf",
+            drive,
             "--foxglove",
             "127.0.0.1:0",
             "--record",
@@ -134,7 +140,7 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
     let stop = Arc::new(AtomicBool::new(false));
     let (out_port, commands, listener) = command_listener(stop.clone());
     let in_port = free_udp_port();
-    let (mut child, stderr) = spawn(in_port, out_port, dir.path());
+    let (mut child, stderr) = spawn(in_port, out_port, dir.path(), "cwf", "cwf");
     let mut lines = Vec::new();
     let addr = serving(&stderr, &mut lines);
     let mut socket = connect(&addr);
@@ -277,6 +283,143 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
     );
     let t_s = logged[0]["t_s"].as_f64().unwrap();
     assert!(t_s > 3.0, "{t_s}");
+}
+
+/// Issue 36's "the driving algorithm switched live through a blend, never a jump": a session
+/// of the MPC and the CWF, the MPC driving, replaying the steep turn; mid-flight a Foxglove
+/// client asks for `drive` = 2 (the S-MPC, not in this session: refused with the session's
+/// list, nothing changes), then `drive` = 0. The JSON stream's `algorithm` goes from `mpc`
+/// to `cwf` at the change; through the switch and the blend (the `[safety]` fade-in, 3 s)
+/// and a second after it, the commanded acceleration (second difference of the poses) stays
+/// within 2 m/s² and 30 °/s² and the jerk (third difference) within the hand-over's 20 m/s³
+/// and 300 °/s³; the change is on `/events` and in the summary.
+#[test]
+fn the_drive_switched_from_foxglove_mid_flight_blends_within_the_hand_over_bounds() {
+    let dir = tempfile::tempdir().unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let (out_port, commands, listener) = command_listener(stop.clone());
+    let in_port = free_udp_port();
+    let (mut child, stderr) = spawn(in_port, out_port, dir.path(), "mpc,cwf", "mpc");
+    let mut lines = Vec::new();
+    let addr = serving(&stderr, &mut lines);
+    let mut socket = connect(&addr);
+    read_until(&mut socket, |v| v["op"] == "serverInfo");
+    wait_for_commands(&commands, PATIENCE, "first command", |c| !c.is_empty());
+    let rows: Vec<Vec<f64>> = trace_rows("steep-turn.csv")
+        .into_iter()
+        .skip(2500)
+        .take(2500)
+        .collect();
+    let sim = replay_jsbsim(in_port, rows);
+    wait_for_commands(&commands, PATIENCE, "a second running", |c| {
+        c.iter().filter(|c| c["state"] == "running").count() >= 100
+    });
+    send(
+        &mut socket,
+        json!({"op": "getParameters", "parameterNames": ["drive"], "id": "now"}),
+    );
+    let (now, _) = read_until(&mut socket, |v| {
+        v["op"] == "parameterValues" && v["id"] == "now"
+    });
+    assert_eq!(parameter(&now, "drive"), Some(1.0), "{now}");
+    send(
+        &mut socket,
+        json!({"op": "setParameters", "id": "smpc",
+               "parameters": [{"name": "drive", "value": 2.0, "type": "float64"}]}),
+    );
+    let (answer, before) = read_until(&mut socket, |v| {
+        v["op"] == "parameterValues" && v["id"] == "smpc"
+    });
+    assert_eq!(parameter(&answer, "drive"), Some(1.0), "{answer}");
+    let refusal = before
+        .iter()
+        .find(|v| v["op"] == "status")
+        .unwrap_or_else(|| panic!("no status: {before:?}"));
+    let message = refusal["message"].as_str().unwrap();
+    assert!(
+        message.contains("drive") && message.contains("mpc, cwf"),
+        "{message}"
+    );
+
+    let k0 = commands.lock().unwrap().len();
+    send(
+        &mut socket,
+        json!({"op": "setParameters", "id": "cwf",
+               "parameters": [{"name": "drive", "value": 0.0, "type": "float64"}]}),
+    );
+    let (answer, _) = read_until(&mut socket, |v| {
+        v["op"] == "parameterValues" && v["id"] == "cwf"
+    });
+    assert_eq!(parameter(&answer, "drive"), Some(0.0), "{answer}");
+    wait_for_commands(&commands, PATIENCE, "4 s after the switch", |c| {
+        c.len() >= k0 + 400
+    });
+    assert!(!sim.is_finished(), "the stand-in ran out before the check");
+    signal_int(&child);
+    let status = wait_child(&mut child);
+    stop.store(true, Ordering::Relaxed);
+    listener.join().unwrap();
+    lines.extend(stderr.try_iter());
+    assert!(status.success(), "{status}: {lines:?}");
+    let commands = commands.lock().unwrap();
+    assert!(commands[..k0].iter().all(|c| c["algorithm"] == "mpc"));
+    let switched = (k0..commands.len())
+        .find(|k| commands[*k]["algorithm"] == "cwf")
+        .expect("the stream says the CWF drives");
+    assert!(commands[switched..k0 + 400]
+        .iter()
+        .all(|c| c["algorithm"] == "cwf"));
+    assert!(commands[switched..k0 + 400]
+        .iter()
+        .all(|c| c["state"] == "running"));
+    let poses: Vec<[f64; 6]> = commands.iter().map(|c| vec6(c, "pose")).collect();
+    let acc = |k: usize, i: usize| {
+        (poses[k][i] - 2.0 * poses[k - 1][i] + poses[k - 2][i]) / (DT_S * DT_S)
+    };
+    let (mut worst, mut worst_jerk) = ([0.0f64; 6], [0.0f64; 6]);
+    for k in switched.saturating_sub(10)..k0 + 400 {
+        for i in 0..6 {
+            let unit = if i < 3 { 1.0 } else { 1f64.to_degrees() };
+            worst[i] = worst[i].max(acc(k, i).abs() * unit);
+            worst_jerk[i] = worst_jerk[i].max((acc(k, i) - acc(k - 1, i)).abs() / DT_S * unit);
+        }
+    }
+    // The switch moved the platform: the two lanes differ, so the test means something.
+    let moved = (0..6)
+        .map(|i| (poses[k0 + 399][i] - poses[switched][i]).abs())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "drive mpc → cwf: worst |a| {worst:.3?} (m/s², °/s²), worst |jerk| {worst_jerk:.2?} \
+         (m/s³, °/s³), the pose moved by up to {moved:.4} in the 4 s after"
+    );
+    assert!(moved > 1e-3, "{moved}");
+    for i in 0..6 {
+        let (bound, jerk) = if i < 3 {
+            (AXIS_MPS2, 20.0)
+        } else {
+            (ANGLE_DPS2, 300.0)
+        };
+        assert!(worst[i] <= bound, "DoF {i}: {worst:?}");
+        assert!(
+            worst_jerk[i] <= jerk * (1.0 + 1e-6),
+            "DoF {i}: {worst_jerk:?}"
+        );
+    }
+    let events = recorded_events(&dir.path().join("live.mcap"));
+    let changes: Vec<&String> = events
+        .iter()
+        .filter(|e| e.starts_with("parameter drive"))
+        .collect();
+    assert_eq!(changes.len(), 1, "{events:?}");
+    assert!(
+        changes[0].starts_with("parameter drive set: 1 → 0 (mpc → cwf)"),
+        "{}",
+        changes[0]
+    );
+    let summary = read_json(&dir.path().join("summary.json"));
+    let tuning = &summary["tuning"];
+    assert_eq!(tuning["final_parameter_values"]["drive"], 0.0, "{tuning}");
+    assert_eq!(tuning["changes"].as_array().unwrap().len(), 1, "{tuning}");
 }
 
 fn signal_int(child: &Child) {

@@ -93,6 +93,7 @@ fn record_and_read(
         trace_sidecar: None,
         algorithms: algorithms.to_vec(),
         rate_hz: profile.rate_hz,
+        profile: Some(profile.clone()),
     };
     let mut recorder = Recorder::create(path, &meta).expect("recorder");
     for frame in frames {

@@ -17,7 +17,7 @@
 
 use nalgebra::Vector6;
 
-use crate::mca::PlatformCommand;
+use crate::mca::{AlgorithmId, PlatformCommand};
 use crate::model::platform::DofLimits;
 use crate::safety::path::{Bounds, DofPath, DofState};
 
@@ -193,6 +193,89 @@ impl Blend {
     }
 }
 
+/// Lanes heard at once at most: the drive and up to three switches still blending in.
+const MAX_DRIVES: usize = 4;
+
+/// The driving algorithm, switched live through blends (issue 36: CWF ↔ MPC ↔ S-MPC, never
+/// a jump). Every lane runs all the time, so the new one is already running when it is
+/// asked for; the command moves from the old lane's to the new lane's along a [`Blend`].
+/// A switch while another still blends in blends from that blended command: the command is
+/// lane₀ mixed in turn with each newer lane by its own blend, and a lane whose blend is done
+/// makes every older one unheard. Beyond [`MAX_DRIVES`] lanes the oldest is cut short (a
+/// step in what the algorithms ask, which the hand-over stage after it still keeps within
+/// its bounds). No allocation: fixed arrays.
+#[derive(Clone, Debug)]
+pub struct DriveSwitch {
+    lanes: [AlgorithmId; MAX_DRIVES],
+    /// `blends[k]` brings `lanes[k + 1]` in over the command of `lanes[..=k]`.
+    blends: [Blend; MAX_DRIVES - 1],
+    n: usize,
+}
+
+impl DriveSwitch {
+    /// `drive` driving alone, no blend under way.
+    pub fn new(drive: AlgorithmId) -> Self {
+        DriveSwitch {
+            lanes: [drive; MAX_DRIVES],
+            blends: [Blend::new(0.0); MAX_DRIVES - 1],
+            n: 1,
+        }
+    }
+
+    /// The algorithm that drives, or is blending in to drive.
+    pub fn drive(&self) -> AlgorithmId {
+        self.lanes[self.n - 1]
+    }
+
+    /// Whether an older lane is still heard.
+    pub fn blending(&self) -> bool {
+        self.n > 1
+    }
+
+    /// Blends `to` in over `blend_s` from the command as it is now; true when the oldest
+    /// lane had to be cut short to make room.
+    pub fn switch(&mut self, to: AlgorithmId, blend_s: f64) -> bool {
+        if to == self.drive() {
+            return false;
+        }
+        let cut = self.n == MAX_DRIVES;
+        if cut {
+            self.drop_through(0);
+        }
+        self.lanes[self.n] = to;
+        self.blends[self.n - 1] = Blend::new(blend_s);
+        self.n += 1;
+        cut
+    }
+
+    /// The command at the current step, from each lane's (`lane`, called once per lane heard).
+    pub fn command(&self, lane: impl Fn(AlgorithmId) -> PlatformCommand) -> PlatformCommand {
+        let mut c = lane(self.lanes[0]);
+        for k in 1..self.n {
+            c = self.blends[k - 1].mix(&c, &lane(self.lanes[k]));
+        }
+        c
+    }
+
+    /// On to the next step.
+    pub fn advance(&mut self, dt_s: f64) {
+        for b in &mut self.blends[..self.n - 1] {
+            b.advance(dt_s);
+        }
+        if let Some(done) = (0..self.n - 1).rev().find(|&k| self.blends[k].done()) {
+            self.drop_through(done);
+        }
+    }
+
+    /// Forgets `lanes[..=k]`: `lanes[k + 1]` becomes the oldest lane heard.
+    fn drop_through(&mut self, k: usize) {
+        let gone = k + 1;
+        self.lanes.copy_within(gone..self.n, 0);
+        self.blends.copy_within(gone..self.n - 1, 0);
+        self.n -= gone;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -275,6 +358,73 @@ mod tests {
         }
         assert_eq!(*g.last().unwrap(), 1.0, "{:?}", &g[590..]);
         assert!(g.iter().all(|v| *v >= 0.5 - 1e-9 && *v <= 1.0 + 1e-9));
+    }
+
+    /// Two lanes weaving differently (sway 0.2 m at 0.3 Hz, and 0.1 m at 0.5 Hz with a
+    /// 0.05 m offset): switched at 2 s, and back at 3 s, mid-blend. The command's pose is
+    /// continuous, its second difference within what the lanes and the blend's own terms
+    /// allow (hand-computed: |ẅ| ≤ 5.78/T², |ẇ| ≤ 1.875/T), at the new lane exactly once
+    /// the blend is done; a switch to the lane driving changes nothing.
+    #[test]
+    fn a_switch_blends_from_one_lane_to_the_other_and_back_mid_blend() {
+        let dt = 0.01;
+        let lane = |id: AlgorithmId, k: usize| {
+            let t = k as f64 * dt;
+            let (a, f, off) = match id {
+                AlgorithmId::Cwf => (0.2, 0.3, 0.0),
+                _ => (0.1, 0.5, 0.05),
+            };
+            let w = 2.0 * std::f64::consts::PI * f;
+            PlatformCommand {
+                pose: Vector6::new(0.0, off + a * (w * t).sin(), 0.0, 0.0, 0.0, 0.0),
+                velocity: Vector6::new(0.0, a * w * (w * t).cos(), 0.0, 0.0, 0.0, 0.0),
+                acceleration: Vector6::new(0.0, -a * w * w * (w * t).sin(), 0.0, 0.0, 0.0, 0.0),
+            }
+        };
+        let blend_s = 1.5;
+        let mut d = DriveSwitch::new(AlgorithmId::Cwf);
+        assert!(!d.switch(AlgorithmId::Cwf, blend_s));
+        assert!(!d.blending());
+        let mut poses = Vec::new();
+        for k in 0..800 {
+            if k == 200 {
+                d.switch(AlgorithmId::Mpc, blend_s);
+            }
+            if k == 300 {
+                d.switch(AlgorithmId::Cwf, blend_s);
+                assert!(d.blending());
+            }
+            let c = d.command(|id| lane(id, k));
+            poses.push(c.pose[1]);
+            if k < 200 {
+                assert_eq!(c, lane(AlgorithmId::Cwf, k));
+            }
+            // Both blends done 1.5 s after the second switch: the CWF's own, exactly.
+            if k >= 300 + 150 {
+                assert!(!d.blending(), "{k}");
+                assert_eq!(c, lane(AlgorithmId::Cwf, k));
+            }
+            d.advance(dt);
+        }
+        // The lanes' own accelerations are at most 0.2·(0.6π)² = 0.71 and 0.1·π² = 0.99
+        // m/s²; each blend adds at most |Δp|·5.78/T² + 2|Δv|·1.875/T with |Δp| ≤ 0.35 m and
+        // |Δv| ≤ 1.13 m/s (the lanes' 0.38 and 0.31 m/s, and the inner blend's 0.44):
+        // 0.90 + 2.83 = 3.73 m/s², twice for a blend over a blend. A step in the velocity
+        // (a C¹ break) would be some 50 m/s² here.
+        let worst = (2..poses.len())
+            .map(|k| ((poses[k] - 2.0 * poses[k - 1] + poses[k - 2]) / (dt * dt)).abs())
+            .fold(0.0, f64::max);
+        assert!(worst <= 0.99 + 2.0 * 3.73, "{worst}");
+        // And it is a blend, not a jump: no step in the pose beyond the lanes' speed and the
+        // blend's (a jump from one lane to the other would be up to 0.35 m in a step).
+        let worst_step = poses
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            worst_step <= 0.01 * (0.38 + 2.0 * 0.35 * 1.875 / blend_s),
+            "{worst_step}"
+        );
     }
 
     /// The blend: equal commands give the same command; from one to another the pose moves

@@ -17,11 +17,12 @@ pub mod path;
 use nalgebra::{Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
+use crate::mca::limiter::WorkspaceLimiter;
 use crate::mca::PlatformCommand;
 use crate::model::platform::DofLimits;
 use crate::model::stewart::Stewart;
 use crate::vocab::{positive, ProfileError};
-use path::{DofPlan, DofState, TransitionLimits};
+use path::{DofPath, DofPlan, DofState, TransitionLimits};
 
 /// The profile's `[safety]`, in the units of its key names: the fade-in, the input timeout,
 /// and the limits of every transition to neutral (docs/live.md, *Transitions*). Absent: the
@@ -91,6 +92,7 @@ impl SafetySettings {
             )
             .zip_map(&limits.acceleration, f64::min)
                 * (1.0 - 1e-6),
+            bound_jerk: join(self.handover_jerk_mps3, self.handover_angular_jerk_dps3),
             gentle_jerk: join(self.jerk_mps3, self.angular_jerk_dps3),
             return_time_s: self.return_time_s,
             limits: *limits,
@@ -375,14 +377,17 @@ impl NeutralReturn {
 /// inside its stroke. At most the return time's steps of six legs' lengths, once per
 /// transition.
 fn legs_fit(stewart: &Stewart, margin_m: f64, plans: &[DofPlan; 6], dt_s: f64) -> bool {
-    let end_s = plans
-        .iter()
-        .map(|p| p.path.duration_s())
-        .fold(0.0, f64::max);
+    let paths = plans.map(|p| p.path);
+    paths_fit(stewart, margin_m, &paths, dt_s)
+}
+
+/// [`legs_fit`] for paths, each sampled as it ends (a stop rests where it stopped).
+fn paths_fit(stewart: &Stewart, margin_m: f64, paths: &[DofPath; 6], dt_s: f64) -> bool {
+    let end_s = paths.iter().map(|p| p.duration_s()).fold(0.0, f64::max);
     let steps = (end_s / dt_s).ceil() as u64;
     (1..=steps).all(|k| {
         let t_s = k as f64 * dt_s;
-        let pose = Vector6::from_fn(|i, _| plans[i].path.at(t_s).p);
+        let pose = Vector6::from_fn(|i, _| paths[i].at_or_end(t_s).p);
         stewart.fits(&pose, margin_m)
     })
 }
@@ -446,6 +451,75 @@ pub struct Safety {
     /// The driving algorithm's last two poses, oldest first (the hand-over stage's target).
     algorithm_poses: [Vector6<f64>; 2],
     platform: PlatformReadiness,
+    /// The platform's legs and the margin they keep (the limiter's), when known: the
+    /// hand-over stage keeps a stop within its bounds possible inside them.
+    legs: Option<(Stewart, f64)>,
+    /// The stop within the hand-over's bounds from the last command the stage gave, checked
+    /// to stay inside the excursions and the legs, and how many steps of it have been
+    /// followed: the stage follows it on when the next command would leave no such stop.
+    handover_stop: [DofPath; 6],
+    handover_stop_k: u64,
+    /// The pose the stage gave last: when the pose sent differs, the limiter changed it.
+    handover_pose: Option<Vector6<f64>>,
+    /// The workspace limiter changing the command while engaging or running: the episode
+    /// under way, and the last one ended, not yet taken by [`Safety::take_workspace_brake`].
+    workspace_brake: Option<WorkspaceBrake>,
+    workspace_brake_done: Option<WorkspaceBrake>,
+    /// Steps since the stage was made.
+    steps: u64,
+}
+
+impl WorkspaceBrake {
+    /// As a hard brake of the summary, ended at `t_end_s`: the DoF furthest beyond the
+    /// hand-over's bound `bound` (SI), `why: workspace`; and the event's text.
+    pub fn hard_brake(
+        &self,
+        t_end_s: f64,
+        dt_s: f64,
+        bound: &Vector6<f64>,
+    ) -> (crate::summary::HardBrake, String) {
+        let i = (0..6)
+            .max_by(|&a, &b| {
+                let r = |i: usize| self.peak_acceleration[i] / bound[i];
+                r(a).total_cmp(&r(b))
+            })
+            .unwrap_or(0);
+        let (scale, unit) = if i < 3 {
+            (1.0, "m/s²")
+        } else {
+            (1f64.to_degrees(), "deg/s²")
+        };
+        let brake = crate::summary::HardBrake {
+            t_s: t_end_s - self.steps as f64 * dt_s,
+            dof: DOF_NAMES[i].to_string(),
+            why: "workspace".to_string(),
+            peak_acceleration: self.peak_acceleration[i] * scale,
+            gentle_acceleration: bound[i] * scale,
+            unit: unit.to_string(),
+        };
+        let text = format!(
+            "hard brake on {} while running: peak {:.2} {unit}, beyond the hand-over's {:.2} \
+             {unit}, for {:.2} s: the workspace limiter kept the platform inside its workspace",
+            brake.dof,
+            brake.peak_acceleration,
+            brake.gentle_acceleration,
+            self.steps as f64 * dt_s
+        );
+        (brake, text)
+    }
+}
+
+/// Steps at which the workspace limiter changed the command while engaging or running: the
+/// hand-over stage could not keep a stop within its bounds possible inside the workspace
+/// (the limiter then brakes at the profile's own limits). Reported, as a hard brake is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorkspaceBrake {
+    /// How long into the session it began, in steps since the stage was made.
+    pub first_step: u64,
+    /// How many steps the limiter changed the command for.
+    pub steps: u64,
+    /// The largest |acceleration| of the poses sent over those steps, per DoF (SI).
+    pub peak_acceleration: Vector6<f64>,
 }
 
 impl Safety {
@@ -464,6 +538,13 @@ impl Safety {
             sent_poses: [Vector6::zeros(); 3],
             algorithm_poses: [Vector6::zeros(); 2],
             platform: PlatformReadiness::Ready,
+            legs: None,
+            handover_stop: [DofPath::at_rest(); 6],
+            handover_stop_k: 0,
+            handover_pose: None,
+            workspace_brake: None,
+            workspace_brake_done: None,
+            steps: 0,
         }
     }
 
@@ -475,7 +556,8 @@ impl Safety {
     /// Every way back keeps the legs of `stewart` `margin_m` inside their stroke
     /// ([`NeutralReturn::with_legs`]).
     pub fn with_legs(mut self, stewart: Stewart, margin_m: f64) -> Self {
-        self.neutral = self.neutral.with_legs(stewart, margin_m);
+        self.neutral = self.neutral.with_legs(stewart.clone(), margin_m);
+        self.legs = Some((stewart, margin_m));
         self
     }
 
@@ -528,6 +610,7 @@ impl Safety {
     pub fn begin_step(&mut self, input_ok: bool) -> StepPlan {
         use SafetyState::*;
         self.time_in_state_s += self.dt_s;
+        self.steps += 1;
         let mut reset_algorithms = false;
         let platform_ready = self.platform == PlatformReadiness::Ready;
         match self.state {
@@ -560,8 +643,21 @@ impl Safety {
     /// The command for this step: the driving algorithm's while engaging or running, the
     /// last pose at rest in a fault, else the way back to (or rest at) neutral.
     pub fn command(&mut self, algorithm: &PlatformCommand) -> PlatformCommand {
+        self.command_checked(algorithm, None)
+    }
+
+    /// [`Self::command`], where the hand-over stage also keeps to commands, and stops, that
+    /// the workspace `limiter` after it would pass unchanged (a copy of it is run over the
+    /// stop: its check brakes at the profile's limits, which follow another path than the
+    /// stop within the bound): one it would change is braked within the hand-over's bounds
+    /// instead, as one whose stop would leave the workspace is.
+    pub fn command_checked(
+        &mut self,
+        algorithm: &PlatformCommand,
+        limiter: Option<&WorkspaceLimiter>,
+    ) -> PlatformCommand {
         match self.state {
-            SafetyState::Engaging | SafetyState::Running => self.hand_over(algorithm),
+            SafetyState::Engaging | SafetyState::Running => self.hand_over(algorithm, limiter),
             SafetyState::Washout | SafetyState::Estop => self.neutral.step(),
             SafetyState::Parked => PlatformCommand::default(),
             SafetyState::Fault => PlatformCommand {
@@ -586,7 +682,11 @@ impl Safety {
     /// linear near the command, it converges without the chatter of a bang-bang law in
     /// discrete steps; once the last two errors are below what the jerk bound could absorb
     /// in a step (J·dt³/8), the command goes out unchanged.
-    fn hand_over(&mut self, algorithm: &PlatformCommand) -> PlatformCommand {
+    fn hand_over(
+        &mut self,
+        algorithm: &PlatformCommand,
+        limiter: Option<&WorkspaceLimiter>,
+    ) -> PlatformCommand {
         let dt = self.dt_s;
         let [p2, p1, p0] = self.sent_poses;
         let [x2, x1] = self.algorithm_poses;
@@ -613,9 +713,11 @@ impl Safety {
                 (a_prev + j_max * dt).min(a_max),
             );
             if lo > hi {
-                // Beyond the bound (the limiter's doing): back toward it at the jerk bound.
-                let a = a_prev - a_prev.signum() * j_max * dt;
-                (lo, hi) = (a, a);
+                // Beyond the bound (the limiter's doing, already a step in the jerk): back
+                // within it at once. Ramping it down at the jerk bound instead went on
+                // accelerating at up to the profile's limit for a tenth of the bound's worth
+                // of seconds (200 °/s² for 0.6 s measured on hobby-linear).
+                (lo, hi) = (-a_max, a_max);
             }
             let (e0, e1) = (p0[i] - x1[i], p1[i] - x2[i]);
             let direct = (x0[i] - 2.0 * p0[i] + p1[i]) / (dt * dt);
@@ -637,13 +739,126 @@ impl Safety {
             out.pose[i] = p0[i] + out.velocity[i] * dt;
             out.acceleration[i] = a;
         }
-        out
+        self.keep_a_stop_possible(out, limiter)
+    }
+
+    /// `out` as the hand-over gave it when a stop within the hand-over's bounds from it
+    /// ([`TransitionLimits::handover_stop`], planned from the poses as a way back is) stays
+    /// inside every DoF's excursion and velocity limit and every leg's margin; else the next
+    /// step of the last such stop, which is known to. So the platform brakes toward the
+    /// workspace's edge within the bound, where the limiter would brake at the profile's own
+    /// limits, and a way back can always start within the bound ([`path::HANDOVER_RUNG`]).
+    fn keep_a_stop_possible(
+        &mut self,
+        out: PlatformCommand,
+        limiter: Option<&WorkspaceLimiter>,
+    ) -> PlatformCommand {
+        let dt = self.dt_s;
+        let [_, p1, p0] = self.sent_poses;
+        let candidate = self.stop_from(&[p1, p0, out.pose]);
+        let passes = |limiter: &WorkspaceLimiter| {
+            // A copy: the limiter's own state is the poses it issued.
+            let mut l = limiter.clone();
+            if l.apply(&out).acted {
+                return false;
+            }
+            let end_s = candidate.iter().map(|p| p.duration_s()).fold(0.0, f64::max);
+            (1..=(end_s / dt).ceil() as u64).all(|k| {
+                let t_s = k as f64 * dt;
+                let mut c = out;
+                for (i, path) in candidate.iter().enumerate() {
+                    let s = path.at_or_end(t_s);
+                    (c.pose[i], c.velocity[i], c.acceleration[i]) = (s.p, s.v, s.a);
+                }
+                !l.apply(&c).acted
+            })
+        };
+        if self.stop_fits(&candidate) && limiter.is_none_or(passes) {
+            self.handover_stop = candidate;
+            self.handover_stop_k = 0;
+            self.handover_pose = Some(out.pose);
+            return out;
+        }
+        if self.handover_pose != Some(p0) {
+            // The limiter changed the last command (or there was none): the stop from the
+            // poses sent, whether or not it fits; the limiter still has the last word.
+            self.handover_stop = self.stop_from(&self.sent_poses);
+            self.handover_stop_k = 0;
+        }
+        self.handover_stop_k += 1;
+        let t_s = self.handover_stop_k as f64 * dt;
+        let mut braked = out;
+        for (i, path) in self.handover_stop.iter().enumerate() {
+            let s = path.at_or_end(t_s);
+            braked.pose[i] = s.p;
+            braked.velocity[i] = s.v;
+            braked.acceleration[i] = s.a;
+        }
+        self.handover_pose = Some(braked.pose);
+        braked
+    }
+
+    /// Every DoF's stop within the hand-over's bounds from the state the three poses
+    /// (oldest first) define, as a way back would start from them.
+    fn stop_from(&self, poses: &[Vector6<f64>; 3]) -> [DofPath; 6] {
+        let t = &self.params.transitions;
+        let from = state_from_poses(poses, self.dt_s);
+        std::array::from_fn(|i| {
+            let b = t.handover_stop(i);
+            // An acceleration beyond the bound (the limiter's) is not carried on: the stop
+            // starts within it.
+            let from = DofState {
+                a: from[i].a.clamp(-b.acceleration, b.acceleration),
+                ..from[i]
+            };
+            DofPath::plan_stop(from, &b)
+        })
+    }
+
+    /// Whether the stop `paths` stays inside every excursion and velocity limit (or where it
+    /// starts, when beyond) and keeps every leg its margin, sampled every step as sent.
+    fn stop_fits(&self, paths: &[DofPath; 6]) -> bool {
+        let l = &self.params.transitions.limits;
+        let inside = paths.iter().enumerate().all(|(i, p)| {
+            let start = p.at_or_end(0.0);
+            p.peak_position() <= l.excursion[i].max(start.p.abs()) * (1.0 + 1e-9)
+                && p.peak_velocity() <= l.velocity[i].max(start.v.abs()) * (1.0 + 1e-9)
+        });
+        inside
+            && self.legs.as_ref().is_none_or(|(stewart, margin_m)| {
+                let start = Vector6::from_fn(|i, _| paths[i].at_or_end(0.0).p);
+                stewart.fits(&start, *margin_m) && paths_fit(stewart, *margin_m, paths, self.dt_s)
+            })
     }
 
     /// What was actually sent (after the limiter): a washout starts from there.
     pub fn sent(&mut self, command: &PlatformCommand) {
         self.last_sent = *command;
         self.sent_poses = [self.sent_poses[1], self.sent_poses[2], command.pose];
+        let running = matches!(self.state, SafetyState::Engaging | SafetyState::Running);
+        let changed = running && self.handover_pose.is_some_and(|p| p != command.pose);
+        if changed {
+            let [p2, p1, p0] = self.sent_poses;
+            let a = ((p0 - 2.0 * p1 + p2) / (self.dt_s * self.dt_s)).abs();
+            let b = self.workspace_brake.get_or_insert(WorkspaceBrake {
+                first_step: self.steps,
+                steps: 0,
+                peak_acceleration: Vector6::zeros(),
+            });
+            b.steps += 1;
+            b.peak_acceleration = b.peak_acceleration.sup(&a);
+        } else if let Some(b) = self.workspace_brake.take() {
+            self.workspace_brake_done = Some(b);
+        }
+        if !running {
+            self.handover_pose = None;
+        }
+    }
+
+    /// An episode of the workspace limiter changing the command while engaging or running,
+    /// once it has ended ([`WorkspaceBrake`]); the live loop reports it.
+    pub fn take_workspace_brake(&mut self) -> Option<WorkspaceBrake> {
+        self.workspace_brake_done.take()
     }
 
     /// The way back to neutral planned at this step, once: the live loop reports it (and
@@ -661,7 +876,6 @@ impl Safety {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mca::limiter::WorkspaceLimiter;
     use crate::testing::full_flight;
 
     const DT: f64 = 0.01;
@@ -1305,6 +1519,115 @@ mod tests {
              worst angular |a| {worst_dps2:.2} °/s²",
             plans.map(|p| p.rung),
             plans.map(|p| p.escalation)
+        );
+    }
+
+    fn hobby_linear() -> crate::profile::Profile {
+        crate::profile::text::parse_profile(
+            include_str!("../../profiles/hobby-linear.toml"),
+            "hobby-linear.toml",
+        )
+        .unwrap()
+    }
+
+    /// Issue 34's real-JSBSim failure on profiles/hobby-linear.toml, constructed: the driving
+    /// algorithm eases (a smootherstep over 2 s, its own acceleration within the hand-over's
+    /// bound) toward 1.6 × the pose of that session's SIGINT (roll −3.2°, pitch 8.6°, yaw
+    /// 4.5°, leg 5 at its margin), which no leg reaches. Before the stage knew the legs, the
+    /// workspace limiter braked it at the profile's 300 °/s² on reaching leg 5's margin, and
+    /// a stop there inherited that state (the way back then broke 30 °/s² to keep the legs
+    /// inside). Now, running and on every way back (stopped at several moments around the
+    /// margin), the poses sent keep their second difference within 2 m/s² and 30 °/s², and
+    /// every leg its margin; the limiter never has to act.
+    #[test]
+    fn on_the_hobby_rig_running_into_the_legs_brakes_within_the_hand_over_bound() {
+        let profile = hobby_linear();
+        let limits = profile.limits.si();
+        let margin = profile.limiter.leg_margin_m;
+        let stewart = profile.stewart();
+        let p = profile.safety.params(&limits, DT);
+        let bound = Vector6::new(2.0, 2.0, 2.0, 0.0, 0.0, 0.0)
+            + Vector6::new(0.0, 0.0, 0.0, 1.0, 1.0, 1.0) * 30f64.to_radians();
+        let direction = Vector6::new(0.00918, -0.04985, 0.00717, -0.05669, 0.15051, 0.0788);
+        let algorithm = |k: usize| {
+            let x = (k as f64 * DT / 2.0).min(1.0);
+            PlatformCommand {
+                pose: direction * 1.6 * fade_in_gain(x),
+                ..Default::default()
+            }
+        };
+        // The algorithm alone is within the bound: only the legs make the stage act.
+        let the_algorithms = (2..300)
+            .map(|k| {
+                (algorithm(k).pose - 2.0 * algorithm(k - 1).pose + algorithm(k - 2).pose)
+                    / (DT * DT)
+            })
+            .all(|a| (0..6).all(|i| a[i].abs() <= bound[i]));
+        assert!(the_algorithms);
+        let mut first_at_margin = None;
+        for stop_at in [None, Some(60), Some(90), Some(110), Some(130), Some(200)] {
+            let mut s = Safety::new(p.clone()).with_legs(stewart.clone(), margin);
+            let mut limiter = WorkspaceLimiter::new(stewart.clone(), limits, margin, DT);
+            // Straight to running: the fade-in is the algorithm's business here.
+            s.begin_step(true);
+            s.state = SafetyState::Running;
+            let mut poses = vec![Vector6::zeros(); 3];
+            let mut limiter_acted = 0;
+            let mut stopped_k = None;
+            for k in 0..800 {
+                if Some(k) == stop_at {
+                    s.estop();
+                }
+                let plan = s.begin_step(true);
+                if plan.state == SafetyState::Parked {
+                    break;
+                }
+                if plan.state == SafetyState::Estop && stopped_k.is_none() {
+                    stopped_k = Some(poses.len());
+                }
+                let cmd = s.command_checked(&algorithm(k), Some(&limiter));
+                let limited = limiter.apply(&cmd);
+                limiter_acted += usize::from(limited.acted);
+                s.sent(&limited.command);
+                poses.push(limited.command.pose);
+                let pose = poses.last().unwrap();
+                assert!(stewart.fits(pose, margin - 1e-9), "stop {stop_at:?}, k {k}");
+                if stop_at.is_none() && first_at_margin.is_none() {
+                    let m = stewart.margins(&stewart.leg_lengths(pose)).min();
+                    if m < margin + 1e-3 {
+                        first_at_margin = Some(k);
+                    }
+                }
+                for i in 0..6 {
+                    let (a, _) = diffs(&poses, i);
+                    assert!(
+                        a.abs() <= bound[i],
+                        "stop {stop_at:?}, k {k}, {} ({:?}): |a| {:.2} (deg/s² for angles)",
+                        DOF_NAMES[i],
+                        plan.state,
+                        if i < 3 { a } else { a.to_degrees() }
+                    );
+                }
+            }
+            assert_eq!(limiter_acted, 0, "stop {stop_at:?}");
+            if let Some(stopped_k) = stopped_k {
+                assert_eq!(s.state(), SafetyState::Parked, "stop {stop_at:?}");
+                assert_eq!(*poses.last().unwrap(), Vector6::zeros());
+                let took_s = (poses.len() - stopped_k) as f64 * DT;
+                assert!(took_s <= p.transitions.return_time_s + DT, "{took_s} s");
+                let plans = s.neutral_return().plans();
+                eprintln!(
+                    "hobby-linear, stopped at step {stop_at:?}: rungs {:?}, escalations {:?}, \
+                     at rest in {took_s:.2} s",
+                    plans.map(|p| p.rung),
+                    plans.map(|p| p.escalation.map(|e| e.word()))
+                );
+            }
+        }
+        // The case reaches the margin, where the limiter used to take over.
+        assert!(
+            first_at_margin.is_some_and(|k| k < 200),
+            "{first_at_margin:?}"
         );
     }
 }

@@ -157,6 +157,7 @@ pub struct LiveSummary {
     /// delay; and the most they lagged (s).
     #[serde(default)]
     pub comparison_late_steps: u64,
+    /// The most the comparison lanes lagged the driving lane's step (s).
     #[serde(default)]
     pub comparison_lag_max_s: f64,
     /// Steps with fresh input whose sample was older than one period: the simulator slower
@@ -214,7 +215,10 @@ pub struct HardBrake {
     /// surge, sway, heave, roll, pitch or yaw.
     pub dof: String,
     /// What the gentle path would have broken: `excursion`, `velocity` or `return_time`; or
-    /// `inherited_acceleration` when the start's own acceleration was above the gentle limit.
+    /// `inherited_acceleration` when the start's own acceleration was above the gentle limit;
+    /// `legs` when the DoFs moved back together to keep the legs inside; `workspace` when,
+    /// while running, the workspace limiter braked beyond the hand-over's bound (then
+    /// `gentle_acceleration` is that bound).
     pub why: String,
     /// The path's peak |acceleration| (m/s² or deg/s²).
     pub peak_acceleration: f64,

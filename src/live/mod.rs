@@ -34,6 +34,7 @@ use crate::session::FrameSink;
 use crate::sinks::{CommandSink, PlatformOutput, PlatformPhase, PlatformStatus};
 use crate::sources::live::LiveInput;
 use crate::tuning::{Shared, Tuner, TuningHandle};
+use hexcue_core::bumpless::DriveSwitch;
 use hexcue_core::engine::{Engine, Frame, Retune};
 use hexcue_core::events::{Event, EventLevel};
 use hexcue_core::mca::limiter::WorkspaceLimiter;
@@ -310,6 +311,8 @@ pub struct LiveSession {
     tuning: TuningHandle,
     /// How long a retuned algorithm blends in (the `[safety]` fade-in, s).
     retune_blend_s: f64,
+    /// The driving algorithm, switched live through a blend (the `drive` parameter).
+    drives: DriveSwitch,
 }
 
 impl LiveSession {
@@ -351,10 +354,13 @@ impl LiveSession {
         let dt = profile.dt_s();
         let watch = InputWatch::new(input.url(), &input.source_text());
         let actuators = profile.actuators().context("the profile's [actuators]")?;
-        let tuner = Tuner::new(profile, algorithms).context("the live parameters")?;
+        let tuner = Tuner::new(profile, algorithms)
+            .context("the live parameters")?
+            .with_drive(drive);
         Ok(LiveSession {
             tuning: Shared::handle(tuner),
             retune_blend_s: profile.safety.fade_in_s,
+            drives: DriveSwitch::new(drive),
             engine,
             comparison,
             order: algorithms.to_vec(),
@@ -569,6 +575,7 @@ impl LiveSession {
             let texts = crate::tuning::apply_pending(
                 &mut shared,
                 &mut self.engine,
+                &mut self.drives,
                 t_s,
                 self.retune_blend_s,
                 |applied| match applied {
@@ -580,6 +587,7 @@ impl LiveSession {
                     }
                 },
             );
+            self.drive = self.drives.drive();
             self.events.extend(texts.into_iter().map(|text| Event {
                 t_s,
                 level: EventLevel::Info,
@@ -596,12 +604,23 @@ impl LiveSession {
             .engine
             .step()
             .context("the live source ended, which it never should")?;
-        let wanted = frame
-            .lane(self.drive)
-            .map(|l| l.command)
-            .unwrap_or_default();
-        let command = self.limiter.apply(&self.safety.command(&wanted)).command;
+        let wanted = self
+            .drives
+            .command(|id| frame.lane(id).map(|l| l.command).unwrap_or_default());
+        self.drives.advance(self.period.as_secs_f64());
+        let checked = self.safety.command_checked(&wanted, Some(&self.limiter));
+        let command = self.limiter.apply(&checked).command;
         self.safety.sent(&command);
+        if let Some(b) = self.safety.take_workspace_brake() {
+            let bound = self.safety.params().handover_acceleration;
+            let (brake, text) = b.hard_brake(t_s, self.period.as_secs_f64(), &bound);
+            self.stats.transitions.hard_brakes.push(brake);
+            self.events.push(Event {
+                t_s,
+                level: EventLevel::Warning,
+                text,
+            });
+        }
         let legs_m = self.stewart.leg_lengths(&command.pose);
         let actuators = self
             .actuators

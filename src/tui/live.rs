@@ -87,6 +87,7 @@ pub const HELP: &[(&str, &str)] = &[
     ("tab 1..6", "channel fx fy Δfz wx wy wz"),
     ("r", "recording? live records with --record, from the start"),
     ("p", "parameters: ↑↓ choose, ←→ change, u undo, w W write"),
+    ("d", "drive: the session's next algorithm, through a blend"),
     ("?", "this help; ? or Esc closes it, other keys act"),
 ];
 

@@ -13,7 +13,7 @@ use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Clear, Paragraph};
 use ratatui::Frame;
 
-use crate::tuning::TuningHandle;
+use crate::tuning::{Target, TuningHandle, DRIVE, DRIVE_CODES};
 
 /// The panel's keys, for the help overlay and docs/console.md.
 pub const HELP: &[(&str, &str)] = &[
@@ -24,6 +24,10 @@ pub const HELP: &[(&str, &str)] = &[
         "panel: change it by 1/50 of its safe range, bumplessly",
     ),
     ("u", "panel: undo the last change"),
+    (
+        "d",
+        "live: switch the driving algorithm to the next one of the session, through a blend",
+    ),
     (
         "w",
         "panel: write the values in force to a new profile file",
@@ -79,6 +83,13 @@ impl ParamPanel {
                 self.open = !self.open;
                 true
             }
+            KeyCode::Char('d') => match self.switch_drive() {
+                Some(message) => {
+                    self.message = Some(message);
+                    true
+                }
+                None => false,
+            },
             _ if !self.open => false,
             KeyCode::Esc => {
                 self.open = false;
@@ -121,6 +132,18 @@ impl ParamPanel {
             }
             _ => false,
         }
+    }
+
+    /// The `drive` parameter to the session's next algorithm (the same change as ← → on its
+    /// row); `None` when the session has no such parameter (not live) or no second algorithm.
+    fn switch_drive(&mut self) -> Option<String> {
+        let mut shared = self.tuning.lock().ok()?;
+        let to = shared.tuner.next_drive()?;
+        let id = DRIVE_CODES[to as usize];
+        Some(match shared.set(DRIVE, to) {
+            Ok(()) => format!("drive → {}: the command blends over to it", id.key()),
+            Err(e) => e.to_string(),
+        })
     }
 
     fn count(&self) -> usize {
@@ -234,13 +257,12 @@ impl ParamPanel {
             .skip(first)
             .take(rows)
             .map(|(i, p)| {
-                let text = format!(
-                    "{:<40} {:>9} [{}, {}]",
-                    p.name,
-                    format!("{:.4}", t.value(i)),
-                    p.lower,
-                    p.upper
-                );
+                let value = if p.target == Target::Drive {
+                    DRIVE_CODES[t.value(i) as usize].key().to_string()
+                } else {
+                    format!("{:.4}", t.value(i))
+                };
+                let text = format!("{:<40} {:>9} [{}, {}]", p.name, value, p.lower, p.upper);
                 let style = if i == self.selected {
                     Style::default().add_modifier(Modifier::REVERSED)
                 } else {

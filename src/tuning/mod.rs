@@ -12,6 +12,7 @@ use nalgebra::Vector6;
 use toml_edit::DocumentMut;
 
 use crate::tune::keys::{tunable_keys, TunableKey};
+use hexcue_core::bumpless::DriveSwitch;
 use hexcue_core::engine::Retune;
 use hexcue_core::mca::AlgorithmId;
 use hexcue_core::profile::Profile;
@@ -20,6 +21,17 @@ use hexcue_core::summary::{ParameterChange, TuningSummary};
 
 /// The master gain's name, as the issue and Foxglove's panel call it.
 pub const MOTION_GAIN: &str = "motion_gain";
+
+/// The driving algorithm's parameter (live only): 0 the CWF, 1 the MPC, 2 the S-MPC.
+pub const DRIVE: &str = "drive";
+
+/// The algorithms by their `drive` value.
+pub const DRIVE_CODES: [AlgorithmId; 3] = [AlgorithmId::Cwf, AlgorithmId::Mpc, AlgorithmId::Smpc];
+
+/// The `drive` value of `id`.
+pub fn drive_code(id: AlgorithmId) -> f64 {
+    DRIVE_CODES.iter().position(|a| *a == id).unwrap_or(0) as f64
+}
 
 /// The CWF's tilt limits, which `hexcue tune` keeps fixed (a matter of perception, not of
 /// taste) but an engineer may lower, or raise to the largest a shipped profile uses: 20° of
@@ -48,6 +60,8 @@ pub enum Target {
     MotionGain,
     /// One DoF's gain (0 surge … 5 yaw).
     DofGain(usize),
+    /// The driving algorithm, by its code in [`DRIVE_CODES`].
+    Drive,
     /// A key of the profile (one element, or several tuned as one).
     Key(TunableKey),
 }
@@ -76,6 +90,11 @@ impl Parameter {
     /// A step of the console's keys: a fiftieth of the range (on a log scale for the keys the
     /// tuner searches so), `up` or down from `value`, within the range.
     pub fn step(&self, value: f64, up: bool) -> f64 {
+        if self.target == Target::Drive {
+            // The next algorithm either way (the tuner refuses one the session lacks).
+            let next = if up { value + 1.0 } else { value - 1.0 };
+            return next.rem_euclid(DRIVE_CODES.len() as f64);
+        }
         let log = matches!(self.target, Target::Key(k) if k.log);
         let v = if log {
             let f = (self.upper / self.lower).powf(1.0 / 50.0);
@@ -124,6 +143,9 @@ pub enum Apply {
     /// session hands each to the engine that steps it (the driving lane's on the stepping
     /// thread, the comparison lanes' on theirs).
     Retune(Vec<Retune>),
+    /// Blend the command from the driving algorithm's to this one's
+    /// ([`hexcue_core::bumpless::DriveSwitch`]).
+    Drive(AlgorithmId),
 }
 
 /// A change made, before the engine has applied it.
@@ -224,6 +246,41 @@ impl Tuner {
         })
     }
 
+    /// With the `drive` parameter, `drive` in force: the algorithm driving a live session,
+    /// switched through a blend (any of the session's algorithms).
+    pub fn with_drive(mut self, drive: AlgorithmId) -> Self {
+        self.parameters.insert(
+            1 + DOF_NAMES.len(),
+            Parameter {
+                name: DRIVE.to_string(),
+                lower: 0.0,
+                upper: (DRIVE_CODES.len() - 1) as f64,
+                target: Target::Drive,
+            },
+        );
+        self.values.insert(1 + DOF_NAMES.len(), drive_code(drive));
+        self
+    }
+
+    /// The `drive` value that switches to the session's next algorithm after the one driving
+    /// (in the order cwf, mpc, smpc, round); `None` without the parameter or a second one.
+    pub fn next_drive(&self) -> Option<f64> {
+        let now = self.get(DRIVE)? as usize;
+        (1..DRIVE_CODES.len())
+            .map(|k| (now + k) % DRIVE_CODES.len())
+            .find(|c| self.algorithms.contains(&DRIVE_CODES[*c]))
+            .map(|c| c as f64)
+    }
+
+    /// Puts the `drive` value back to `drive` without a change to apply or undo (a switch
+    /// the session could not make).
+    pub fn revert_drive(&mut self, drive: AlgorithmId) {
+        if let Some(i) = self.index(DRIVE) {
+            self.values[i] = drive_code(drive);
+            self.undo.retain(|(index, _)| *index != i);
+        }
+    }
+
     pub fn parameters(&self) -> &[Parameter] {
         &self.parameters
     }
@@ -289,6 +346,26 @@ impl Tuner {
             Target::MotionGain | Target::DofGain(_) => {
                 self.values[index] = value;
                 Apply::Gains(self.gains())
+            }
+            Target::Drive => {
+                let id = DRIVE_CODES
+                    .get(value as usize)
+                    .filter(|_| value.fract() == 0.0)
+                    .copied();
+                let Some(id) = id.filter(|id| self.algorithms.contains(id)) else {
+                    let session: Vec<&str> = self.algorithms.iter().map(|a| a.key()).collect();
+                    return Err(ParamError::Refused {
+                        name: p.name.clone(),
+                        value,
+                        reason: format!(
+                            "expected the code of one of this session's algorithms ({}; 0 cwf, \
+                             1 mpc, 2 smpc)",
+                            session.join(", ")
+                        ),
+                    });
+                };
+                self.values[index] = value;
+                Apply::Drive(id)
             }
             Target::Key(key) => {
                 let refused = |reason: String| ParamError::Refused {
@@ -485,6 +562,7 @@ impl Shared {
 pub fn apply_pending(
     shared: &mut Shared,
     engine: &mut hexcue_core::engine::Engine,
+    drives: &mut DriveSwitch,
     t_s: f64,
     blend_s: f64,
     mut elsewhere: impl FnMut(Applied),
@@ -495,9 +573,9 @@ pub fn apply_pending(
         shared.tuner.record(&change, t_s);
         let follow_s = match &change.apply {
             Apply::Gains(g) => engine.set_gains(*g),
-            Apply::Retune(_) => blend_s,
+            Apply::Retune(_) | Apply::Drive(_) => blend_s,
         };
-        texts.push(change_text(&name, &change, follow_s));
+        let mut text = change_text(&name, &change, follow_s);
         match change.apply {
             Apply::Gains(g) => elsewhere(Applied::Gains(g)),
             Apply::Retune(retunes) => {
@@ -510,7 +588,42 @@ pub fn apply_pending(
                     }
                 }
             }
+            // The blend reads both lanes' commands on the stepping thread; since the
+            // comparison lanes step on their own thread (issue 37), a lane not stepped here
+            // cannot be blended to yet, and the switch is taken back rather than blending
+            // toward a command this thread does not have.
+            Apply::Drive(to) if !engine.algorithms().contains(&to) => {
+                shared.tuner.revert_drive(drives.drive());
+                text = format!(
+                    "parameter {name} not applied: {} steps on the comparison lanes' thread, and \
+                     the drive switches live only to an algorithm the stepping thread steps; {} \
+                     drives on",
+                    to.key(),
+                    drives.drive().key()
+                );
+            }
+            Apply::Drive(to) => {
+                let from = drives.drive();
+                let cut = drives.switch(to, blend_s);
+                text = format!(
+                    "parameter {name} {}: {} → {} ({} → {}), the command blends from {}'s to {}'s \
+                     within {blend_s:.2} s{}",
+                    if change.undo { "undone" } else { "set" },
+                    change.from,
+                    change.to,
+                    from.key(),
+                    to.key(),
+                    from.key(),
+                    to.key(),
+                    if cut {
+                        "; the oldest blend still under way was cut short"
+                    } else {
+                        ""
+                    }
+                );
+            }
         }
+        texts.push(text);
     }
     texts
 }

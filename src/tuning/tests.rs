@@ -88,7 +88,7 @@ fn a_key_changes_the_profile_and_undo_takes_it_back() {
     );
     match &c.apply {
         Apply::Retune(r) => assert_eq!(rebuilt(r), [AlgorithmId::Cwf]),
-        Apply::Gains(_) => panic!("a key retunes"),
+        Apply::Gains(_) | Apply::Drive(_) => panic!("a key retunes"),
     }
     assert_eq!(t.profile().cwf.specific_force_scale[0], 0.3);
     t.record(&c, 1.5);
@@ -96,7 +96,7 @@ fn a_key_changes_the_profile_and_undo_takes_it_back() {
     let c2 = t.set("mpc.specific_force_weight[0,1]", 2.0).unwrap();
     match &c2.apply {
         Apply::Retune(r) => assert_eq!(rebuilt(r), [AlgorithmId::Smpc]),
-        Apply::Gains(_) => panic!(),
+        Apply::Gains(_) | Apply::Drive(_) => panic!(),
     }
     assert_eq!(t.profile().mpc.specific_force_weight[..2], [2.0, 2.0]);
     let u = t.undo().unwrap().unwrap();
@@ -125,7 +125,7 @@ fn the_gains_multiply_and_a_console_step_stays_in_range() {
     let c = t.set("gain.yaw", 0.4).unwrap();
     match c.apply {
         Apply::Gains(g) => assert_eq!(g, Vector6::new(0.5, 0.5, 0.5, 0.5, 0.5, 0.2)),
-        Apply::Retune(_) => panic!(),
+        Apply::Retune(_) | Apply::Drive(_) => panic!(),
     }
     let p = &t.parameters()[0];
     assert_eq!(p.step(1.0, true), 1.0);
@@ -177,13 +177,14 @@ fn a_retune_mid_manoeuvre_is_bumpless_and_takes_effect() {
     let run = |change: bool| {
         let mut engine = Engine::new(&profile, trace.clone(), &[AlgorithmId::Cwf]).unwrap();
         let shared = Shared::handle(Tuner::new(&profile, &[AlgorithmId::Cwf]).unwrap());
+        let mut drives = DriveSwitch::new(AlgorithmId::Cwf);
         let mut poses = Vec::new();
         while let Some(frame) = {
             if change && engine.position() == 1200 {
                 let mut s = shared.lock().unwrap();
                 s.set("cwf.specific_force_scale[1]", 0.2).unwrap();
                 s.set("cwf.tilt_lp_wn_radps", 2.0).unwrap();
-                let texts = apply_pending(&mut s, &mut engine, 12.0, 3.0, |_| {});
+                let texts = apply_pending(&mut s, &mut engine, &mut drives, 12.0, 3.0, |_| {});
                 assert_eq!(texts.len(), 2);
                 assert!(texts[0].starts_with("parameter cwf.specific_force_scale[1] set: "));
             }
@@ -229,12 +230,13 @@ fn the_master_gain_halves_the_command_once_its_path_is_over() {
     let mut plain = Engine::new(&profile, trace.clone(), &[AlgorithmId::Cwf]).unwrap();
     let mut gained = Engine::new(&profile, trace, &[AlgorithmId::Cwf]).unwrap();
     let shared = Shared::handle(Tuner::new(&profile, &[AlgorithmId::Cwf]).unwrap());
+    let mut drives = DriveSwitch::new(AlgorithmId::Cwf);
     let mut follow_s = 0.0;
     for k in 0..2500 {
         if k == 1000 {
             let mut s = shared.lock().unwrap();
             s.set(MOTION_GAIN, 0.5).unwrap();
-            let texts = apply_pending(&mut s, &mut gained, 10.0, 3.0, |_| {});
+            let texts = apply_pending(&mut s, &mut gained, &mut drives, 10.0, 3.0, |_| {});
             follow_s = texts[0]
                 .split("within ")
                 .nth(1)
@@ -252,4 +254,54 @@ fn the_master_gain_halves_the_command_once_its_path_is_over() {
     }
     assert!(follow_s > 0.5 && follow_s < 5.0, "{follow_s}");
     assert_eq!(shared.lock().unwrap().tuner.summary().changes[0].t_s, 10.0);
+}
+
+/// The `drive` parameter: live only (`with_drive`), any of the session's algorithms by its
+/// code, others refused with the session's list; `next_drive` cycles through the session's;
+/// applied, it switches the drive through a blend and says so; undone, it switches back.
+#[test]
+fn the_drive_switches_between_the_sessions_algorithms_and_back() {
+    let profile = full_flight();
+    let algorithms = [AlgorithmId::Cwf, AlgorithmId::Smpc];
+    assert_eq!(Tuner::new(&profile, &algorithms).unwrap().get(DRIVE), None);
+    let tuner = Tuner::new(&profile, &algorithms)
+        .unwrap()
+        .with_drive(AlgorithmId::Smpc);
+    assert_eq!(tuner.get(DRIVE), Some(2.0));
+    assert_eq!(tuner.next_drive(), Some(0.0));
+    let shared = Shared::handle(tuner);
+    let mut s = shared.lock().unwrap();
+    let refused = s.set(DRIVE, 1.0).unwrap_err().to_string();
+    assert!(
+        refused.contains("`drive`") && refused.contains("cwf, smpc"),
+        "{refused}"
+    );
+    assert!(s.set(DRIVE, 0.5).is_err());
+    assert_eq!(s.tuner.get(DRIVE), Some(2.0));
+    s.set(DRIVE, 0.0).unwrap();
+    let mut engine = hexcue_core::engine::Engine::new(
+        &profile,
+        std::sync::Arc::new(hexcue_core::testing::manoeuvre()),
+        &[AlgorithmId::Cwf],
+    )
+    .unwrap();
+    let mut drives = DriveSwitch::new(AlgorithmId::Smpc);
+    let texts = apply_pending(&mut s, &mut engine, &mut drives, 5.0, 3.0, |_| {});
+    assert_eq!(drives.drive(), AlgorithmId::Cwf);
+    assert!(drives.blending());
+    assert!(
+        texts[0].starts_with("parameter drive set: 2 → 0 (smpc → cwf), the command blends"),
+        "{}",
+        texts[0]
+    );
+    assert_eq!(s.tuner.next_drive(), Some(2.0));
+    assert!(s.undo().unwrap());
+    let texts = apply_pending(&mut s, &mut engine, &mut drives, 6.0, 3.0, |_| {});
+    assert_eq!(drives.drive(), AlgorithmId::Smpc);
+    assert!(
+        texts[0].starts_with("parameter drive undone: 0 → 2"),
+        "{}",
+        texts[0]
+    );
+    assert_eq!(s.tuner.summary().final_parameter_values[DRIVE], 2.0);
 }

@@ -236,6 +236,18 @@ impl DofPath {
         advance(self.start[i], self.jerk[i], t_s - self.begin_s[i])
     }
 
+    /// The state `t_s` after the start, and from the end on where it ends (at rest): for a
+    /// stop ([`DofPath::plan_stop`]), which does not end on neutral.
+    pub fn at_or_end(&self, t_s: f64) -> DofState {
+        if t_s >= self.duration_s {
+            return DofState {
+                p: self.end.p,
+                ..Default::default()
+            };
+        }
+        self.at(t_s)
+    }
+
     /// The segments as (start state, jerk, duration).
     fn segments(&self) -> impl Iterator<Item = (DofState, f64, f64)> + '_ {
         (0..self.n).map(|i| {
@@ -353,6 +365,9 @@ pub struct TransitionLimits {
     /// The acceleration the hard rungs try not to pass before they must (the hand-over's
     /// bound, issue 34's 2 m/s² and 30 °/s² by default).
     pub bound_acceleration: Vector6<f64>,
+    /// The hand-over's jerk: with `bound_acceleration`, the stop the hand-over stage keeps
+    /// possible inside the workspace while running ([`TransitionLimits::handover_stop`]).
+    pub bound_jerk: Vector6<f64>,
     /// Per DoF, the jerk a gentle return keeps within (m/s³, rad/s³).
     pub gentle_jerk: Vector6<f64>,
     /// How long a return to neutral should take at most (s).
@@ -374,6 +389,12 @@ pub const HARD_RUNGS: usize = 12;
 /// The hardest rung reaches the acceleration limit in this many steps: the old brake at
 /// the limit took one.
 pub const TOP_RAMP_STEPS: f64 = 2.0;
+/// The rung of the hand-over's own bounds (acceleration and jerk), tried by the DoFs moving
+/// together after the hard rungs within the bound and before those beyond it: its stop is
+/// the one the hand-over stage kept possible inside the legs while running, so a way back
+/// that starts from a running command always has one within the bound (unless the workspace
+/// limiter changed that command). Not an integer, so no other rung is it.
+pub const HANDOVER_RUNG: f64 = 1.5 + HARD_RUNGS as f64;
 
 /// One DoF's way back as planned: the path, and whether it needed more than the gentle
 /// limits (and why).
@@ -421,6 +442,9 @@ impl TransitionLimits {
     /// rungs, up to the DoF's own limit.
     fn rung_from(&self, i: usize, k: f64, a0: f64) -> Bounds {
         let top = 1.0 + HARD_RUNGS as f64;
+        if k == HANDOVER_RUNG {
+            return self.handover_stop(i);
+        }
         if k <= 1.0 {
             return self.rung(i, k);
         }
@@ -445,6 +469,26 @@ impl TransitionLimits {
             .iter()
             .copied()
             .chain((1..=2 * HARD_RUNGS).map(|n| 1.0 + n as f64))
+    }
+
+    /// The together ladder: [`Self::ladder`] with the hand-over's own rung
+    /// ([`HANDOVER_RUNG`]) after the hard rungs within the bound, before those beyond it.
+    fn together_ladder() -> impl Iterator<Item = f64> {
+        let within = 1.0 + HARD_RUNGS as f64;
+        Self::ladder()
+            .take_while(move |k| *k <= within)
+            .chain(std::iter::once(HANDOVER_RUNG))
+            .chain(Self::ladder().skip_while(move |k| *k <= within))
+    }
+
+    /// DoF `i`'s stop within the hand-over's bounds: the stop the hand-over stage keeps
+    /// possible, inside the excursions and the legs, at every step while running.
+    pub fn handover_stop(&self, i: usize) -> Bounds {
+        Bounds {
+            acceleration: self.bound_acceleration[i],
+            jerk: self.bound_jerk[i],
+            velocity: self.limits.velocity[i],
+        }
     }
 
     /// What is wrong with `path` for DoF `i` (started at `from`), if anything.
@@ -517,7 +561,7 @@ impl TransitionLimits {
         fits: impl Fn(&[DofPlan; 6]) -> bool,
     ) -> [DofPlan; 6] {
         let mut last = *alone;
-        for k in Self::ladder() {
+        for k in Self::together_ladder() {
             let plans = self.together_at(from, alone, k);
             let faults = (0..6).any(|i| self.fault(i, from[i], &plans[i].path).is_some());
             last = plans;
