@@ -991,10 +991,10 @@ mod tests {
     /// part of the F-16 roll doublet (full-stick rolls beyond the platform's reach), the MPC's
     /// own constraints keep it inside: the limiter acts on at most the default profile's share
     /// plus 1 % of the steps, and no leg leaves its stroke. `HEXCUE_LOCK_SAMPLES` sets the
-    /// number of samples (6 by default). It fails today on the second sample (limiter 1.50 %
-    /// against the default's 0.45 % plus 1 %).
+    /// number of samples (6 by default). Before the free MPC's braking rows (docs/mpc.md, "The
+    /// lock at the workspace's corner") it failed on the second sample (limiter 1.50 % against
+    /// the default's 0.45 % plus 1 %).
     #[test]
-    #[ignore = "fails: the corner lock of issue #35 is not cured (docs/mpc.md); run with --ignored"]
     fn no_corner_lock_for_mpc_weights_from_the_tuner_s_ranges() {
         let traces = crate::formats::library::library_traces(100.0).unwrap();
         let mut hard = traces

@@ -45,6 +45,22 @@ pub struct WorkspaceLimiter {
     last_rate: Vector6<f64>,
 }
 
+/// Why the limiter would not issue a command as it is ([`WorkspaceLimiter::rejection`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rejection {
+    NonFinite,
+    /// The pose is beyond this DoF's excursion.
+    Excursion(usize),
+    /// A leg is within its margin of an end stop.
+    Legs,
+    /// This DoF's velocity, reported or implied by the poses, is over its limit.
+    Velocity(usize),
+    /// This DoF's acceleration, reported or implied by the poses, is over its limit.
+    Acceleration(usize),
+    /// Braking every DoF at its limit from here would leave the workspace.
+    Braking,
+}
+
 /// What the limiter did at one step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Limited {
@@ -83,28 +99,46 @@ impl WorkspaceLimiter {
         (0..6).all(|i| pose[i].abs() <= self.limits.excursion[i])
     }
 
-    /// True when the command can be issued as it is after the previous one: inside the
-    /// workspace, within the rate limits both as reported and as implied by the issued poses
-    /// (so that handing control back from the limiter to the algorithm is not a jolt), and
-    /// able to brake to a stop, at the acceleration limits, before any end stop.
-    fn acceptable(&self, cmd: &PlatformCommand) -> bool {
-        if !cmd.is_finite()
-            || !self.within_excursion(&cmd.pose)
-            || !self.stewart.fits(&cmd.pose, self.leg_margin_m)
-        {
-            return false;
+    /// Why the command cannot be issued as it is after the previous one, or `None` when it
+    /// can: inside the workspace, within the rate limits both as reported and as implied by
+    /// the issued poses (so that handing control back from the limiter to the algorithm is
+    /// not a jolt), and able to brake to a stop, at the acceleration limits, before any end
+    /// stop. The reason is what an algorithm that must keep clear of the limiter needs to
+    /// know (docs/mpc.md, "The lock at the workspace's corner").
+    pub fn rejection(&self, cmd: &PlatformCommand) -> Option<Rejection> {
+        if !cmd.is_finite() {
+            return Some(Rejection::NonFinite);
+        }
+        if let Some(dof) = (0..6).find(|&i| cmd.pose[i].abs() > self.limits.excursion[i]) {
+            return Some(Rejection::Excursion(dof));
+        }
+        if !self.stewart.fits(&cmd.pose, self.leg_margin_m) {
+            return Some(Rejection::Legs);
         }
         let slack = 1.0 + RATE_TOLERANCE;
         let dt = self.dt_s;
-        let rates_ok = (0..6).all(|i| {
+        for i in 0..6 {
             let rate = (cmd.pose[i] - self.last.pose[i]) / dt;
             let rate_change = (rate - self.last_rate[i]) / dt;
-            cmd.velocity[i].abs() <= self.limits.velocity[i] * slack
-                && rate.abs() <= self.limits.velocity[i] * slack + 1e-9
-                && cmd.acceleration[i].abs() <= self.limits.acceleration[i] * slack
-                && rate_change.abs() <= self.limits.acceleration[i] * slack + 1e-9
-        });
-        rates_ok && self.can_stop(&cmd.pose, &((cmd.pose - self.last.pose) / dt))
+            if cmd.velocity[i].abs() > self.limits.velocity[i] * slack
+                || rate.abs() > self.limits.velocity[i] * slack + 1e-9
+            {
+                return Some(Rejection::Velocity(i));
+            }
+            if cmd.acceleration[i].abs() > self.limits.acceleration[i] * slack
+                || rate_change.abs() > self.limits.acceleration[i] * slack + 1e-9
+            {
+                return Some(Rejection::Acceleration(i));
+            }
+        }
+        if !self.can_stop(&cmd.pose, &((cmd.pose - self.last.pose) / dt)) {
+            return Some(Rejection::Braking);
+        }
+        None
+    }
+
+    fn acceptable(&self, cmd: &PlatformCommand) -> bool {
+        self.rejection(cmd).is_none()
     }
 
     /// Whether a platform at `pose` moving at `rate` can brake every DoF at its
@@ -408,6 +442,37 @@ mod tests {
                 ..Default::default()
             }
         });
+    }
+
+    #[test]
+    fn the_rejection_names_the_limit() {
+        let l = limiter();
+        let at = |pose: [f64; 6], velocity: [f64; 6]| PlatformCommand {
+            pose: Vector6::from_row_slice(&pose),
+            velocity: Vector6::from_row_slice(&velocity),
+            acceleration: Vector6::zeros(),
+        };
+        assert_eq!(l.rejection(&PlatformCommand::default()), None);
+        assert_eq!(
+            l.rejection(&at([1.7 + 1e-9, 0.0, 0.0, 0.0, 0.0, 0.0], [0.0; 6])),
+            Some(Rejection::Excursion(0))
+        );
+        assert_eq!(
+            l.rejection(&at([1.7, 1.7, 0.0, 0.0, 0.0, 0.0], [0.0; 6])),
+            Some(Rejection::Legs)
+        );
+        assert_eq!(
+            l.rejection(&at([0.0; 6], [0.0, 0.0, 0.0, 0.0, 0.0, 1.0])),
+            Some(Rejection::Velocity(5))
+        );
+        // 10 mm from neutral in one step from rest: 1 m/s implied, 100 m/s² implied.
+        assert_eq!(
+            l.rejection(&at(
+                [0.01, 0.0, 0.0, 0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+            )),
+            Some(Rejection::Acceleration(0))
+        );
     }
 
     #[test]

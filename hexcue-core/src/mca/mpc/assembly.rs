@@ -4,6 +4,8 @@
 
 use nalgebra::{DMatrix, DVector, Matrix6, Vector6};
 
+use crate::model::platform::DofLimits;
+
 use super::model::{input, pose_of, state, NU, NX, POSE_STATE};
 use super::qp::Triplets;
 use super::{finite_or_zero, total_rates, Mpc, Terminal};
@@ -19,11 +21,47 @@ pub(super) struct StepData<'a> {
     pub(super) leg_jacobian: Vec<Matrix6<f64>>,
     /// COTC's terminal roll and pitch: the tilt whose gravity gives the aircraft's Δf now.
     pub(super) terminal_tilt_rad: [f64; 2],
+    /// The pose the platform is commanded to next (one trace step on, the command of the
+    /// next step), affine in the first input: p₁ = `next_pose` + `next_pose_gain` u₀.
+    pub(super) next_pose: Vector6<f64>,
+    pub(super) next_pose_gain: Matrix6x8,
+    /// The pose commanded now (the state the QP starts from).
+    pub(super) pose0: Vector6<f64>,
+    /// Leg lengths linearised around p₁ and around where braking from it ends
+    /// (`stop_reach_s`), as `leg_offset`/`leg_jacobian` are.
+    pub(super) next_leg: (Vector6<f64>, Matrix6<f64>),
+    pub(super) stop_leg: (Vector6<f64>, Matrix6<f64>),
 }
+
+/// Pose rows of the one-trace-step model: 6 × NU.
+pub(super) type Matrix6x8 = nalgebra::SMatrix<f64, 6, NU>;
 
 /// The dead-zone slack's quadratic weight relative to its linear price, per threshold²: at one
 /// threshold beyond the dead zone the quadratic part is this share of the linear one.
 const DEAD_ZONE_CURVATURE: f64 = 1e-3;
+
+/// How far inside each DoF's excursion the next command keeps its pose (m or rad): the
+/// limiter refuses a pose beyond the excursion by any amount, and a plan resting on its bound
+/// lands a rounding error beyond it as often as not (measured: 17 of 30 limiter actions on the
+/// F-16 roll doublet with weights from the tuner's ranges were surge poses at 1.7000–1.7002 m).
+const EXCURSION_PLAN_ALLOWANCE: f64 = 1e-6;
+
+/// Per DoF, the time c such that braking from a rate r at the acceleration limit a comes to
+/// rest within c·|r| (s): the chord v_max/(2a) of the stopping distance r²/(2a) over
+/// |r| ≤ v_max, plus a trace step for the limiter's discrete braking. The workspace limiter
+/// accepts a command only if braking every DoF at its limit from it stays inside
+/// (`WorkspaceLimiter::rejection`, `Braking`); rows on the pose plus c times its rate keep
+/// the plan where that holds, linearly (docs/mpc.md, "The lock at the workspace's corner").
+pub(super) fn stop_reach_s(limits: &DofLimits, dt_s: f64) -> [f64; 6] {
+    std::array::from_fn(|j| {
+        let a = limits.acceleration[j];
+        if a > 0.0 && a.is_finite() {
+            limits.velocity[j] / (2.0 * a) + dt_s
+        } else {
+            0.0
+        }
+    })
+}
 
 impl Mpc {
     /// The Riccati equation of COTC's terminal weight: the last interval's model, its state
@@ -423,6 +461,113 @@ impl Mpc {
                 }
             }
         }
+        // Braking (docs/mpc.md, "The lock at the workspace's corner"): the limiter accepts a
+        // command only if braking every DoF at its limit from it stays inside. At every grid
+        // point the translation plus its braking reach stays within the excursion (the
+        // rotations' rates are held over each interval and their changes bounded, which
+        // the pose rows already make the plan's own braking).
+        let reach = stop_reach_s(lim, self.dt_s);
+        // The free MPC only: COTC's terminal equalities bring it to rest at neutral, its own
+        // terminal set, and with these rows Clarabel, COTC's fallback, reported numerical
+        // errors on its QP (tests `active_set_and_clarabel_agree_*`).
+        let braked_points = if self.terminal == Terminal::Free {
+            n
+        } else {
+            0
+        };
+        for i in 0..braked_points {
+            let xc = Self::x_col(i);
+            for (k, c) in reach.iter().take(3).enumerate() {
+                let e = lim.excursion[k] - EXCURSION_PLAN_ALLOWANCE;
+                bound(
+                    &mut t,
+                    &mut b,
+                    &[(xc + state::POS + k, 1.0), (xc + state::VEL + k, *c)],
+                    -e,
+                    e,
+                );
+            }
+        }
+        // The next command itself, one trace step into the first interval where no grid
+        // point bounds it: its pose plus its braking reach within the excursion, and the legs
+        // both there and where the braking ends. Each row is relaxed to what braking from
+        // the present state gives (u_b), so that it never makes the QP infeasible on its own.
+        let next_rows = self.terminal == Terminal::Free;
+        let u0c = Self::u_col(0);
+        let mut u_b = [0.0; NU];
+        for k in 0..3 {
+            let a = lim.acceleration[k];
+            u_b[input::ACCEL_X + k] = (-d.x0[state::VEL + k] / self.dt_s).clamp(-a, a);
+        }
+        for (axis, r) in u_prev_rates.iter().enumerate() {
+            let dw = alpha[axis] * self.dt_s;
+            u_b[input::ROT_ROLL_RATE + axis] = r - r.clamp(-dw, dw);
+        }
+        let u_b = nalgebra::SVector::<f64, NU>::from_column_slice(&u_b);
+        let kappa = Vector6::from_fn(|j, _| reach[j] / self.dt_s);
+        // q = (I + K) p₁ − K p₀ = stop_const + stop_gain u₀.
+        let stop_gain = Matrix6::from_diagonal(&kappa.add_scalar(1.0)) * d.next_pose_gain;
+        let stop_const =
+            d.next_pose.component_mul(&kappa.add_scalar(1.0)) - d.pose0.component_mul(&kappa);
+        let mut relaxed_row = |t: &mut Triplets,
+                               b: &mut Vec<f64>,
+                               gain: &nalgebra::SMatrix<f64, 1, NU>,
+                               constant: f64,
+                               lo: f64,
+                               hi: f64| {
+            // Scaled to a largest coefficient of 1: a translation's gain is of the order of
+            // dt²/2, and rows that small left Clarabel's objective 1e-5 from the active set's.
+            let scale = gain.amax();
+            let scale = if scale > 0.0 { 1.0 / scale } else { 1.0 };
+            let mut e = [(0usize, 0.0f64); NU];
+            for (c, v) in e.iter_mut().enumerate() {
+                *v = (u0c + c, scale * gain[c]);
+            }
+            let braked = (gain * u_b)[0] + constant;
+            bound(
+                t,
+                b,
+                &e,
+                scale * (lo - constant).min(braked - constant),
+                scale * (hi - constant).max(braked - constant),
+            );
+        };
+        // Translations: a single acceleration in each row, which the grid points' rows and
+        // the acceleration's own bound already hold within a rounding error (rows on it alone
+        // left Clarabel with a numerical error on COTC's QP).
+        for j in (3..6).filter(|_| next_rows) {
+            // The limiter refuses a pose a rounding error beyond the excursion, where a plan
+            // resting on its bound lands as often as not.
+            let e = lim.excursion[j] - EXCURSION_PLAN_ALLOWANCE;
+            relaxed_row(
+                &mut t,
+                &mut b,
+                &stop_gain.row(j).into_owned(),
+                stop_const[j],
+                -e,
+                e,
+            );
+        }
+        for ((offset, jac), gain, constant) in [
+            (&d.next_leg, &d.next_pose_gain, &d.next_pose),
+            (&d.stop_leg, &stop_gain, &stop_const),
+        ]
+        .into_iter()
+        .filter(|_| next_rows)
+        {
+            let g = jac * gain;
+            let c = offset + jac * constant;
+            for leg in 0..6 {
+                relaxed_row(
+                    &mut t,
+                    &mut b,
+                    &g.row(leg).into_owned(),
+                    c[leg],
+                    self.leg_lo_m,
+                    self.leg_hi_m,
+                );
+            }
+        }
         // False cues: the simulator's perceived motion may not go beyond false_cue_margin·th
         // against the direction s in which the reference is felt, but for a slack σ ≥ 0 that
         // the cost prices heavily: −s·ŷ − σ ≤ margin·th. With false_cue_carry, s is the last
@@ -554,12 +699,40 @@ impl Mpc {
             leg_offset.push(self.stewart.leg_lengths(&p) - j * p);
             leg_jacobian.push(j);
         }
+        // The next command's pose: x₁ = A x₀ + B u₀ + ΦE (u₀ − u₋₁) over one trace step.
+        let tm = &self.trace_model;
+        let mut next_pose = Vector6::zeros();
+        let mut next_pose_gain = Matrix6x8::zeros();
+        for (k, &s) in POSE_STATE.iter().enumerate() {
+            next_pose[k] = (0..NX).map(|c| tm.a[(s, c)] * x0[c]).sum::<f64>();
+            for c in 0..NU {
+                let e = self.trace_e[(s, c)];
+                next_pose[k] -= e * u_prev[c];
+                next_pose_gain[(k, c)] = tm.b[(s, c)] + e;
+            }
+        }
+        // Linearised where the present input would take the platform, and where braking
+        // from there would stop it.
+        let dt = tm.dt_s;
+        let reach = stop_reach_s(&self.limits, dt);
+        let u_now = nalgebra::SVector::<f64, NU>::from_column_slice(u_prev.as_slice());
+        let p1 = next_pose + next_pose_gain * u_now;
+        let stop = Vector6::from_fn(|j, _| p1[j] + reach[j] / dt * (p1[j] - pose0[j]));
+        let linearised = |p: &Vector6<f64>| {
+            let j = self.stewart.jacobian(p);
+            (self.stewart.leg_lengths(p) - j * p, j)
+        };
         StepData {
             x0,
             u_prev,
             leg_offset,
             leg_jacobian,
             terminal_tilt_rad,
+            next_pose,
+            next_pose_gain,
+            pose0,
+            next_leg: linearised(&p1),
+            stop_leg: linearised(&stop),
         }
     }
 

@@ -634,6 +634,28 @@ fn own_perception_matches_the_head_through_the_lever_arm() {
 
 /// Clarabel's answer to the QP the MPC last assembled (its values written into Clarabel as
 /// the fallback path does): status, z and objective.
+/// The largest violation of the sparse QP's rows at z: |A z − b| on the equalities,
+/// (A z − b)⁺ on the inequalities, each relative to its bound (at least 1).
+fn sparse_violation(mpc: &Mpc, z: &[f64]) -> f64 {
+    let mut az = vec![0.0; mpc.b.len()];
+    let t = &mpc.a_trip;
+    for k in 0..t.len() {
+        az[t.rows[k]] += t.vals[k] * z[t.cols[k]];
+    }
+    az.iter()
+        .zip(&mpc.b)
+        .enumerate()
+        .map(|(r, (a, b))| {
+            let v = if r < mpc.n_eq {
+                (a - b).abs()
+            } else {
+                (a - b).max(0.0)
+            };
+            v / b.abs().max(1.0)
+        })
+        .fold(0.0, f64::max)
+}
+
 fn clarabel_reference(mpc: &mut Mpc) -> (SolverStatus, Vec<f64>, f64) {
     let solver = mpc.solver.as_mut().unwrap();
     assert!(mpc.a_pattern.fill(&mpc.a_trip, &mut mpc.nz));
@@ -786,7 +808,14 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
                 );
                 let f = condensed::sparse_objective(&mpc.p_trip, &mpc.q, &z_as);
                 let rel = (f - fc).abs() / fc.abs().max(1.0);
-                assert!(rel <= 1e-6, "{at}: objective {f} vs Clarabel {fc}");
+                // Below Clarabel's by more than the bar, the active set's point must be
+                // feasible in the sparse QP: then Clarabel stopped short of the optimum
+                // (within its own 1e-5 gap tolerance), and the active set's is the better.
+                let better = f < fc && sparse_violation(&mpc, &z_as) <= 1e-8;
+                assert!(
+                    rel <= 1e-6 || better,
+                    "{at}: objective {f} vs Clarabel {fc}"
+                );
                 worst_f = worst_f.max(rel);
                 // The first moves agree, or, where the objective is so flat that Clarabel's
                 // tolerance leaves them apart, the active set's objective is the lower: then
@@ -1058,4 +1087,30 @@ fn the_preview_key_sees_the_future_and_falls_back_without_one() {
     assert_eq!(solve(&causal, &future), solve(&causal, &[]));
     assert_eq!(p.mpc.reference_with(true), ReferenceMode::Preview);
     assert_eq!(p.mpc.reference_with(false), p.mpc.reference);
+}
+
+#[test]
+fn the_braking_reach_bounds_the_limiter_s_stopping_distance() {
+    // Shipped limits: surge 1.5 m/s and 10 m/s², roll 30 °/s and 200 °/s², at 100 Hz.
+    let p = full_flight();
+    let lim = p.limits.si();
+    let reach = super::assembly::stop_reach_s(&lim, 0.01);
+    assert!((reach[0] - (1.5 / 20.0 + 0.01)).abs() < 1e-12, "{reach:?}");
+    let roll = 30f64.to_radians() / (2.0 * 200f64.to_radians()) + 0.01;
+    assert!((reach[3] - roll).abs() < 1e-12, "{reach:?}");
+    // The limiter's own braking, step by step from every speed up to the limit, stops within
+    // the reach times the speed (the chord over the parabola v²/(2a)).
+    for dof in [0, 2, 3] {
+        let (v_max, a) = (lim.velocity[dof], lim.acceleration[dof]);
+        for i in 1..=20 {
+            let mut v = v_max * i as f64 / 20.0;
+            let v0 = v;
+            let mut travelled = 0.0;
+            while v > 0.0 {
+                v -= (v / 0.01).min(a) * 0.01;
+                travelled += v * 0.01;
+            }
+            assert!(travelled <= reach[dof] * v0 + 1e-12, "dof {dof} v {v0}");
+        }
+    }
 }
