@@ -126,6 +126,7 @@ fn bench(terminal: Terminal) {
             sample: samples[k],
             preview: &samples[k + 1..],
             applied: &applied,
+            deadline: None,
         };
         let cpu0 = thread_cpu_ns();
         let start = Instant::now();

@@ -441,12 +441,12 @@ impl ControllerMsg {
             step_time_us: lane.step_time_us,
             time_in_mode_s: s.time_in_mode_s,
             switch_count: s.switch_count,
-            last_switch_reason: s.last_switch_reason.clone(),
+            last_switch_reason: s.last_switch_reason.as_ref().map(|r| r.to_string()),
             solvers: s
                 .solvers
                 .iter()
                 .map(|r| SolverMsg {
-                    name: r.name.clone(),
+                    name: r.name.to_string(),
                     status: r.status.to_string(),
                     iterations: r.iterations,
                     solve_time_us: r.solve_time_us,

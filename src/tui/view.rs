@@ -10,7 +10,7 @@ use ratatui::text::{Line, Span};
 use ratatui::widgets::{Axis, Block, Borders, Chart, Dataset, GraphType, Paragraph};
 
 use hexcue_core::engine::LaneFrame;
-use hexcue_core::mca::{AlgorithmId, Mode};
+use hexcue_core::mca::{AlgorithmId, Mode, SolveStatus};
 use hexcue_core::metrics::CHANNELS;
 use hexcue_core::vocab::Channel;
 
@@ -601,8 +601,9 @@ fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'stat
         let width = w.saturating_sub(4);
         // The full reason when it fits; at 80 columns its short form, so that the line does
         // not end in an ellipsis where the cause was.
-        let text = if why.chars().count() <= width {
-            why.clone()
+        let full = why.to_string();
+        let text = if full.chars().count() <= width {
+            full
         } else {
             truncate(&short_reason(why), width)
         };
@@ -612,7 +613,7 @@ fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'stat
         ]));
     }
     for sv in &st.solvers {
-        if sv.status == "standby" {
+        if sv.status == SolveStatus::Standby {
             // Not solved this step by design (the other controller is in charge and solved).
             lines.push(Line::from(Span::styled(
                 format!("· {} standby", sv.name),
@@ -620,7 +621,7 @@ fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'stat
             )));
             continue;
         }
-        let ok = matches!(sv.status.as_str(), "solved" | "solved_clarabel");
+        let ok = sv.status.is_solved();
         let (mark, style) = if ok {
             ("✓", th.ok())
         } else {
@@ -660,12 +661,12 @@ fn fmt_us(us: f64) -> String {
 
 /// The supervisor's reasons (`Supervisor::update`) in a few characters: "COTC infeas" for
 /// "COTC not solved (primal_infeasible)", "|e|<ε 1.5s, COTC ok" for the return.
-fn short_reason(why: &str) -> String {
+fn short_reason(why: &hexcue_core::vocab::SwitchReason) -> String {
     use hexcue_core::vocab::SwitchReason;
-    match SwitchReason::parse(why) {
-        SwitchReason::CotcNotSolved(status) => format!("COTC {}", status_word(&status)),
+    match why {
+        SwitchReason::CotcNotSolved(status) => format!("COTC {}", status_word(status)),
         SwitchReason::Settled { dwell_s, .. } => format!("|e|<ε {dwell_s:.1}s, COTC ok"),
-        SwitchReason::Other(text) => text,
+        SwitchReason::Other(text) => text.clone(),
     }
 }
 

@@ -441,6 +441,7 @@ mod tests {
                     sample,
                     preview: &[],
                     applied: &applied,
+                    deadline: None,
                 };
                 w.step(&input)
             })
