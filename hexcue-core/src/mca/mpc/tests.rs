@@ -640,6 +640,8 @@ fn own_perception_matches_the_head_through_the_lever_arm() {
 /// Clarabel's answer to the QP the MPC last assembled (its values written into Clarabel as
 /// the fallback path does): status, z and objective.
 fn clarabel_reference(mpc: &mut Mpc) -> (SolverStatus, Vec<f64>, f64) {
+    // Clarabel's P follows the washout gain only when the cascade hands it a QP.
+    assert!(mpc.update_clarabel_p());
     let solver = mpc.solver.as_mut().unwrap();
     assert!(mpc.a_pattern.fill(&mpc.a_trip, &mut mpc.nz));
     solver.update_A(&mpc.nz).unwrap();
