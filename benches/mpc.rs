@@ -5,7 +5,9 @@
 //!
 //! The input is a synthetic 20 s manoeuvre (surge pulses, a coordinated turn, heave) so that
 //! constraints become active and leave again, as on a real trace. Each algorithm runs closed
-//! loop: its command is fed back as the applied state, as the engine does.
+//! loop: its command is fed back as the applied state, as the engine does. Then the MPC and
+//! the S-MPC as the engine steps them over the shipped horizontal stall (issue 37's bars:
+//! median ≤ 50 and ≤ 100 µs).
 
 use std::time::Instant;
 
@@ -124,6 +126,7 @@ fn bench(terminal: Terminal) {
             sample: samples[k],
             preview: &samples[k + 1..],
             applied: &applied,
+            deadline: None,
         };
         let cpu0 = thread_cpu_ns();
         let start = Instant::now();
@@ -172,6 +175,63 @@ fn bench(terminal: Terminal) {
     }
 }
 
+/// The MPC and the S-MPC as the engine steps them over the shipped horizontal stall, one lane
+/// each, on this thread (`set_parallel(false)`, as a live session runs them): the step time
+/// the engine measures (wall) and this thread's CPU time per step.
+fn bench_stall() {
+    let profile = hexcue_core::profile::text::default_profile();
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("recordings/traces/horizontal-stall.csv");
+    let stall = match hexcue::formats::trace::load_trace(&path, profile.rate_hz) {
+        Ok(t) => std::sync::Arc::new(t.trace),
+        Err(e) => {
+            eprintln!("cannot read {}: {e}", path.display());
+            return;
+        }
+    };
+    for id in [
+        hexcue_core::mca::AlgorithmId::Mpc,
+        hexcue_core::mca::AlgorithmId::Smpc,
+    ] {
+        let mut engine = match hexcue_core::engine::Engine::new(&profile, stall.clone(), &[id]) {
+            Ok(e) => e,
+            Err(e) => {
+                eprintln!("cannot build the engine: {e}");
+                return;
+            }
+        };
+        engine.set_parallel(false);
+        let mut wall_us = Vec::new();
+        let mut cpu_us = Vec::new();
+        loop {
+            let cpu0 = thread_cpu_ns();
+            let Some(frame) = engine.step() else { break };
+            if let (Some(a), Some(b)) = (cpu0, thread_cpu_ns()) {
+                cpu_us.push(b.saturating_sub(a) as f64 * 1e-3);
+            }
+            wall_us.push(frame.lanes[0].step_time_us);
+        }
+        wall_us.sort_by(f64::total_cmp);
+        cpu_us.sort_by(f64::total_cmp);
+        print!(
+            "{:>5} on the stall ({} steps): step (engine, wall) median {:.0} µs, p99 {:.0} µs",
+            id.key(),
+            wall_us.len(),
+            percentile(&wall_us, 0.5),
+            percentile(&wall_us, 0.99),
+        );
+        if cpu_us.is_empty() {
+            println!();
+        } else {
+            println!(
+                "; whole engine step, thread CPU median {:.0} µs, p99 {:.0} µs",
+                percentile(&cpu_us, 0.5),
+                percentile(&cpu_us, 0.99)
+            );
+        }
+    }
+}
+
 fn main() {
     if let Ok(load) = std::fs::read_to_string("/proc/loadavg") {
         println!("load average: {}", load.trim());
@@ -182,4 +242,5 @@ fn main() {
     }
     bench(Terminal::Free);
     bench(Terminal::Cotc);
+    bench_stall();
 }

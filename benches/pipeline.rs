@@ -47,6 +47,7 @@ fn main() {
                 sample: *sample,
                 preview: &[],
                 applied: &applied,
+                deadline: None,
             };
             let t = Instant::now();
             std::hint::black_box(cwf.step(&input));

@@ -58,6 +58,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             sample: cues[k],
             preview: ahead,
             applied: &applied,
+            deadline: None,
         };
         let out = mpc.solve(&input);
         unsolved += usize::from(!out.feasible);

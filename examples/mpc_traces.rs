@@ -118,6 +118,7 @@ fn main() {
                     sample: *s,
                     preview: &samples[k + 1..],
                     applied: &applied,
+                    deadline: None,
                 };
                 let t0 = Instant::now();
                 let (c, ok) = step(&input);

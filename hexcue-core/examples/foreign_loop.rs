@@ -100,6 +100,9 @@ pub fn run(profile: &Profile) -> Result<Vec<Step>, Box<dyn std::error::Error>> {
             // A live simulator has no future to preview.
             preview: &[],
             applied: &applied,
+            // A real-time loop passes its step's deadline (`Some(Instant)`), which every QP of
+            // the step shares; `None` gives each step the profile's `[mpc] time_limit_ms`.
+            deadline: None,
         };
         let desired = smpc.step(&input);
         let limited = limiter.apply(&desired);

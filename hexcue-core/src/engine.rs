@@ -66,8 +66,138 @@ pub struct Frame {
     pub aircraft: AircraftSample,
     /// What the pilot would perceive in the aircraft.
     pub reference: Perceived,
-    /// One frame per algorithm, in the order the engine was built with.
-    pub lanes: Vec<LaneFrame>,
+    /// One frame per algorithm, in the engine's order.
+    pub lanes: Lanes,
+}
+
+/// The most lanes a frame holds: one per algorithm ([`AlgorithmId::ALL`]).
+pub const MAX_LANES: usize = 3;
+
+/// The lanes of a [`Frame`], held inline so that a step builds and returns its frame without
+/// allocating; a slice of [`LaneFrame`] to read. An engine has at most [`MAX_LANES`]
+/// ([`Engine::new`] refuses more); collecting more keeps the first [`MAX_LANES`].
+#[derive(Clone, Default)]
+pub struct Lanes {
+    lanes: [Option<LaneFrame>; MAX_LANES],
+    len: usize,
+}
+
+impl Lanes {
+    /// No lane.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Appends a lane; false (and nothing changed) when [`MAX_LANES`] are already held.
+    pub fn push(&mut self, lane: LaneFrame) -> bool {
+        if self.len == MAX_LANES {
+            return false;
+        }
+        self.lanes[self.len] = Some(lane);
+        self.len += 1;
+        true
+    }
+
+    /// The lanes in order.
+    pub fn iter(&self) -> impl DoubleEndedIterator<Item = &LaneFrame> {
+        self.lanes[..self.len].iter().flatten()
+    }
+
+    /// The lanes in order, to change.
+    pub fn iter_mut(&mut self) -> impl DoubleEndedIterator<Item = &mut LaneFrame> {
+        self.lanes[..self.len].iter_mut().flatten()
+    }
+
+    /// Lane `i`, if there is one.
+    pub fn get(&self, i: usize) -> Option<&LaneFrame> {
+        self.lanes[..self.len].get(i).and_then(Option::as_ref)
+    }
+
+    /// Lane `i` to change, if there is one.
+    pub fn get_mut(&mut self, i: usize) -> Option<&mut LaneFrame> {
+        self.lanes[..self.len].get_mut(i).and_then(Option::as_mut)
+    }
+
+    /// How many lanes.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// No lane at all.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The first lane, if any.
+    pub fn first(&self) -> Option<&LaneFrame> {
+        self.get(0)
+    }
+}
+
+impl std::ops::Index<usize> for Lanes {
+    type Output = LaneFrame;
+    fn index(&self, i: usize) -> &LaneFrame {
+        match self.get(i) {
+            Some(l) => l,
+            None => panic!("lane {i} of {}", self.len),
+        }
+    }
+}
+
+impl std::ops::IndexMut<usize> for Lanes {
+    fn index_mut(&mut self, i: usize) -> &mut LaneFrame {
+        let len = self.len;
+        match self.get_mut(i) {
+            Some(l) => l,
+            None => panic!("lane {i} of {len}"),
+        }
+    }
+}
+
+impl PartialEq for Lanes {
+    fn eq(&self, other: &Self) -> bool {
+        self.len == other.len && self.iter().eq(other.iter())
+    }
+}
+
+impl std::fmt::Debug for Lanes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.iter()).finish()
+    }
+}
+
+impl FromIterator<LaneFrame> for Lanes {
+    fn from_iter<I: IntoIterator<Item = LaneFrame>>(iter: I) -> Self {
+        let mut out = Lanes::new();
+        for lane in iter {
+            if !out.push(lane) {
+                break;
+            }
+        }
+        out
+    }
+}
+
+impl From<Vec<LaneFrame>> for Lanes {
+    fn from(lanes: Vec<LaneFrame>) -> Self {
+        lanes.into_iter().collect()
+    }
+}
+
+impl<'a> IntoIterator for &'a Lanes {
+    type Item = &'a LaneFrame;
+    type IntoIter = std::iter::Flatten<std::slice::Iter<'a, Option<LaneFrame>>>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.lanes[..self.len].iter().flatten()
+    }
+}
+
+impl<'a> IntoIterator for &'a mut Lanes {
+    type Item = &'a mut LaneFrame;
+    type IntoIter = std::iter::Flatten<std::slice::IterMut<'a, Option<LaneFrame>>>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.lanes[..self.len].iter_mut().flatten()
+    }
 }
 
 impl Frame {
@@ -137,6 +267,7 @@ struct StepContext<'a> {
     stewart: &'a Stewart,
     eye_m: &'a Vector3<f64>,
     gains: &'a GainStage,
+    deadline: Option<Instant>,
 }
 
 impl StepContext<'_> {
@@ -150,6 +281,7 @@ impl StepContext<'_> {
             sample: self.sample,
             preview: self.preview,
             applied: &applied,
+            deadline: self.deadline,
         };
         let started = Instant::now();
         let raw = lane.algorithm.step(&input);
@@ -232,6 +364,9 @@ struct Window {
     start: usize,
     /// The source has said it has no more.
     exhausted: bool,
+    /// The preview scaled by the cue gain while a live session fades the cue: kept, so
+    /// that a faded step allocates nothing.
+    faded: Vec<CueSample>,
 }
 
 /// Steps samples from a source, one at a time, through every chosen algorithm.
@@ -316,6 +451,12 @@ impl Engine {
     ) -> Result<Self, BuildError> {
         let dt = profile.dt_s();
         let stewart = profile.stewart();
+        if let Some(&algorithm) = algorithms.get(MAX_LANES) {
+            return Err(BuildError::Setup {
+                algorithm,
+                reason: format!("an engine runs at most {MAX_LANES} algorithms"),
+            });
+        }
         let lanes = algorithms
             .iter()
             .map(|&id| {
@@ -333,9 +474,10 @@ impl Engine {
             })
             .collect::<Result<Vec<_>, BuildError>>()?;
         let transitions = profile.safety.transition_limits(&profile.limits.si(), dt);
+        let preview_len = (PREVIEW_HORIZON_S * profile.rate_hz).ceil() as usize;
         Ok(Engine {
             profile: profile.clone(),
-            preview_len: (PREVIEW_HORIZON_S * profile.rate_hz).ceil() as usize,
+            preview_len,
             source,
             source_error: None,
             stewart,
@@ -345,6 +487,7 @@ impl Engine {
                 cues: Vec::new(),
                 start: 0,
                 exhausted: false,
+                faded: Vec::with_capacity(preview_len),
             },
             cue_gain: 1.0,
             reference: Vestibular::new(&profile.vestibular, dt),
@@ -569,19 +712,32 @@ impl Engine {
         }
     }
 
-    /// Steps one sample; `None` once the flight is over (or its source failed).
+    /// Steps one sample; `None` once the flight is over (or its source failed). Each MPC
+    /// gives its step the profile's `time_limit_ms` ([`CueInput::deadline`] `None`), as
+    /// offline runs always have.
     pub fn step(&mut self) -> Option<Frame> {
+        self.step_with(None)
+    }
+
+    /// Steps one sample with every lane's QPs sharing one deadline: a live session's
+    /// stepping thread gives the end of its period's budget. `None` once the flight is over.
+    pub fn step_until(&mut self, deadline: Instant) -> Option<Frame> {
+        self.step_with(Some(deadline))
+    }
+
+    fn step_with(&mut self, deadline: Option<Instant>) -> Option<Frame> {
         self.fill_window();
         let k = self.k;
         let aircraft = self.window.aircraft.pop_front()?;
         let dt = self.profile.dt_s();
         let w = &mut self.window;
         let (mut sample, mut preview) = (w.cues[w.start], &w.cues[w.start + 1..]);
-        let faded: Vec<CueSample>;
         if self.cue_gain != 1.0 {
             sample = scaled(&sample, self.cue_gain);
-            faded = preview.iter().map(|c| scaled(c, self.cue_gain)).collect();
-            preview = &faded;
+            w.faded.clear();
+            w.faded
+                .extend(preview.iter().map(|c| scaled(c, self.cue_gain)));
+            preview = &w.faded;
         }
         let reference = self
             .reference
@@ -595,15 +751,19 @@ impl Engine {
             stewart: &self.stewart,
             eye_m: &self.eye_m,
             gains: &self.gains,
+            deadline,
         };
-        let lanes = match self.lanes.split_first_mut() {
+        let mut lanes = Lanes::new();
+        match self.lanes.split_first_mut() {
             // Lanes are independent: the first (the heaviest, in the console's order) steps
             // here, the others on rayon's pool, so that on two cores a headless run of every
             // algorithm costs about the slowest lane, not their sum. The pool's threads live
             // as long as the process: no thread is started per step. A panic in a lane is a
-            // bug, and the scope carries it here rather than drop the lane.
+            // bug, and the scope carries it here rather than drop the lane. Rayon allocates
+            // for the job it is handed: a live session steps its lanes here instead
+            // (`set_parallel(false)`, docs/performance.md).
             Some((first, rest)) if !rest.is_empty() && self.parallel => {
-                let mut others = Vec::new();
+                let mut others = Lanes::new();
                 let ctx = &ctx;
                 let here = rayon::in_place_scope(|scope| {
                     scope.spawn(|_| {
@@ -611,14 +771,20 @@ impl Engine {
                     });
                     ctx.step(first)
                 });
-                let mut out = vec![here];
-                out.extend(others);
-                out
+                lanes.push(here);
+                for lane in others.lanes.into_iter().flatten() {
+                    lanes.push(lane);
+                }
             }
-            _ => self.lanes.iter_mut().map(|lane| ctx.step(lane)).collect(),
-        };
+            _ => {
+                for lane in self.lanes.iter_mut() {
+                    lanes.push(ctx.step(lane));
+                }
+            }
+        }
         self.gains.advance();
         self.k += 1;
+        let w = &mut self.window;
         w.start += 1;
         if w.start > self.preview_len {
             w.cues.drain(..w.start);

@@ -334,33 +334,6 @@ impl SolveStatus {
     }
 }
 
-impl From<&str> for SolveStatus {
-    fn from(word: &str) -> Self {
-        SolveStatus::from_word(word)
-    }
-}
-
-impl PartialEq<&str> for SolveStatus {
-    fn eq(&self, other: &&str) -> bool {
-        self.as_str() == *other
-    }
-}
-
-impl PartialEq<str> for SolveStatus {
-    fn eq(&self, other: &str) -> bool {
-        self.as_str() == other
-    }
-}
-
-impl std::ops::Deref for SolveStatus {
-    type Target = str;
-
-    /// The word, so that code written for the status as text reads it unchanged.
-    fn deref(&self) -> &str {
-        self.as_str()
-    }
-}
-
 impl std::fmt::Display for SolveStatus {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.as_str())
@@ -370,6 +343,56 @@ impl std::fmt::Display for SolveStatus {
 impl serde::Serialize for SolveStatus {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         s.serialize_str(self.as_str())
+    }
+}
+
+/// Which QP a [`crate::mca::SolverReport`] is about: the MPC's own, or one of the S-MPC's
+/// two. Its [`QpName::word`] is what recordings store (`mpc`, `cotc`, `free`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum QpName {
+    /// The MPC without terminal conditions (the `mpc` algorithm).
+    #[default]
+    Mpc,
+    /// The MPC with terminal conditions (the S-MPC's COTC, or a COTC on its own).
+    Cotc,
+    /// The S-MPC's MPC without terminal conditions.
+    Free,
+    /// A name this version does not know, read from a file.
+    Unknown,
+}
+
+impl QpName {
+    /// Every name, [`QpName::Unknown`] last.
+    pub const ALL: [QpName; 4] = [QpName::Mpc, QpName::Cotc, QpName::Free, QpName::Unknown];
+
+    /// The word reports and recordings store.
+    pub fn word(self) -> &'static str {
+        match self {
+            QpName::Mpc => "mpc",
+            QpName::Cotc => "cotc",
+            QpName::Free => "free",
+            QpName::Unknown => "unknown",
+        }
+    }
+
+    /// The name a word names; [`QpName::Unknown`] for one this version does not know.
+    pub fn from_word(word: &str) -> Self {
+        Self::ALL
+            .into_iter()
+            .find(|n| n.word() == word)
+            .unwrap_or(QpName::Unknown)
+    }
+}
+
+impl std::fmt::Display for QpName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.word())
+    }
+}
+
+impl serde::Serialize for QpName {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.word())
     }
 }
 
@@ -436,6 +459,14 @@ impl std::fmt::Display for SwitchReason {
     }
 }
 
+/// The reason as its text: what recordings and summaries store. Formatted only here, at the
+/// edge; the step carries the enum.
+impl serde::Serialize for SwitchReason {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -463,5 +494,43 @@ mod tests {
             SwitchReason::parse("errors within ε = 0.30 m/s² for 1.5 s and COTC solved"),
             SwitchReason::Settled { dwell_s, .. } if dwell_s == 1.5
         ));
+        for n in QpName::ALL {
+            assert_eq!(QpName::from_word(n.word()), n);
+        }
+    }
+
+    use proptest::prelude::*;
+
+    /// Reasons as the supervisor makes them: a status, or ε and the dwell at the precision
+    /// the text carries (hundredths of m/s², tenths of a second).
+    fn any_reason() -> impl Strategy<Value = SwitchReason> {
+        prop_oneof![
+            (0..SolveStatus::ALL.len() - 1)
+                .prop_map(|i| SwitchReason::CotcNotSolved(SolveStatus::ALL[i])),
+            (0u32..100_000, 0u32..100_000).prop_map(|(e, d)| SwitchReason::Settled {
+                epsilon_mps2: f64::from(e) / 100.0,
+                dwell_s: f64::from(d) / 10.0,
+            }),
+        ]
+    }
+
+    proptest! {
+        #[test]
+        fn a_switch_reason_reads_back_from_its_text(r in any_reason()) {
+            prop_assert_eq!(SwitchReason::parse(&r.to_string()), r);
+        }
+
+        #[test]
+        fn any_text_reads_back_to_itself(text in "\\PC{0,60}") {
+            prop_assert_eq!(SwitchReason::parse(&text).to_string(), text);
+        }
+
+        #[test]
+        fn statuses_and_qp_names_read_back_from_their_words(i in 0..SolveStatus::ALL.len(), j in 0..QpName::ALL.len()) {
+            let s = SolveStatus::ALL[i];
+            prop_assert_eq!(SolveStatus::from_word(&s.to_string()), s);
+            let n = QpName::ALL[j];
+            prop_assert_eq!(QpName::from_word(&n.to_string()), n);
+        }
     }
 }

@@ -9,6 +9,7 @@ use serde::{Deserialize, Deserializer, Serialize};
 use hexcue_core::engine::{Frame, LaneFrame, Legs};
 use hexcue_core::mca::{AlgorithmState, PlatformCommand, SolverReport};
 use hexcue_core::model::vestibular::Perceived;
+use hexcue_core::vocab::SwitchReason;
 
 use super::{Channel, Kind};
 
@@ -447,20 +448,21 @@ pub struct ControllerOut<'a> {
     #[serde(serialize_with = "time_s")]
     time_in_mode_s: f64,
     switch_count: u32,
-    last_switch_reason: Option<&'a str>,
+    /// Serialised as its text, as [`SwitchReason`]'s `Serialize` writes it.
+    last_switch_reason: Option<&'a SwitchReason>,
     solvers: SolversOut<'a>,
 }
 
 /// The words of a lane's state that the JSON carries, where the core's types become text: the
 /// switch reason, and each solver's name and status. The one place to change if those
 /// become enums (their JSON words must stay).
-fn state_words(state: &AlgorithmState) -> Option<&str> {
-    state.last_switch_reason.as_deref()
+fn state_words(state: &AlgorithmState) -> Option<&SwitchReason> {
+    state.last_switch_reason.as_ref()
 }
 
 /// A solver's name and status word (see [`state_words`]).
 fn solver_words(report: &SolverReport) -> (&str, &'static str) {
-    (report.name.as_str(), report.status.as_str())
+    (report.name.word(), report.status.as_str())
 }
 
 impl<'a> ControllerOut<'a> {
@@ -758,12 +760,12 @@ mod tests {
             step_time_us: lane.step_time_us,
             time_in_mode_s: s.time_in_mode_s,
             switch_count: s.switch_count,
-            last_switch_reason: s.last_switch_reason.clone(),
+            last_switch_reason: s.last_switch_reason.as_ref().map(|r| r.to_string()),
             solvers: s
                 .solvers
                 .iter()
                 .map(|r| SolverMsg {
-                    name: r.name.clone(),
+                    name: r.name.word().to_string(),
                     status: r.status.to_string(),
                     iterations: r.iterations,
                     solve_time_us: r.solve_time_us,
@@ -782,8 +784,9 @@ mod tests {
             hexcue_core::engine::Engine::new(&profile, trace, &[AlgorithmId::Cwf]).unwrap();
         let frame = engine.step().unwrap();
         let mut lane = frame.lanes[0].clone();
-        let report = |name: &str, status, iterations, solve_time_us| SolverReport {
-            name: name.to_string(),
+        use hexcue_core::vocab::QpName;
+        let report = |name: QpName, status, iterations, solve_time_us| SolverReport {
+            name,
             status,
             iterations,
             solve_time_us,
@@ -794,22 +797,27 @@ mod tests {
                 Mode::Blend,
                 Some(0.25),
                 vec![
-                    report("cotc", SolveStatus::PrimalInfeasible, 7, 133.726_999_999_98),
-                    report("fr\"ee", SolveStatus::Standby, 0, f64::NAN),
+                    report(
+                        QpName::Cotc,
+                        SolveStatus::PrimalInfeasible,
+                        7,
+                        133.726_999_999_98,
+                    ),
+                    report(QpName::Free, SolveStatus::Standby, 0, f64::NAN),
                 ],
-                Some("cotc infeasible: \"x\" ≥ 3".to_string()),
+                Some(SwitchReason::parse("cotc infeasible: \"x\" ≥ 3")),
             ),
             (
                 Mode::Mpc,
                 None,
-                vec![report("mpc", SolveStatus::SolvedClarabel, 31, 1.5e3)],
+                vec![report(QpName::Mpc, SolveStatus::SolvedClarabel, 31, 1.5e3)],
                 None,
             ),
         ];
         for (mode, blend, solvers, reason) in cases {
             lane.state.mode = mode;
             lane.state.blend = blend;
-            lane.state.solvers = solvers;
+            lane.state.solvers = solvers.into_iter().collect();
             lane.state.last_switch_reason = reason;
             lane.state.time_in_mode_s = 30.010_000_000_001_89;
             lane.step_time_us = 12.345_6;

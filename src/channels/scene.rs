@@ -501,7 +501,7 @@ impl SceneBuilder {
             let reason = lane
                 .state
                 .last_switch_reason
-                .as_deref()
+                .as_ref()
                 .map(|r| format!(": {r}"))
                 .unwrap_or_default();
             out.push(event(
@@ -645,7 +645,8 @@ mod tests {
         );
         frame.lanes[0].state.mode = Mode::Blend;
         frame.lanes[0].state.switch_count = 1;
-        frame.lanes[0].state.last_switch_reason = Some("cotc infeasible".into());
+        frame.lanes[0].state.last_switch_reason =
+            Some(hexcue_core::mca::SwitchReason::parse("cotc infeasible"));
         frame.lanes[0].limiter_active = true;
         let events = b.step(&frame, 2, false).events;
         assert_eq!(events.len(), 2, "{events:?}");

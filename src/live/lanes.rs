@@ -86,10 +86,9 @@ impl Comparison {
         let mut last = None;
         while self.engine.position() <= report.frame.k {
             self.apply_retunes();
-            // DEADLINE (alloc37, wired at the merge): the comparison lanes' engine steps
-            // here. They are bound to no platform's clock: give them a whole budget from
-            // their own start (`Instant::now() + budget`), not the driving step's deadline,
-            // which a lagging thread has passed and which would fail every solve.
+            // The comparison lanes are bound to no platform's clock: each step gets the
+            // profile's `time_limit_ms` from its own start (`step`), not the driving step's
+            // deadline, which a lagging thread has passed and which would fail every solve.
             let frame = self.engine.step()?;
             self.summary.push(&frame);
             last = Some(frame);
@@ -179,7 +178,8 @@ impl Lanes {
             let late_s = now.duration_since(report.deadline).as_secs_f64();
             self.lag_max_s = self.lag_max_s.max(late_s);
         }
-        let mut drive = std::mem::take(&mut report.frame.lanes).into_iter();
+        let taken = std::mem::take(&mut report.frame.lanes);
+        let mut drive = taken.iter().cloned();
         report.frame.lanes = self
             .order
             .iter()

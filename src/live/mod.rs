@@ -597,12 +597,11 @@ impl LiveSession {
         if let Some((sample, _)) = latest {
             self.engine.push_sample(sample);
         }
-        // DEADLINE (alloc37, wired at the merge): the one place the driving lane's engine
-        // steps; it gets `deadline` here (`self.engine.step_until(deadline)`), and every solve
-        // of the step shares it. Until then each QP has the profile's `time_limit_ms`.
+        // The one place the driving lane's engine steps: every solve of the step (the S-MPC's
+        // two QPs, each solver's fallback) shares the period's deadline.
         let frame = self
             .engine
-            .step()
+            .step_until(deadline)
             .context("the live source ended, which it never should")?;
         let wanted = self
             .drives

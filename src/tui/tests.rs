@@ -158,21 +158,24 @@ pub(super) fn dressed_snapshot() -> (App, Snapshot) {
         blend: Some(0.42),
         time_in_mode_s: 0.3,
         switch_count: 3,
-        last_switch_reason: Some("COTC not solved (primal_infeasible)".into()),
-        solvers: vec![
+        last_switch_reason: Some(hexcue_core::mca::SwitchReason::parse(
+            "COTC not solved (primal_infeasible)",
+        )),
+        solvers: [
             SolverReport {
-                name: "cotc".into(),
-                status: "primal_infeasible".into(),
+                name: hexcue_core::mca::QpName::Cotc,
+                status: hexcue_core::mca::SolveStatus::PrimalInfeasible,
                 iterations: 6,
                 solve_time_us: 850.0,
             },
             SolverReport {
-                name: "free".into(),
-                status: "solved".into(),
+                name: hexcue_core::mca::QpName::Free,
+                status: hexcue_core::mca::SolveStatus::Solved,
                 iterations: 11,
                 solve_time_us: 1400.0,
             },
-        ],
+        ]
+        .into(),
     };
     last.lanes[0].step_time_us = 2300.0;
     last.lanes[1].state = AlgorithmState {
@@ -181,12 +184,13 @@ pub(super) fn dressed_snapshot() -> (App, Snapshot) {
         time_in_mode_s: 12.5,
         switch_count: 0,
         last_switch_reason: None,
-        solvers: vec![SolverReport {
-            name: "mpc".into(),
-            status: "solved".into(),
+        solvers: [SolverReport {
+            name: hexcue_core::mca::QpName::Mpc,
+            status: hexcue_core::mca::SolveStatus::Solved,
             iterations: 9,
             solve_time_us: 900.0,
-        }],
+        }]
+        .into(),
     };
     last.lanes[1].limiter_active = true;
     // One leg near its stop and one at it, to show both marks.
@@ -252,11 +256,11 @@ fn a_long_switch_reason_wraps_and_a_standby_solver_is_marked() {
     let lane = &mut s.last.as_mut().unwrap().lanes[0];
     lane.state.mode = Mode::Cotc;
     lane.state.blend = None;
-    lane.state.last_switch_reason = Some(reason.into());
-    lane.state.solvers[0].status = "solved".into();
+    lane.state.last_switch_reason = Some(hexcue_core::mca::SwitchReason::parse(reason));
+    lane.state.solvers[0].status = hexcue_core::mca::SolveStatus::Solved;
     lane.state.solvers[1] = SolverReport {
-        name: "free".into(),
-        status: "standby".into(),
+        name: hexcue_core::mca::QpName::Free,
+        status: hexcue_core::mca::SolveStatus::Standby,
         iterations: 0,
         solve_time_us: 0.0,
     };

@@ -600,8 +600,9 @@ fn state_lines(th: &Theme, lane: Option<&LaneFrame>, w: usize) -> Vec<Line<'stat
         let width = w.saturating_sub(4);
         // The full reason when it fits; at 80 columns its short form, so that the line does
         // not end in an ellipsis where the cause was.
-        let text = if why.chars().count() <= width {
-            why.clone()
+        let full = why.to_string();
+        let text = if full.chars().count() <= width {
+            full
         } else {
             truncate(&short_reason(why), width)
         };
@@ -658,12 +659,12 @@ fn fmt_us(us: f64) -> String {
 
 /// The supervisor's reasons (`Supervisor::update`) in a few characters: "COTC infeas" for
 /// "COTC not solved (primal_infeasible)", "|e|<ε 1.5s, COTC ok" for the return.
-fn short_reason(why: &str) -> String {
+fn short_reason(why: &hexcue_core::vocab::SwitchReason) -> String {
     use hexcue_core::vocab::SwitchReason;
-    match SwitchReason::parse(why) {
-        SwitchReason::CotcNotSolved(status) => format!("COTC {}", status_word(&status)),
+    match why {
+        SwitchReason::CotcNotSolved(status) => format!("COTC {}", status_word(status)),
         SwitchReason::Settled { dwell_s, .. } => format!("|e|<ε {dwell_s:.1}s, COTC ok"),
-        SwitchReason::Other(text) => text,
+        SwitchReason::Other(text) => text.clone(),
     }
 }
 

@@ -48,6 +48,7 @@ pub struct WorkspaceLimiter {
 /// Why the limiter would not issue a command as it is ([`WorkspaceLimiter::rejection`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Rejection {
+    /// A value of the command is NaN or infinite.
     NonFinite,
     /// The pose is beyond this DoF's excursion.
     Excursion(usize),

@@ -12,7 +12,7 @@ use serde::Serialize;
 
 use crate::model::platform::Platform;
 use crate::model::vestibular::VestibularParams;
-pub use crate::vocab::{AlgorithmId, SolveStatus};
+pub use crate::vocab::{AlgorithmId, QpName, SolveStatus, SwitchReason};
 
 /// What every algorithm is built for besides its own tuning: the platform it drives, where
 /// the pilot's head sits on it, the pilot's vestibular system and the step. The profile
@@ -56,6 +56,11 @@ pub struct CueInput<'a> {
     pub preview: &'a [CueSample],
     /// What the platform was commanded at the previous step, after the limiter.
     pub applied: &'a PlatformCommand,
+    /// When the whole step must be done: every QP of the step (the active set, then
+    /// Clarabel; both of the S-MPC's) shares it. `None`: no caller's deadline, and the MPCs
+    /// give the step their profile's `time_limit_ms` from its start (offline runs: `play`,
+    /// `compare`, `tune`).
+    pub deadline: Option<std::time::Instant>,
 }
 
 /// Platform command in the simulator inertial frame: x, y, z (m), roll, pitch, yaw (rad) and
@@ -127,12 +132,12 @@ impl Mode {
     }
 }
 
-/// Outcome of one QP solve, as information for the operator.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+/// Outcome of one QP solve, as information for the operator. `Copy`: the step hands it on
+/// without allocating.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct SolverReport {
-    /// Which QP: `mpc`, `cotc`, `free`. Owned so that a report read back from a recording
-    /// is the same type as a live one.
-    pub name: String,
+    /// Which QP; recordings store its word (`mpc`, `cotc`, `free`).
+    pub name: QpName,
     /// How the solve ended; recordings store its word, e.g. `solved`, `primal_infeasible`.
     pub status: SolveStatus,
     /// Solver iterations of the solve.
@@ -152,10 +157,112 @@ pub struct AlgorithmState {
     pub time_in_mode_s: f64,
     /// Controller switches since the start.
     pub switch_count: u32,
-    /// The text of the supervisor's last [`crate::vocab::SwitchReason`], as recordings store it.
-    pub last_switch_reason: Option<String>,
-    /// One report per QP solved at the step (none for the CWF).
-    pub solvers: Vec<SolverReport>,
+    /// The supervisor's last reason to switch; recordings store its text.
+    pub last_switch_reason: Option<SwitchReason>,
+    /// The QPs of the step, in the algorithm's order (the S-MPC: COTC, then the free MPC).
+    pub solvers: Solvers,
+}
+
+/// The most solver reports a step carries: the S-MPC's two QPs, with room to spare.
+pub const MAX_SOLVERS: usize = 4;
+
+/// The solver reports of one step, held inline so that an algorithm's state is built without
+/// allocating; a slice of [`SolverReport`] to read. Beyond [`MAX_SOLVERS`] reports (none of
+/// hexcue's algorithms has more than two) the rest are left out.
+#[derive(Clone, Copy, Default)]
+pub struct Solvers {
+    reports: [SolverReport; MAX_SOLVERS],
+    len: usize,
+}
+
+impl Solvers {
+    /// No report: an algorithm without a QP.
+    pub const fn new() -> Self {
+        Solvers {
+            reports: [SolverReport {
+                name: QpName::Mpc,
+                status: SolveStatus::NotYet,
+                iterations: 0,
+                solve_time_us: 0.0,
+            }; MAX_SOLVERS],
+            len: 0,
+        }
+    }
+
+    /// Appends a report; false (and nothing changed) when [`MAX_SOLVERS`] are already held.
+    pub fn push(&mut self, report: SolverReport) -> bool {
+        if self.len == MAX_SOLVERS {
+            return false;
+        }
+        self.reports[self.len] = report;
+        self.len += 1;
+        true
+    }
+}
+
+impl std::ops::Deref for Solvers {
+    type Target = [SolverReport];
+    fn deref(&self) -> &[SolverReport] {
+        &self.reports[..self.len]
+    }
+}
+
+impl std::ops::DerefMut for Solvers {
+    fn deref_mut(&mut self) -> &mut [SolverReport] {
+        &mut self.reports[..self.len]
+    }
+}
+
+impl PartialEq for Solvers {
+    fn eq(&self, other: &Self) -> bool {
+        **self == **other
+    }
+}
+
+impl std::fmt::Debug for Solvers {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.iter()).finish()
+    }
+}
+
+impl Serialize for Solvers {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(self.iter())
+    }
+}
+
+impl FromIterator<SolverReport> for Solvers {
+    fn from_iter<I: IntoIterator<Item = SolverReport>>(iter: I) -> Self {
+        let mut out = Solvers::new();
+        for r in iter {
+            if !out.push(r) {
+                break;
+            }
+        }
+        out
+    }
+}
+
+impl<const N: usize> From<[SolverReport; N]> for Solvers {
+    fn from(reports: [SolverReport; N]) -> Self {
+        reports.into_iter().collect()
+    }
+}
+
+impl<'a> IntoIterator for &'a Solvers {
+    type Item = &'a SolverReport;
+    type IntoIter = std::slice::Iter<'a, SolverReport>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.iter()
+    }
+}
+
+impl<'a> IntoIterator for &'a mut Solvers {
+    type Item = &'a mut SolverReport;
+    type IntoIter = std::slice::IterMut<'a, SolverReport>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.iter_mut()
+    }
 }
 
 impl AlgorithmState {
@@ -167,7 +274,7 @@ impl AlgorithmState {
             time_in_mode_s: 0.0,
             switch_count: 0,
             last_switch_reason: None,
-            solvers: Vec::new(),
+            solvers: Solvers::new(),
         }
     }
 }

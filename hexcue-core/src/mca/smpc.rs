@@ -104,8 +104,14 @@ impl Smpc {
             mode: Mode::Cotc,
             time_in_mode_s: 0.0,
             reports: [
-                super::SolverReport::default(),
-                super::SolverReport::default(),
+                super::SolverReport {
+                    name: super::QpName::Cotc,
+                    ..Default::default()
+                },
+                super::SolverReport {
+                    name: super::QpName::Free,
+                    ..Default::default()
+                },
             ],
             parallel: true,
         })
@@ -157,6 +163,12 @@ impl MotionCueing for Smpc {
     }
 
     fn step(&mut self, input: &CueInput) -> PlatformCommand {
+        // One deadline for the step, which both QPs' cascades share: the caller's, or the
+        // profile's time limit from now.
+        let deadline = self
+            .cotc
+            .step_deadline(std::time::Instant::now(), input.deadline);
+        let input = &CueInput { deadline, ..*input };
         let dt = input.dt_s;
         let usage = self
             .stewart
@@ -234,9 +246,9 @@ impl MotionCueing for Smpc {
         }
         let mut free_report = match free {
             Some(f) => f.report,
-            None => self.free.report().clone(),
+            None => *self.free.report(),
         };
-        free_report.name = "free".to_string();
+        free_report.name = super::QpName::Free;
         self.reports = [cotc.report, free_report];
         command
     }
@@ -247,8 +259,8 @@ impl MotionCueing for Smpc {
             blend: self.mixer.weight(),
             time_in_mode_s: self.time_in_mode_s,
             switch_count: self.supervisor.switch_count(),
-            last_switch_reason: self.supervisor.last_reason().map(|r| r.to_string()),
-            solvers: self.reports.to_vec(),
+            last_switch_reason: self.supervisor.last_reason().cloned(),
+            solvers: self.reports.into(),
         }
     }
 
@@ -262,7 +274,7 @@ impl MotionCueing for Smpc {
             outgoing: self.outgoing,
             mode: self.mode,
             time_in_mode_s: self.time_in_mode_s,
-            reports: self.reports.clone(),
+            reports: self.reports,
         }))
     }
 
@@ -278,7 +290,7 @@ impl MotionCueing for Smpc {
         self.outgoing = s.outgoing;
         self.mode = s.mode;
         self.time_in_mode_s = s.time_in_mode_s;
-        self.reports.clone_from(&s.reports);
+        self.reports = s.reports;
         true
     }
 
@@ -301,7 +313,7 @@ mod tests {
     use nalgebra::Vector3;
 
     use crate::engine::Engine;
-    use crate::mca::{AlgorithmId, Mode};
+    use crate::mca::{AlgorithmId, Mode, SolveStatus};
     use crate::testing::full_flight;
     use crate::trace::{AircraftSample, Trace};
     use crate::G_MPS2;
@@ -408,9 +420,9 @@ mod tests {
             // be picked (in charge, or blended).
             let free_status = &lane.state.solvers[1].status;
             match lane.state.mode {
-                Mode::Cotc => assert_eq!(free_status, "standby", "t={}", frame.t_s),
+                Mode::Cotc => assert_eq!(*free_status, SolveStatus::Standby, "t={}", frame.t_s),
                 Mode::Free | Mode::Blend => {
-                    assert_ne!(free_status, "standby", "t={}", frame.t_s)
+                    assert_ne!(*free_status, SolveStatus::Standby, "t={}", frame.t_s)
                 }
                 _ => {}
             }
@@ -419,7 +431,10 @@ mod tests {
         let at = |t: f64| modes.iter().find(|m| m.0 >= t).unwrap();
         assert_eq!(at(1.0).1, Mode::Cotc, "starts on COTC");
         let reason = first_reason.expect("it switched");
-        assert!(reason.contains("COTC not solved"), "{reason}");
+        assert!(
+            matches!(reason, crate::vocab::SwitchReason::CotcNotSolved(_)),
+            "{reason}"
+        );
         // COTC becomes infeasible once the sustained part of the surge (Δf low-passed with
         // cotc_sustained_s = 1 s) needs more tilt than it can reach: more than 25°
         // (6·(1 − e^(−t)) > g·sin 25° after about 1.1 s), or sooner, more than the pitch rate
@@ -475,15 +490,18 @@ mod tests {
             .state
             .solvers
             .iter()
-            .map(|s| s.name.as_str())
+            .map(|s| s.name.word())
             .collect();
         assert_eq!(names, ["cotc", "free"]);
         // The status itself depends on wall time (the safety-net limit) on a shared machine;
         // that it is reported in words is what the console and recordings rely on.
         let solvers = &frame.lanes[0].state.solvers;
         assert!(
-            solvers.iter().all(|s| !s.status.is_empty()
-                && s.status.chars().all(|c| c.is_ascii_lowercase() || c == '_')),
+            solvers.iter().all(|s| !s.status.as_str().is_empty()
+                && s.status
+                    .as_str()
+                    .chars()
+                    .all(|c| c.is_ascii_lowercase() || c == '_')),
             "{solvers:?}"
         );
     }
@@ -506,6 +524,7 @@ mod tests {
                     sample: *sample,
                     preview: &[],
                     applied: &applied,
+                    deadline: None,
                 };
                 applied = smpc.step(&input);
                 (applied, smpc.state().mode)
@@ -553,7 +572,10 @@ mod tests {
             smpc.state()
         };
         assert!(
-            state.solvers.iter().all(|s| s.status == "max_time"),
+            state
+                .solvers
+                .iter()
+                .all(|s| s.status == SolveStatus::MaxTime),
             "{:?}",
             state.solvers
         );

@@ -503,11 +503,10 @@ mod tests {
         SupervisorInput {
             cotc_solved: solved,
             cotc_status: if solved {
-                "solved"
+                SolveStatus::Solved
             } else {
-                "primal_infeasible"
-            }
-            .into(),
+                SolveStatus::PrimalInfeasible
+            },
             free_solved: true,
             error_x_mps2: ex,
             error_y_mps2: 0.0,

@@ -488,6 +488,7 @@ mod tests {
                     sample,
                     preview: &[],
                     applied: &applied,
+                    deadline: None,
                 };
                 w.step(&input)
             })

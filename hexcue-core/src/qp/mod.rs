@@ -16,7 +16,7 @@
 //! Hand-written because no crate offers this under a permissive licence: `quadprog` is
 //! GPL-2.0, there is no DAQP crate, and `osqp-sys` fetches its sources at build time.
 
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 #[cfg(test)]
 mod tests;
@@ -87,8 +87,9 @@ pub struct ActiveRow {
 pub struct QpSettings {
     /// Cap on the add/drop steps of the main loop.
     pub max_iterations: u32,
-    /// Wall-time limit; `None` for none.
-    pub time_limit: Option<Duration>,
+    /// When the solve must have ended (the step's deadline, which the solves of a step
+    /// share); `None` for never.
+    pub deadline: Option<Instant>,
     /// A row counts as satisfied when it is violated by at most this times (|a_k| + |bound|):
     /// relative to the bound, absolute for bounds near zero, and the same for a row scaled by
     /// any factor.
@@ -99,7 +100,7 @@ impl Default for QpSettings {
     fn default() -> Self {
         QpSettings {
             max_iterations: 500,
-            time_limit: None,
+            deadline: None,
             primal_tolerance: 1e-9,
         }
     }
@@ -383,10 +384,9 @@ impl ActiveSetQp {
 
     /// Solves with the current data, starting from the warm-start working set.
     pub fn solve(&mut self, settings: &QpSettings) -> QpStatus {
-        let start = Instant::now();
         self.iterations = 0;
         self.objective = f64::NAN;
-        let status = self.run(settings, start);
+        let status = self.run(settings);
         if status != QpStatus::Solved {
             return status;
         }
@@ -430,7 +430,7 @@ impl ActiveSetQp {
         }
     }
 
-    fn run(&mut self, s: &QpSettings, start: Instant) -> QpStatus {
+    fn run(&mut self, s: &QpSettings) -> QpStatus {
         let n = self.n;
         if !self.factored {
             return QpStatus::NumericalError;
@@ -545,10 +545,8 @@ impl ActiveSetQp {
                 Some((j, _)) => self.drop_active(j),
                 None => break,
             }
-            if let Some(limit) = s.time_limit {
-                if start.elapsed() > limit {
-                    return QpStatus::MaxTime;
-                }
+            if s.deadline.is_some_and(|d| Instant::now() > d) {
+                return QpStatus::MaxTime;
             }
         }
         if skipped_eq {
@@ -565,10 +563,8 @@ impl ActiveSetQp {
         // Main loop: add the most violated row; partial steps drop rows whose multiplier
         // reaches zero on the way.
         loop {
-            if let Some(limit) = s.time_limit {
-                if start.elapsed() > limit {
-                    return QpStatus::MaxTime;
-                }
+            if s.deadline.is_some_and(|d| Instant::now() > d) {
+                return QpStatus::MaxTime;
             }
             let Some(p) = self.most_violated(tol) else {
                 return QpStatus::Solved;
@@ -579,10 +575,8 @@ impl ActiveSetQp {
                 if self.iterations >= s.max_iterations {
                     return QpStatus::MaxIterations;
                 }
-                if let Some(limit) = s.time_limit {
-                    if start.elapsed() > limit {
-                        return QpStatus::MaxTime;
-                    }
+                if s.deadline.is_some_and(|d| Instant::now() > d) {
+                    return QpStatus::MaxTime;
                 }
                 self.iterations += 1;
                 let q = self.active.len();

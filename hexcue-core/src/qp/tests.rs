@@ -1,5 +1,3 @@
-use std::time::Duration;
-
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 
@@ -578,7 +576,8 @@ fn limits_and_bad_data_give_a_status() {
     };
     assert_eq!(qp.solve(&capped), QpStatus::MaxIterations);
     let timed = QpSettings {
-        time_limit: Some(Duration::ZERO),
+        // A deadline already past.
+        deadline: Some(std::time::Instant::now()),
         ..QpSettings::default()
     };
     qp.clear_warm_start();

@@ -699,21 +699,22 @@ mod tests {
             blend: Some(0.25),
             time_in_mode_s: 1.5,
             switch_count: 3,
-            last_switch_reason: Some("COTC infeasible".into()),
-            solvers: vec![
+            last_switch_reason: Some(hexcue_core::mca::SwitchReason::parse("COTC infeasible")),
+            solvers: [
                 SolverReport {
-                    name: "cotc".into(),
-                    status: "primal_infeasible".into(),
+                    name: hexcue_core::mca::QpName::Cotc,
+                    status: hexcue_core::mca::SolveStatus::PrimalInfeasible,
                     iterations: 5,
                     solve_time_us: 121.0,
                 },
                 SolverReport {
-                    name: "free".into(),
-                    status: "solved".into(),
+                    name: hexcue_core::mca::QpName::Free,
+                    status: hexcue_core::mca::SolveStatus::Solved,
                     iterations: 9,
                     solve_time_us: 800.0,
                 },
-            ],
+            ]
+            .into(),
         };
         frames[2].lanes[0].step_time_us = f64::NAN;
         let dir = tempfile::tempdir().unwrap();

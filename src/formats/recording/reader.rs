@@ -17,7 +17,10 @@ use super::{
 use crate::channels::json::{ActuatorsMsg, AircraftMsg, ControllerMsg, PerceivedMsg, PlatformMsg};
 use crate::channels::{Channel, Kind, AIRCRAFT_TOPIC, REFERENCE_TOPIC};
 use hexcue_core::engine::{Frame, LaneFrame, Legs};
-use hexcue_core::mca::{AlgorithmId, AlgorithmState, Mode, PlatformCommand, SolverReport};
+use hexcue_core::mca::{
+    AlgorithmId, AlgorithmState, Mode, PlatformCommand, QpName, SolveStatus, SolverReport,
+    SwitchReason,
+};
 use hexcue_core::profile::text::{parse_profile, ProfileLoadError};
 use hexcue_core::profile::Profile;
 use hexcue_core::trace::AircraftSample;
@@ -887,13 +890,16 @@ impl Frames {
                         blend: controller.blend,
                         time_in_mode_s: controller.time_in_mode_s,
                         switch_count: controller.switch_count,
-                        last_switch_reason: controller.last_switch_reason.clone(),
+                        last_switch_reason: controller
+                            .last_switch_reason
+                            .as_deref()
+                            .map(SwitchReason::parse),
                         solvers: controller
                             .solvers
                             .iter()
                             .map(|s| SolverReport {
-                                name: s.name.clone(),
-                                status: s.status.as_str().into(),
+                                name: QpName::from_word(&s.name),
+                                status: SolveStatus::from_word(&s.status),
                                 iterations: s.iterations,
                                 solve_time_us: s.solve_time_us,
                             })

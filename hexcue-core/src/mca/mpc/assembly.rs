@@ -8,7 +8,7 @@ use crate::model::platform::DofLimits;
 
 use super::model::{input, pose_of, state, NU, NX, POSE_STATE};
 use super::qp::Triplets;
-use super::{finite_or_zero, total_rates, Mpc, Terminal};
+use super::{finite_or_zero, total_rates, Input, Mpc, Terminal};
 use crate::model::lti::DiscreteStateSpace;
 
 /// Values of the QP that change every step, built from the current state.
@@ -72,8 +72,16 @@ impl Mpc {
         let n = self.grid.len();
         let last = &self.cache.discrete[self.interval_model[n - 1]];
         let w = self.stage_weight(n - 1);
-        let qx = self.stage_hessian(1.0) * w;
-        let r = DMatrix::from_diagonal(&(self.input_weight() * w + self.input_change_weight()));
+        let mut qx = DMatrix::zeros(NX, NX);
+        let c_t = self.cache.perceived_c.transpose();
+        let mut c_t_q = DMatrix::zeros(NX, c_t.ncols());
+        let mut perceived = DMatrix::zeros(NX, NX);
+        let (q_f, q_w) = self.params.output_weights(&self.thresholds);
+        self.perceived_hessian(q_f, q_w, (&c_t, &mut c_t_q), &mut perceived);
+        self.stage_hessian(1.0, &perceived, &mut qx);
+        let qx = qx * w;
+        let r = self.input_weight() * w + self.input_change_weight();
+        let r = DMatrix::from_diagonal(&DVector::from_column_slice(r.as_slice()));
         (last, qx, r)
     }
 
@@ -81,9 +89,9 @@ impl Mpc {
         self.grid[interval] / self.params.fine_step_s
     }
 
-    pub(super) fn input_weight(&self) -> DVector<f64> {
+    pub(super) fn input_weight(&self) -> Input {
         let p = &self.params;
-        let mut s = DVector::zeros(NU);
+        let mut s = Input::zeros();
         for i in 0..3 {
             s[input::ACCEL_X + i] = p.acceleration_weight[i];
             s[input::ROT_ROLL_RATE + i] = p.rotation_rate_weight[i];
@@ -94,9 +102,9 @@ impl Mpc {
         s
     }
 
-    pub(super) fn input_change_weight(&self) -> DVector<f64> {
+    pub(super) fn input_change_weight(&self) -> Input {
         let p = &self.params;
-        let mut r = DVector::zeros(NU);
+        let mut r = Input::zeros();
         for i in 0..3 {
             r[input::ACCEL_X + i] = p.acceleration_change_weight[i];
             r[input::ROT_ROLL_RATE + i] = p.rotation_rate_change_weight[i];
@@ -109,21 +117,43 @@ impl Mpc {
 
     /// State weight of one fine interval: Cᵀ Q C on the perceived motion plus the washout
     /// terms, with every washout weight times `gain`. Built with unit weights it gives the
-    /// structure that must stay fixed whatever the tuning.
+    /// structure that must stay fixed whatever the tuning. Written into `h` (NX × NX), with
+    /// Cᵀ and a buffer for Cᵀ·Q given: the step allocates nothing (the products are those
+    /// of `Cᵀ * Q * C`, to the bit).
     pub(super) fn stage_hessian_with(
         &self,
         q_f: [f64; 3],
         q_w: [f64; 3],
         washout: [[f64; 3]; 4],
         gain: f64,
-    ) -> DMatrix<f64> {
-        let mut q = DMatrix::zeros(6, 6);
+        c: (&DMatrix<f64>, &mut DMatrix<f64>),
+        h: &mut DMatrix<f64>,
+    ) {
+        self.perceived_hessian(q_f, q_w, c, h);
+        self.add_washout(washout, gain, h);
+    }
+
+    /// Cᵀ Q C of the perceived motion's weights, into `h`. It does not change with the
+    /// washout gain: the MPC computes it once (`Scratch::perceived`), since the product
+    /// allocates inside `matrixmultiply`.
+    pub(super) fn perceived_hessian(
+        &self,
+        q_f: [f64; 3],
+        q_w: [f64; 3],
+        (c_t, c_t_q): (&DMatrix<f64>, &mut DMatrix<f64>),
+        h: &mut DMatrix<f64>,
+    ) {
+        let mut q = Matrix6::zeros();
         for i in 0..3 {
             q[(i, i)] = q_f[i];
             q[(3 + i, 3 + i)] = q_w[i];
         }
-        let c = &self.cache.perceived_c;
-        let mut h = c.transpose() * q * c;
+        c_t_q.gemm(1.0, c_t, &q, 0.0);
+        h.gemm(1.0, c_t_q, &self.cache.perceived_c, 0.0);
+    }
+
+    /// The washout terms, every weight times `gain`, added to `h`.
+    fn add_washout(&self, washout: [[f64; 3]; 4], gain: f64, h: &mut DMatrix<f64>) {
         let [pos, vel, tilt, rot] = washout;
         for i in 0..3 {
             h[(state::POS + i, state::POS + i)] += gain * pos[i];
@@ -146,15 +176,14 @@ impl Mpc {
             h[(tilt_s, total)] -= w;
         }
         h[(state::YAW, state::YAW)] += gain * rot[2];
-        h
     }
 
-    pub(super) fn stage_hessian(&self, gain: f64) -> DMatrix<f64> {
+    /// The stage Hessian at washout `gain` into `h`, from the perceived motion's part
+    /// `perceived` ([`Mpc::perceived_hessian`] of the output weights).
+    pub(super) fn stage_hessian(&self, gain: f64, perceived: &DMatrix<f64>, h: &mut DMatrix<f64>) {
         let p = &self.params;
-        let (q_f, q_w) = p.output_weights(&self.thresholds);
-        let mut h = self.stage_hessian_with(
-            q_f,
-            q_w,
+        h.copy_from(perceived);
+        self.add_washout(
             [
                 p.washout_position_weight,
                 p.washout_velocity_weight,
@@ -162,11 +191,11 @@ impl Mpc {
                 p.washout_rotation_weight,
             ],
             gain,
+            h,
         );
         // Following is not washout: the regulator's gain leaves it as it is.
         h[(state::ROLL, state::ROLL)] += p.tilt_follow_weight[0];
         h[(state::PITCH, state::PITCH)] += p.tilt_follow_weight[1];
-        h
     }
 
     pub(super) fn n_intervals(&self) -> usize {
@@ -205,8 +234,17 @@ impl Mpc {
     /// Upper triangle of P (cost ½ zᵀPz + qᵀz) in a fixed order.
     pub(super) fn assemble_p(&mut self) {
         let n = self.n_intervals();
-        let structure = self.stage_hessian_with([1.0; 3], [1.0; 3], [[1.0; 3]; 4], 1.0);
-        let stage = self.stage_hessian(self.washout_gain);
+        let mut sc = std::mem::take(&mut self.scratch);
+        if !sc.hessians_ready {
+            // Fixed with the tuning: once.
+            let c = (&sc.c_t, &mut sc.c_t_q);
+            self.stage_hessian_with([1.0; 3], [1.0; 3], [[1.0; 3]; 4], 1.0, c, &mut sc.structure);
+            let (q_f, q_w) = self.params.output_weights(&self.thresholds);
+            self.perceived_hessian(q_f, q_w, (&sc.c_t, &mut sc.c_t_q), &mut sc.perceived);
+            sc.hessians_ready = true;
+        }
+        self.stage_hessian(self.washout_gain, &sc.perceived, &mut sc.stage);
+        let (structure, stage) = (&sc.structure, &sc.stage);
         let s = self.input_weight();
         let r = self.input_change_weight();
         let mut t = std::mem::take(&mut self.p_trip);
@@ -254,6 +292,7 @@ impl Mpc {
             }
         }
         self.p_trip = t;
+        self.scratch = sc;
     }
 
     /// Linear cost term: perceived reference tracking and the Δu link to the applied input.
@@ -261,9 +300,10 @@ impl Mpc {
         let n = self.n_intervals();
         self.q.clear();
         self.q.resize(self.n_vars(), 0.0);
+        let mut sc = std::mem::take(&mut self.scratch);
         let p = &self.params;
         let (q_f, q_w) = p.output_weights(&self.thresholds);
-        let mut qy = DVector::zeros(6);
+        let qy = &mut sc.qy;
         let r = self.input_change_weight();
         for k in 0..NU {
             self.q[Self::u_col(0) + k] = -2.0 * r[k] * u_prev[k];
@@ -279,7 +319,9 @@ impl Mpc {
                 qy[a] = q_f[a] * y;
                 qy[3 + a] = q_w[a] * self.y_ref[i][3 + a];
             }
-            let lin = self.cache.perceived_c.tr_mul(&qy) * (-2.0 * w);
+            let lin = &mut sc.lin;
+            self.cache.perceived_c.tr_mul_to(qy, lin);
+            *lin *= -2.0 * w;
             let xc = Self::x_col(i);
             for (k, v) in lin.iter().enumerate() {
                 self.q[xc + k] = *v;
@@ -296,6 +338,7 @@ impl Mpc {
                 }
             }
         }
+        self.scratch = sc;
     }
 
     /// Constraint rows A z + s = b: the dynamics and COTC's terminal equalities (s = 0), then
@@ -304,6 +347,7 @@ impl Mpc {
         let n = self.n_intervals();
         let mut t = std::mem::take(&mut self.a_trip);
         let mut b = std::mem::take(&mut self.b);
+        let mut sc = std::mem::take(&mut self.scratch);
         t.clear();
         b.clear();
         let mut row = 0;
@@ -331,7 +375,8 @@ impl Mpc {
                 }
             }
             if i == 0 {
-                let mut ax0 = &self.cache.discrete[m].a * d.x0;
+                let ax0 = &mut sc.ax0;
+                ax0.gemv(1.0, &self.cache.discrete[m].a, d.x0, 0.0);
                 for &(r, c, v) in &self.cache.e_entries[m] {
                     ax0[r] -= v * d.u_prev[c];
                 }
@@ -579,13 +624,17 @@ impl Mpc {
         // further against that direction than it is now. Without it the plan was free to
         // jolt the wrong way just before a reversal that it then met in time (#24 item 9).
         let felt = |r: f64, th: f64| if r.abs() > th { r.signum() } else { 0.0 };
-        let y_now = &self.cache.ref_discrete[0].c * &self.run.ref_x;
-        let sim_now = &self.cache.perceived_c * &self.run.x;
-        let mut carried: Vec<f64> = self
-            .false_cue_channels
-            .iter()
-            .map(|&c| felt(y_now[c], self.thresholds[c]))
-            .collect();
+        let y_now = &mut sc.y_ref_now;
+        y_now.gemv(1.0, &self.cache.ref_discrete[0].c, &self.run.ref_x, 0.0);
+        let sim_now = &mut sc.y_sim_now;
+        sim_now.gemv(1.0, &self.cache.perceived_c, &self.run.x, 0.0);
+        let carried = &mut sc.carried;
+        carried.clear();
+        carried.extend(
+            self.false_cue_channels
+                .iter()
+                .map(|&c| felt(y_now[c], self.thresholds[c])),
+        );
         let mut ahead = std::mem::take(&mut self.false_cue_ahead);
         ahead.clear();
         ahead.resize(n * self.false_cue_channels.len(), 0.0);
@@ -663,6 +712,7 @@ impl Mpc {
         self.a_trip = t;
         self.b = b;
         self.false_cue_ahead = ahead;
+        self.scratch = sc;
     }
 
     pub(super) fn neutral_step_data(&self) -> (DVector<f64>, DVector<f64>, Vec<DVector<f64>>) {
@@ -673,11 +723,14 @@ impl Mpc {
         )
     }
 
+    /// The step's data; `leg_offset` and `leg_jacobian` are buffers to fill (their
+    /// allocations are kept from step to step).
     pub(super) fn step_data<'a>(
         &self,
         x0: &'a DVector<f64>,
         u_prev: &'a DVector<f64>,
         terminal_tilt_rad: [f64; 2],
+        (mut leg_offset, mut leg_jacobian): (Vec<Vector6<f64>>, Vec<Matrix6<f64>>),
     ) -> StepData<'a> {
         let pose0 = pose_of(x0);
         // Each grid point is linearised around where the last solved plan put the platform
@@ -686,7 +739,8 @@ impl Mpc {
         // is no fresh plan.
         // The plan may be another controller's (`follow`), on another grid: it is read by time.
         let fresh = self.run.plan.elapsed_s < 1e-12 && !self.run.plan.poses.is_empty();
-        let (mut leg_offset, mut leg_jacobian) = (Vec::new(), Vec::new());
+        leg_offset.clear();
+        leg_jacobian.clear();
         let mut t_end = 0.0;
         for i in 0..self.grid.len() {
             // The plan was made one step ago.

@@ -10,7 +10,7 @@ use nalgebra::DVector;
 use super::condensed::{self, CondensedQp, Layout, Var};
 use super::model::{NU, NX};
 use super::qp::CscPattern;
-use super::{Mpc, MpcError};
+use super::{Input, Mpc, MpcError};
 use crate::mca::SolveStatus;
 use crate::qp::{QpSettings, QpStatus};
 
@@ -70,7 +70,7 @@ impl Mpc {
         let (x0, u0, y_ref) = self.neutral_step_data();
         self.y_heave = vec![0.0; y_ref.len()];
         self.y_ref = y_ref;
-        let data = self.step_data(&x0, &u0, [0.0; 2]);
+        let data = self.step_data(&x0, &u0, [0.0; 2], (Vec::new(), Vec::new()));
         self.assemble_a(&data);
         self.assemble_p();
         self.assemble_q(&u0);
@@ -132,19 +132,51 @@ impl Mpc {
         (self.n_vars(), self.n_eq, self.b.len() - self.n_eq)
     }
 
-    /// Writes this step's values into the solver and solves; the first move when solved.
-    pub(super) fn solve_qp(&mut self, terminal_tilt_rad: [f64; 2]) -> Option<DVector<f64>> {
+    /// The deadline of a step that starts at `started` and whose caller gave `deadline`:
+    /// the caller's, or else the profile's `time_limit_ms` from the start (an infinite or
+    /// NaN limit is none; never a panic).
+    pub(crate) fn step_deadline(
+        &self,
+        started: Instant,
+        deadline: Option<Instant>,
+    ) -> Option<Instant> {
+        deadline.or_else(|| {
+            std::time::Duration::try_from_secs_f64((self.params.time_limit_ms * 1e-3).max(0.0))
+                .ok()
+                .and_then(|limit| started.checked_add(limit))
+        })
+    }
+
+    /// Writes this step's values into the solver and solves by `deadline`, which every
+    /// solver of the cascade shares; the first move when solved.
+    pub(super) fn solve_qp(
+        &mut self,
+        terminal_tilt_rad: [f64; 2],
+        deadline: Option<Instant>,
+    ) -> Option<Input> {
         if !self.run.x.iter().all(|v| v.is_finite()) {
             self.run.report.status = SolveStatus::NonFiniteState;
             self.run.report.iterations = 0;
             self.run.report.solve_time_us = 0.0;
             return None;
         }
-        let x0 = self.run.x.clone();
-        let u_prev = self.run.u_last.clone();
-        let data = self.step_data(&x0, &u_prev, terminal_tilt_rad);
+        // The state and input the data is built from, in kept buffers (assembly borrows the
+        // MPC mutably while the data borrows them).
+        let mut x0 = std::mem::replace(&mut self.scratch.x0, DVector::zeros(0));
+        let mut u_prev = std::mem::replace(&mut self.scratch.u_prev, DVector::zeros(0));
+        x0.copy_from(&self.run.x);
+        u_prev.copy_from(&self.run.u_last);
+        let legs = (
+            std::mem::take(&mut self.scratch.leg_offset),
+            std::mem::take(&mut self.scratch.leg_jacobian),
+        );
+        let data = self.step_data(&x0, &u_prev, terminal_tilt_rad, legs);
         self.assemble_a(&data);
         self.assemble_q(&u_prev);
+        self.scratch.leg_offset = data.leg_offset;
+        self.scratch.leg_jacobian = data.leg_jacobian;
+        self.scratch.x0 = x0;
+        self.scratch.u_prev = u_prev;
         // The active-set solver first; Clarabel when it runs out of iterations or time, or
         // reports a numerical error. Its infeasibility is an answer (COTC's every bump).
         let started = Instant::now();
@@ -152,11 +184,7 @@ impl Mpc {
         if let Some(c) = self.condensed.as_mut() {
             let settings = QpSettings {
                 max_iterations: active_set_max_iterations(c),
-                // An infinite (or NaN) limit is no limit; never a panic.
-                time_limit: std::time::Duration::try_from_secs_f64(
-                    (self.params.time_limit_ms * 1e-3).max(0.0),
-                )
-                .ok(),
+                deadline,
                 primal_tolerance: ACTIVE_SET_TOLERANCE,
             };
             let status = c.solve(&self.p_trip, &self.q, &self.a_trip, &self.b, &settings);
@@ -168,11 +196,17 @@ impl Mpc {
                 QpStatus::Solved => {
                     let z = c.z();
                     self.run.plan.fill(&self.grid, &self.run.x, z);
-                    return Some(DVector::from_row_slice(&z[0..NU]));
+                    return Some(Input::from_column_slice(&z[0..NU]));
                 }
                 QpStatus::Infeasible => return None,
                 _ => {}
             }
+        }
+        // Clarabel, off the normal path: it allocates inside the crate (docs/performance.md).
+        if !self.update_clarabel_p() {
+            self.run.report.iterations = 0;
+            self.run.report.solve_time_us = 0.0;
+            return None;
         }
         let Some(solver) = self.solver.as_mut() else {
             self.run.report.status = SolveStatus::SetupError;
@@ -193,9 +227,18 @@ impl Mpc {
         // Clarabel checks its time limit against the sum of its timers, some of which
         // carry over from one solve to the next: over a few thousand solves the budget
         // shrank to nothing and every step became max_time at iteration 0 (found by running
-        // the console on a loaded machine). Fresh timers make the limit this solve's own.
+        // the console on a loaded machine). Fresh timers make the limit this solve's own:
+        // what is left of the step's deadline.
         solver.timers = Some(clarabel::timers::Timers::default());
         let started = Instant::now();
+        let mut settings = solver.settings().clone();
+        settings.time_limit = match deadline {
+            Some(d) => d.saturating_duration_since(started).as_secs_f64(),
+            None => f64::INFINITY,
+        };
+        // Only the time limit changes, which Clarabel accepts between solves; were it ever
+        // refused, the limit set at build time (the profile's) stays.
+        let _ = solver.update_settings(settings);
         solver.solve();
         self.run.report.solve_time_us = active_set_us + started.elapsed().as_secs_f64() * 1e6;
         let sol = &solver.solution;
@@ -213,6 +256,6 @@ impl Mpc {
             return None;
         }
         self.run.plan.fill(&self.grid, &self.run.x, &sol.x);
-        Some(DVector::from_row_slice(&sol.x[0..NU]))
+        Some(Input::from_column_slice(&sol.x[0..NU]))
     }
 }

@@ -26,7 +26,7 @@ pub mod riccati;
 use std::sync::Arc;
 
 use clarabel::solver::DefaultSolver;
-use nalgebra::{DMatrix, DVector, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, SVector, Vector1, Vector3, Vector6};
 
 use self::cache::PredictionCache;
 use self::condensed::CondensedQp;
@@ -66,9 +66,14 @@ pub enum Terminal {
 impl Terminal {
     /// Name of the QP in reports: `mpc` or `cotc`.
     pub fn name(self) -> &'static str {
+        self.qp_name().word()
+    }
+
+    /// The QP this MPC solves, as its reports name it.
+    pub fn qp_name(self) -> super::QpName {
         match self {
-            Terminal::Free => "mpc",
-            Terminal::Cotc => "cotc",
+            Terminal::Free => super::QpName::Mpc,
+            Terminal::Cotc => super::QpName::Cotc,
         }
     }
 }
@@ -201,7 +206,133 @@ pub struct Mpc {
     /// The same QP condensed to the inputs for the active-set solver; Clarabel above is the
     /// fallback. `None` if the QP could not be condensed (then Clarabel alone).
     condensed: Option<CondensedQp>,
+    /// Clarabel's P lags the washout gain: written only before Clarabel solves, so that the
+    /// regulator's change of gain costs the active set's path nothing.
+    clarabel_p_stale: bool,
+    /// Buffers the step computes into, sized when the MPC is built: the step allocates
+    /// nothing (docs/performance.md).
+    scratch: Scratch,
 }
+
+/// The step's intermediate vectors, kept between steps. Each product is computed into one
+/// of these with nalgebra's `gemv`/`gemm`, the same arithmetic as the operators it replaces,
+/// so that the results are the same to the bit.
+#[derive(Clone, Debug)]
+pub(super) struct Scratch {
+    /// NX each: A·x, B·u and ΦE·Δu of the trace step.
+    ax: DVector<f64>,
+    bu: DVector<f64>,
+    ej: DVector<f64>,
+    /// Δu (NU).
+    jump: DVector<f64>,
+    /// The reference's perception state over the horizon and its heave's (15 each), and two
+    /// products of their size.
+    xr: DVector<f64>,
+    xh: DVector<f64>,
+    r1: DVector<f64>,
+    r2: DVector<f64>,
+    /// The reference's input (6).
+    u6: DVector<f64>,
+    /// The reference's outputs now (as many as its C has rows) and the perceived motion of
+    /// the platform (6).
+    pub(super) y_ref_now: DVector<f64>,
+    pub(super) y_sim_now: DVector<f64>,
+    /// Copies of the state and the input that the QP's data is built from (NX, NU).
+    pub(super) x0: DVector<f64>,
+    pub(super) u_prev: DVector<f64>,
+    /// Per grid point, the legs' linearisation (`step_data`).
+    pub(super) leg_offset: Vec<Vector6<f64>>,
+    pub(super) leg_jacobian: Vec<nalgebra::Matrix6<f64>>,
+    /// `assemble_q`: the output weights times the reference (6), and Cᵀ of it (NX).
+    pub(super) qy: DVector<f64>,
+    pub(super) lin: DVector<f64>,
+    /// `assemble_a`: A·x₀ (NX), the reference's and the platform's perceived motion now, and
+    /// the false-cue directions carried along the horizon.
+    pub(super) ax0: DVector<f64>,
+    pub(super) carried: Vec<f64>,
+    /// `assemble_p`: the stage Hessian (NX × NX), its structure, Cᵀ (NX × 6) and Cᵀ·Q.
+    pub(super) stage: DMatrix<f64>,
+    pub(super) structure: DMatrix<f64>,
+    pub(super) c_t: DMatrix<f64>,
+    pub(super) c_t_q: DMatrix<f64>,
+    /// Cᵀ Q C of the output weights (NX × NX), fixed with the tuning; `structure` likewise.
+    pub(super) perceived: DMatrix<f64>,
+    /// `structure` and `perceived` hold their values.
+    pub(super) hessians_ready: bool,
+}
+
+impl Default for Scratch {
+    /// Empty: nothing allocated until [`Scratch::new`] sizes it.
+    fn default() -> Self {
+        let v = || DVector::zeros(0);
+        let m = || DMatrix::zeros(0, 0);
+        Scratch {
+            ax: v(),
+            bu: v(),
+            ej: v(),
+            jump: v(),
+            xr: v(),
+            xh: v(),
+            r1: v(),
+            r2: v(),
+            u6: v(),
+            y_ref_now: v(),
+            y_sim_now: v(),
+            x0: v(),
+            u_prev: v(),
+            leg_offset: Vec::new(),
+            leg_jacobian: Vec::new(),
+            qy: v(),
+            lin: v(),
+            ax0: v(),
+            carried: Vec::new(),
+            stage: m(),
+            structure: m(),
+            c_t: m(),
+            c_t_q: m(),
+            perceived: m(),
+            hessians_ready: false,
+        }
+    }
+}
+
+impl Scratch {
+    fn new(cache: &PredictionCache, n_intervals: usize) -> Self {
+        let n_ref = cache.ref_discrete[0].a.nrows();
+        let n_ref_out = cache.ref_discrete[0].c.nrows();
+        let n_out = cache.perceived_c.nrows();
+        Scratch {
+            ax: DVector::zeros(NX),
+            bu: DVector::zeros(NX),
+            ej: DVector::zeros(NX),
+            jump: DVector::zeros(NU),
+            xr: DVector::zeros(n_ref),
+            xh: DVector::zeros(n_ref),
+            r1: DVector::zeros(n_ref),
+            r2: DVector::zeros(n_ref),
+            u6: DVector::zeros(6),
+            y_ref_now: DVector::zeros(n_ref_out),
+            y_sim_now: DVector::zeros(n_out),
+            x0: DVector::zeros(NX),
+            u_prev: DVector::zeros(NU),
+            leg_offset: Vec::with_capacity(n_intervals),
+            leg_jacobian: Vec::with_capacity(n_intervals),
+            qy: DVector::zeros(6),
+            lin: DVector::zeros(NX),
+            ax0: DVector::zeros(NX),
+            carried: Vec::with_capacity(6),
+            stage: DMatrix::zeros(NX, NX),
+            structure: DMatrix::zeros(NX, NX),
+            c_t: cache.perceived_c.transpose(),
+            c_t_q: DMatrix::zeros(NX, n_out),
+            perceived: DMatrix::zeros(NX, NX),
+            hessians_ready: false,
+        }
+    }
+}
+
+/// The first move of a plan, or of the fallback: one input.
+pub(super) type Input = SVector<f64, NU>;
 
 fn finite_or_zero(v: f64) -> f64 {
     if v.is_finite() {
@@ -298,7 +429,7 @@ impl Mpc {
                 last_command: PlatformCommand::default(),
                 plan: Plan::default(),
                 report: SolverReport {
-                    name: terminal.name().to_string(),
+                    name: terminal.qp_name(),
                     status: SolveStatus::Unsolved,
                     iterations: 0,
                     solve_time_us: 0.0,
@@ -319,8 +450,11 @@ impl Mpc {
             y_heave: Vec::new(),
             follow_rad: Vec::new(),
             condensed: None,
+            clarabel_p_stale: false,
+            scratch: Scratch::default(),
             grid,
         };
+        mpc.scratch = Scratch::new(&mpc.cache, mpc.grid.len());
         mpc.run.mode = mpc.solved_mode();
         if terminal == Terminal::Cotc {
             let (last, qx, r) = mpc.terminal_riccati_data();
@@ -400,14 +534,26 @@ impl Mpc {
                 self.condensed = None;
             }
         }
-        if let Some(solver) = self.solver.as_mut() {
-            if self.p_pattern.fill(&self.p_trip, &mut self.nz) && solver.update_P(&self.nz).is_ok()
-            {
-                return;
-            }
-            self.solver = None;
-            self.run.report.status = SolveStatus::UpdateError;
+        // Clarabel's copy follows when Clarabel next solves (`update_clarabel_p`).
+        self.clarabel_p_stale = true;
+    }
+
+    /// Writes the current P into Clarabel when the washout gain has changed since it last
+    /// solved; false (and Clarabel dropped) if it cannot.
+    pub(super) fn update_clarabel_p(&mut self) -> bool {
+        if !self.clarabel_p_stale {
+            return true;
         }
+        let Some(solver) = self.solver.as_mut() else {
+            return true;
+        };
+        self.clarabel_p_stale = false;
+        if self.p_pattern.fill(&self.p_trip, &mut self.nz) && solver.update_P(&self.nz).is_ok() {
+            return true;
+        }
+        self.solver = None;
+        self.run.report.status = SolveStatus::UpdateError;
+        false
     }
 
     /// The factor on the washout weights (1 unless the regulator raised them).
@@ -452,10 +598,16 @@ impl Mpc {
                 self.trace_model = self.cache.model.discretise(dt_s);
                 self.trace_e = &self.trace_model.a * &self.cache.lever_jump;
             }
-            let jump = &self.run.u_last - &self.run.u_before;
-            self.run.x = &self.trace_model.a * &self.run.x
-                + &self.trace_model.b * &self.run.u_last
-                + &self.trace_e * jump;
+            // x = A x + B u + ΦE Δu, term by term into the scratch, summed in that order.
+            let s = &mut self.scratch;
+            s.jump.copy_from(&self.run.u_last);
+            s.jump -= &self.run.u_before;
+            s.ax.gemv(1.0, &self.trace_model.a, &self.run.x, 0.0);
+            s.bu.gemv(1.0, &self.trace_model.b, &self.run.u_last, 0.0);
+            s.ej.gemv(1.0, &self.trace_e, &s.jump, 0.0);
+            for (i, x) in self.run.x.iter_mut().enumerate() {
+                *x = s.ax[i] + s.bu[i] + s.ej[i];
+            }
         }
         self.run.u_before.copy_from(&self.run.u_last);
         self.run.started = true;
@@ -464,12 +616,15 @@ impl Mpc {
     /// The aircraft's perceived motion over the horizon, from its perception state now.
     fn predict_reference(&mut self, sample: &CueSample, preview: &[CueSample], dt_s: f64) {
         let n = self.n_intervals();
-        let mut xr = self.run.ref_x.clone();
-        let mut xh = self.run.heave_ref_x.clone();
+        let mut sc = std::mem::take(&mut self.scratch);
+        sc.xr.copy_from(&self.run.ref_x);
+        sc.xh.copy_from(&self.run.heave_ref_x);
         let heave_now = self.heave_cue_input(sample);
-        let mut u = DVector::zeros(6);
+        let mut u = std::mem::replace(&mut sc.u6, DVector::zeros(0));
         let mut t_start = 0.0;
-        self.y_ref.resize(n, DVector::zeros(6));
+        if self.y_ref.len() != n {
+            self.y_ref.resize(n, DVector::zeros(6));
+        }
         self.y_heave.resize(n, 0.0);
         for i in 0..n {
             let h = self.grid[i];
@@ -526,25 +681,39 @@ impl Mpc {
             }
             self.ref_rate_radps[i] = [u[3], u[4]];
             let d = &self.cache.ref_discrete[self.interval_model[i]];
-            xr = &d.a * &xr + &d.b * &u;
-            self.y_ref[i] = &d.c * &xr;
+            // xr = A xr + B u, and y = C xr, into the kept buffers.
+            sc.r1.gemv(1.0, &d.a, &sc.xr, 0.0);
+            sc.r2.gemv(1.0, &d.b, &u, 0.0);
+            for (k, x) in sc.xr.iter_mut().enumerate() {
+                *x = sc.r1[k] + sc.r2[k];
+            }
+            self.y_ref[i].gemv(1.0, &d.c, &sc.xr, 0.0);
             self.y_heave[i] = if self.params.heave_cue_s > 0.0 {
                 // The perception model is decoupled per axis: heave's own states, driven by
                 // the high-passed Δf_z alone.
-                xh = &d.a * &xh + d.b.column(2) * u_heave;
-                (d.c.row(2) * &xh)[0]
+                sc.r1.gemv(1.0, &d.a, &sc.xh, 0.0);
+                let b = d.b.column(2);
+                for (k, x) in sc.xh.iter_mut().enumerate() {
+                    *x = sc.r1[k] + b[k] * u_heave;
+                }
+                let mut y = Vector1::zeros();
+                y.gemv(1.0, &d.c.row(2), &sc.xh, 0.0);
+                y[0]
             } else {
                 self.y_ref[i][2]
             };
             t_start += h;
         }
+        sc.u6 = u;
+        self.scratch = sc;
     }
 
     fn advance_reference(&mut self, sample: &CueSample, dt_s: f64) {
         if (dt_s - self.ref_trace.dt_s).abs() > 1e-12 {
             self.ref_trace = self.cache.ref_continuous.discretise_zoh(dt_s);
         }
-        let u = DVector::from_row_slice(&[
+        let s = &mut self.scratch;
+        s.u6.copy_from_slice(&[
             finite_or_zero(sample.delta_f_mps2.x),
             finite_or_zero(sample.delta_f_mps2.y),
             finite_or_zero(sample.delta_f_mps2.z),
@@ -552,11 +721,20 @@ impl Mpc {
             finite_or_zero(sample.angular_velocity_radps.y),
             finite_or_zero(sample.angular_velocity_radps.z),
         ]);
-        self.run.ref_x = &self.ref_trace.a * &self.run.ref_x + &self.ref_trace.b * &u;
+        // ref_x = A ref_x + B u, into the kept buffers.
+        s.r1.gemv(1.0, &self.ref_trace.a, &self.run.ref_x, 0.0);
+        s.r2.gemv(1.0, &self.ref_trace.b, &s.u6, 0.0);
+        for (k, x) in self.run.ref_x.iter_mut().enumerate() {
+            *x = s.r1[k] + s.r2[k];
+        }
         if self.params.heave_cue_s > 0.0 {
             let hp = self.heave_cue_input(sample);
-            self.run.heave_ref_x =
-                &self.ref_trace.a * &self.run.heave_ref_x + self.ref_trace.b.column(2) * hp;
+            let s = &mut self.scratch;
+            s.r1.gemv(1.0, &self.ref_trace.a, &self.run.heave_ref_x, 0.0);
+            let b = self.ref_trace.b.column(2);
+            for (k, x) in self.run.heave_ref_x.iter_mut().enumerate() {
+                *x = s.r1[k] + b[k] * hp;
+            }
         }
     }
 
@@ -584,13 +762,15 @@ impl Mpc {
         } else {
             self.dt_s
         };
+        let deadline = self.step_deadline(std::time::Instant::now(), input.deadline);
         self.sync_and_advance(input.applied, dt_s);
-        let f_ref_now = (&self.cache.ref_discrete[0].c * &self.run.ref_x)
-            .fixed_rows::<3>(0)
-            .into_owned();
-        let perceived_now = (&self.cache.perceived_c * &self.run.x)
-            .fixed_rows::<3>(0)
-            .into_owned();
+        let s = &mut self.scratch;
+        s.y_ref_now
+            .gemv(1.0, &self.cache.ref_discrete[0].c, &self.run.ref_x, 0.0);
+        let f_ref_now = s.y_ref_now.fixed_rows::<3>(0).into_owned();
+        s.y_sim_now
+            .gemv(1.0, &self.cache.perceived_c, &self.run.x, 0.0);
+        let perceived_now = s.y_sim_now.fixed_rows::<3>(0).into_owned();
         // COTC carries the *sustained* cue by tilt: the aircraft's Δf low-passed, so that a
         // gust does not move the terminal tilt further than the tilt-rate limit can follow
         // within the horizon (which would make COTC infeasible at every bump). The `decay`
@@ -634,7 +814,7 @@ impl Mpc {
             }
         };
         self.run.terminal_tilt_rad = [guarded(0), guarded(1)];
-        let solution = self.solve_qp(self.run.terminal_tilt_rad);
+        let solution = self.solve_qp(self.run.terminal_tilt_rad, deadline);
         let prev_mode = self.run.mode;
         let (u0, feasible) = match solution {
             Some(u0) => (u0, true),
@@ -651,12 +831,12 @@ impl Mpc {
             self.run.time_in_mode_s = 0.0;
         }
         let command = self.command_for(&u0, dt_s);
-        self.run.u_last = u0;
+        self.run.u_last.copy_from(&u0);
         self.run.last_command = command;
         self.advance_reference(&input.sample, dt_s);
         MpcOutcome {
             command,
-            report: self.run.report.clone(),
+            report: self.run.report,
             feasible,
             mode: self.run.mode,
             perceived_f_mps2: perceived_now,
@@ -783,7 +963,7 @@ impl MotionCueing for Mpc {
             time_in_mode_s: self.run.time_in_mode_s,
             switch_count: 0,
             last_switch_reason: None,
-            solvers: vec![self.run.report.clone()],
+            solvers: [self.run.report].into(),
         }
     }
 
@@ -810,13 +990,13 @@ impl MotionCueing for Mpc {
 impl Mpc {
     /// After a failed solve: the previous plan, one step further on, then a return to neutral
     /// slow enough that the rotation stays below the canals' thresholds.
-    pub(super) fn fallback_input(&mut self, dt_s: f64) -> DVector<f64> {
+    pub(super) fn fallback_input(&mut self, dt_s: f64) -> Input {
         self.run.plan.elapsed_s += dt_s;
         let mut u = match self.run.plan.input_at(self.run.plan.elapsed_s) {
-            Some(u) => DVector::from_row_slice(&u),
+            Some(u) => Input::from(u),
             None => {
                 let w = self.params.fallback_washout_radps;
-                let mut u = DVector::zeros(NU);
+                let mut u = Input::zeros();
                 for k in 0..3 {
                     u[input::ACCEL_X + k] =
                         -w * w * self.run.x[state::POS + k] - 2.0 * w * self.run.x[state::VEL + k];
@@ -853,7 +1033,7 @@ impl Mpc {
         u
     }
 
-    pub(super) fn command_for(&self, u0: &DVector<f64>, dt_s: f64) -> PlatformCommand {
+    pub(super) fn command_for(&self, u0: &Input, dt_s: f64) -> PlatformCommand {
         let rates = total_rates(u0.as_slice());
         let prev_rates = total_rates(self.run.u_last.as_slice());
         let mut cmd = PlatformCommand {

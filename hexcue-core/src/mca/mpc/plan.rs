@@ -6,7 +6,7 @@ use nalgebra::{DVector, Vector6};
 use super::model::{pose_of, u_col, x_col, NU, POSE_STATE};
 
 /// The last solved plan: inputs per prediction interval and the predicted poses.
-#[derive(Clone, Debug, Default)]
+#[derive(Debug, Default)]
 pub struct Plan {
     /// Interval lengths (s).
     pub interval_s: Vec<f64>,
@@ -18,6 +18,28 @@ pub struct Plan {
     pub poses: Vec<Vector6<f64>>,
     /// Time since the plan was made (s).
     pub elapsed_s: f64,
+}
+
+/// By hand for `clone_from`, which keeps this plan's allocations: a controller in standby
+/// copies its leader's plan every step (`Mpc::follow`) without allocating.
+impl Clone for Plan {
+    fn clone(&self) -> Self {
+        Plan {
+            interval_s: self.interval_s.clone(),
+            inputs: self.inputs.clone(),
+            start_pose: self.start_pose,
+            poses: self.poses.clone(),
+            elapsed_s: self.elapsed_s,
+        }
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        self.interval_s.clone_from(&source.interval_s);
+        self.inputs.clone_from(&source.inputs);
+        self.start_pose = source.start_pose;
+        self.poses.clone_from(&source.poses);
+        self.elapsed_s = source.elapsed_s;
+    }
 }
 
 impl Plan {

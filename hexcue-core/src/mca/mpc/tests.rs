@@ -15,6 +15,7 @@ fn step(mpc: &mut Mpc, k: usize, sample: CueSample, applied: &PlatformCommand) -
         sample,
         preview: &[],
         applied,
+        deadline: None,
     };
     mpc.solve(&input)
 }
@@ -220,7 +221,7 @@ fn cotc_on_a_sustained_6_mps2_surge_is_infeasible() {
         match terminal {
             Terminal::Cotc => {
                 assert!(!last.feasible);
-                assert_eq!(last.report.status, "primal_infeasible");
+                assert_eq!(last.report.status, SolveStatus::PrimalInfeasible);
                 assert_eq!(last.mode, Mode::Fallback);
             }
             // Without terminal conditions the same input is simply cued as well as it can be.
@@ -310,6 +311,7 @@ fn closed_loop_keeps_legs_in_stroke_without_clipping() {
             sample: s,
             preview: &[],
             applied: &applied,
+            deadline: None,
         };
         let out = mpc.solve(&input);
         let c = out.command;
@@ -356,6 +358,7 @@ fn preview_sees_a_step_before_it_comes() {
         sample: sample([0.0; 3], [0.0; 3]),
         preview: &future,
         applied: &applied,
+        deadline: None,
     };
     let out = mpc.solve(&input);
     assert!(out.feasible);
@@ -450,6 +453,7 @@ fn leg_constraints_hold_a_diagonal_excursion_within_the_margin() {
             sample: sample([f, f, 0.0], [0.0; 3]),
             preview: &[],
             applied: &applied,
+            deadline: None,
         };
         let out = mpc.solve(&input);
         assert!(out.command.is_finite());
@@ -505,6 +509,7 @@ fn a_plan_at_the_legs_bound_passes_the_limiter_and_comes_back() {
             sample: sample([0.15, 3.1 * bump(t), 0.0], [0.0, 0.0, 0.46 * bump(t)]),
             preview: &[],
             applied: &applied,
+            deadline: None,
         };
         let out = mpc.solve(&input);
         let limited = limiter.apply(&out.command);
@@ -657,6 +662,8 @@ fn sparse_violation(mpc: &Mpc, z: &[f64]) -> f64 {
 }
 
 fn clarabel_reference(mpc: &mut Mpc) -> (SolverStatus, Vec<f64>, f64) {
+    // Clarabel's P follows the washout gain only when the cascade hands it a QP.
+    assert!(mpc.update_clarabel_p());
     let solver = mpc.solver.as_mut().unwrap();
     assert!(mpc.a_pattern.fill(&mpc.a_trip, &mut mpc.nz));
     solver.update_A(&mpc.nz).unwrap();
@@ -686,7 +693,7 @@ fn condensed_hessian_and_rows_are_the_sparse_qp_s() {
         });
         assert!(outs
             .iter()
-            .all(|o| o.feasible && o.report.status == "solved"));
+            .all(|o| o.feasible && o.report.status == SolveStatus::Solved));
         mpc.set_washout_gain(3.7);
         let c = mpc.condensed.as_ref().unwrap();
         let (updated, full) = (c.hessian().to_vec(), c.condense_full(&mpc.p_trip));
@@ -793,6 +800,7 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
             sample: *s,
             preview: &samples[k + 1..],
             applied: &applied,
+            deadline: None,
         };
         let out = mpc.solve(&input);
         applied = out.command;
@@ -868,7 +876,7 @@ fn an_unlimited_time_budget_is_no_limit_not_a_panic() {
     let outs = run(&mut mpc, 5, |_| sample([1.0, 0.0, 0.0], [0.0; 3]));
     assert!(outs
         .iter()
-        .all(|o| o.feasible && o.report.status == "solved"));
+        .all(|o| o.feasible && o.report.status == SolveStatus::Solved));
 }
 
 /// The shipped profile with the heave cue channel on, at the weight that meets the OMCT's
@@ -1073,6 +1081,7 @@ fn the_preview_key_sees_the_future_and_falls_back_without_one() {
             sample: sample([0.0; 3], [0.0; 3]),
             preview,
             applied: &applied,
+            deadline: None,
         };
         mpc.solve(&input).command
     };
