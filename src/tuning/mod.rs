@@ -277,7 +277,11 @@ impl Tuner {
     pub fn revert_drive(&mut self, drive: AlgorithmId) {
         if let Some(i) = self.index(DRIVE) {
             self.values[i] = drive_code(drive);
-            self.undo.retain(|(index, _)| *index != i);
+            // The switch taken back is the last `drive` change recorded; earlier ones stay
+            // undoable.
+            if let Some(last) = self.undo.iter().rposition(|(index, _)| *index == i) {
+                self.undo.remove(last);
+            }
         }
     }
 

@@ -282,7 +282,7 @@ fn the_drive_switches_between_the_sessions_algorithms_and_back() {
     let mut engine = hexcue_core::engine::Engine::new(
         &profile,
         std::sync::Arc::new(hexcue_core::testing::manoeuvre()),
-        &[AlgorithmId::Cwf],
+        &algorithms,
     )
     .unwrap();
     let mut drives = DriveSwitch::new(AlgorithmId::Smpc);
@@ -304,4 +304,26 @@ fn the_drive_switches_between_the_sessions_algorithms_and_back() {
         texts[0]
     );
     assert_eq!(s.tuner.summary().final_parameter_values[DRIVE], 2.0);
+
+    // An engine that does not step the new drive (a live session's stepping thread, whose
+    // comparison lanes step elsewhere) takes the switch back, and says why.
+    let mut driving_only = hexcue_core::engine::Engine::new(
+        &profile,
+        std::sync::Arc::new(hexcue_core::testing::manoeuvre()),
+        &[AlgorithmId::Smpc],
+    )
+    .unwrap();
+    s.set(DRIVE, 0.0).unwrap();
+    let texts = apply_pending(&mut s, &mut driving_only, &mut drives, 7.0, 3.0, |_| {});
+    assert_eq!(drives.drive(), AlgorithmId::Smpc);
+    assert!(
+        texts[0].starts_with("parameter drive not applied: cwf steps on the comparison"),
+        "{}",
+        texts[0]
+    );
+    assert_eq!(s.tuner.get(DRIVE), Some(2.0));
+    assert!(
+        !s.undo().unwrap(),
+        "nothing to undo: the switch was taken back"
+    );
 }
