@@ -472,12 +472,7 @@ pub struct Safety {
 impl WorkspaceBrake {
     /// As a hard brake of the summary, ended at `t_end_s`: the DoF furthest beyond the
     /// hand-over's bound `bound` (SI), `why: workspace`; and the event's text.
-    pub fn hard_brake(
-        &self,
-        t_end_s: f64,
-        dt_s: f64,
-        bound: &Vector6<f64>,
-    ) -> (crate::summary::HardBrake, String) {
+    pub fn hard_brake(&self, t_end_s: f64, dt_s: f64, bound: &Vector6<f64>) -> (HardBrake, String) {
         let i = (0..6)
             .max_by(|&a, &b| {
                 let r = |i: usize| self.peak_acceleration[i] / bound[i];
@@ -489,7 +484,7 @@ impl WorkspaceBrake {
         } else {
             (1f64.to_degrees(), "deg/s²")
         };
-        let brake = crate::summary::HardBrake {
+        let brake = HardBrake {
             t_s: t_end_s - self.steps as f64 * dt_s,
             dof: DOF_NAMES[i].to_string(),
             why: "workspace".to_string(),
@@ -871,6 +866,27 @@ impl Safety {
     pub fn neutral_return(&self) -> &NeutralReturn {
         &self.neutral
     }
+}
+
+/// A DoF that braked harder than the gentle limits on its way back to neutral.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HardBrake {
+    /// Session time the transition started (s).
+    pub t_s: f64,
+    /// surge, sway, heave, roll, pitch or yaw.
+    pub dof: String,
+    /// What the gentle path would have broken: `excursion`, `velocity` or `return_time`; or
+    /// `inherited_acceleration` when the start's own acceleration was above the gentle limit;
+    /// `legs` when the DoFs moved back together to keep the legs inside; `workspace` when,
+    /// while running, the workspace limiter braked beyond the hand-over's bound (then
+    /// `gentle_acceleration` is that bound).
+    pub why: String,
+    /// The path's peak |acceleration| (m/s² or deg/s²).
+    pub peak_acceleration: f64,
+    /// The gentle limit it exceeded (same unit).
+    pub gentle_acceleration: f64,
+    /// `m/s²` or `deg/s²`.
+    pub unit: String,
 }
 
 #[cfg(test)]

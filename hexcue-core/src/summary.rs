@@ -13,6 +13,7 @@ use crate::mca::AlgorithmId;
 use crate::metrics::{ChannelAccumulator, ChannelMetrics, StepTimes, TimeHistogram};
 use crate::model::stewart::{head_motion, Stewart};
 use crate::profile::Profile;
+use crate::safety::HardBrake;
 use crate::score::{ScoreAccumulator, ScoreTerms, ScoreWeights};
 use crate::vocab::Channel;
 
@@ -205,27 +206,6 @@ pub struct TransitionSummary {
     pub longest_s: f64,
     /// Every DoF whose way back needed more than the profile's gentle `[safety]` limits.
     pub hard_brakes: Vec<HardBrake>,
-}
-
-/// A DoF that braked harder than the gentle limits on its way back to neutral.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct HardBrake {
-    /// Session time the transition started (s).
-    pub t_s: f64,
-    /// surge, sway, heave, roll, pitch or yaw.
-    pub dof: String,
-    /// What the gentle path would have broken: `excursion`, `velocity` or `return_time`; or
-    /// `inherited_acceleration` when the start's own acceleration was above the gentle limit;
-    /// `legs` when the DoFs moved back together to keep the legs inside; `workspace` when,
-    /// while running, the workspace limiter braked beyond the hand-over's bound (then
-    /// `gentle_acceleration` is that bound).
-    pub why: String,
-    /// The path's peak |acceleration| (m/s² or deg/s²).
-    pub peak_acceleration: f64,
-    /// The gentle limit it exceeded (same unit).
-    pub gentle_acceleration: f64,
-    /// `m/s²` or `deg/s²`.
-    pub unit: String,
 }
 
 /// The stepping thread's scheduling: asked for, granted, or refused and why.

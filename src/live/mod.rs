@@ -22,6 +22,10 @@ pub mod handoff;
 pub mod input_watch;
 pub mod lanes;
 pub mod realtime;
+mod stats;
+
+use stats::platform_event;
+pub use stats::{lane_share, LaneOrders, LiveCounters, LiveStats};
 
 use std::collections::BTreeMap;
 use std::sync::mpsc;
@@ -43,10 +47,11 @@ use hexcue_core::metrics::TimeHistogram;
 use hexcue_core::model::stewart::Stewart;
 use hexcue_core::profile::Profile;
 use hexcue_core::safety::path::Escalation;
+use hexcue_core::safety::HardBrake;
 use hexcue_core::safety::{PlatformReadiness, Safety, SafetyState, DOF_NAMES};
 use hexcue_core::source::HeldSample;
 use hexcue_core::summary::{
-    HardBrake, LiveSummary, Quantiles, RealtimeSummary, Summary, SummaryBuilder, TransitionSummary,
+    LiveSummary, Quantiles, RealtimeSummary, Summary, SummaryBuilder, TransitionSummary,
 };
 use input_watch::{InputCounts, InputWatch};
 
@@ -99,155 +104,6 @@ pub struct StepReport {
     pub budget_us: f64,
     /// What the comparison lanes need to step as the driving lane did.
     pub lanes: LaneOrders,
-}
-
-/// What the driving lane's engine was told at one step, for the comparison lanes' engine:
-/// plain values, so that a report dropped on the way loses nothing the next one does not
-/// carry.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LaneOrders {
-    /// The safety stage's cue gain at this step.
-    pub cue_gain: f64,
-    /// The lanes' resets so far (a new fade-in resets them all).
-    pub resets: u64,
-    /// The live gains' target (issue 36), all ones unless changed.
-    pub gains: nalgebra::Vector6<f64>,
-}
-
-/// The session's counters as of one step, small enough to go with every report.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct LiveCounters {
-    pub samples_in: u64,
-    pub commands_out: u64,
-    pub deadline_misses: u64,
-    pub malformed: u64,
-    /// Reports the sink thread did not get before this one.
-    pub frames_dropped: u64,
-    /// Filled in off the stepping thread ([`lanes`]), over the reports that got there.
-    pub latency_p99_ms: f64,
-    pub step_p99_ms: f64,
-    /// Each lane's 99th percentile share of its step's deadline used, in the console's
-    /// order (filled in off the stepping thread, as above).
-    pub deadline_share_p99: Vec<(AlgorithmId, f64)>,
-    /// The first seconds of input suggest a unit or sign mistake (the summary says which).
-    pub unit_warning: bool,
-    /// The outputs (bit i: the i-th `--output`) at whose address nothing listens.
-    pub unreachable_outputs: u32,
-}
-
-/// Counters and histograms of the session, in constant memory.
-#[derive(Clone, Debug, Default)]
-pub struct LiveStats {
-    pub commands_out: u64,
-    pub deadline_misses: u64,
-    pub step: TimeHistogram,
-    pub latency: TimeHistogram,
-    /// The same, on the first step to use each sample only: hexcue's own delay, without
-    /// the steps that hold a sample because the simulator sent no newer one.
-    pub new_sample_latency: TimeHistogram,
-    /// Per lane: the share of its step's budget (deadline − step start) its step used, in
-    /// millionths (a [`TimeHistogram`] of ppm).
-    pub deadline_share: BTreeMap<AlgorithmId, TimeHistogram>,
-    /// Steps whose comparison lanes finished after the step's deadline, and by how much at
-    /// most (s): they lag the driving lane ([`lanes`]).
-    pub comparison_late_steps: u64,
-    pub comparison_lag_max_s: f64,
-    pub input_lost_steps: u64,
-    /// Steps with the held sample older than one period when used: the simulator is slower
-    /// than hexcue, or late.
-    pub stale_steps: u64,
-    pub samples_in: u64,
-    pub malformed: u64,
-    /// Session time of the step that first had a sample (s).
-    pub first_input_s: Option<f64>,
-    /// The unit or sign mistake the first seconds of input suggest, if any.
-    pub unit_warning: Option<String>,
-    /// The platform fault that stopped all motion (the output and what it said), if any.
-    pub platform_fault: Option<String>,
-    /// Reports dropped on the way to the sink thread.
-    pub frames_dropped: u64,
-    pub realtime: RealtimeSummary,
-    /// The transitions to neutral, and those that braked harder than the gentle limits.
-    pub transitions: TransitionSummary,
-    /// Steps at which an actuator could not give the pose (a crank past its limits): the
-    /// nearest position it can was sent.
-    pub actuators_limited_steps: u64,
-    /// Each time an output's address had nothing listening: the output, from and until
-    /// (session time, s; `None`: to the end).
-    pub unreachable: Vec<(String, f64, Option<f64>)>,
-}
-
-impl LiveStats {
-    pub fn summary(&self, rate_hz: f64) -> LiveSummary {
-        let ms = |h: &TimeHistogram| Quantiles {
-            median: h.quantile(0.5) / 1e3,
-            p99: h.quantile(0.99) / 1e3,
-            max: h.summary().max / 1e3,
-        };
-        LiveSummary {
-            samples_in: self.samples_in,
-            commands_out: self.commands_out,
-            deadline_misses: self.deadline_misses,
-            step_ms: ms(&self.step),
-            latency_ms: ms(&self.latency),
-            new_sample_latency_ms: ms(&self.new_sample_latency),
-            deadline_share: self
-                .deadline_share
-                .iter()
-                .map(|(id, h)| {
-                    let share = Quantiles {
-                        median: h.quantile(0.5) / 1e6,
-                        p99: h.quantile(0.99) / 1e6,
-                        max: h.summary().max / 1e6,
-                    };
-                    (id.key().to_string(), share)
-                })
-                .collect(),
-            comparison_late_steps: self.comparison_late_steps,
-            comparison_lag_max_s: self.comparison_lag_max_s,
-            stale_steps: self.stale_steps,
-            first_input_s: self.first_input_s,
-            input_lost_s: self.input_lost_steps as f64 / rate_hz,
-            malformed: self.malformed,
-            unit_warning: self.unit_warning.clone(),
-            platform_fault: self.platform_fault.clone(),
-            frames_dropped: self.frames_dropped,
-            realtime: self.realtime.clone(),
-            transitions: self.transitions.clone(),
-            actuators_limited_steps: self.actuators_limited_steps,
-            output_warnings: self
-                .unreachable
-                .iter()
-                .map(|(output, from, to)| {
-                    let until = match to {
-                        Some(t) => format!("until t {t:.2} s (listening again)"),
-                        None => "to the end of the session".to_string(),
-                    };
-                    format!(
-                        "{output}: nothing listening (ICMP port unreachable) from t {from:.2} s \
-                         {until}: its commands were lost"
-                    )
-                })
-                .collect(),
-        }
-    }
-
-    /// The running counts; the quantiles are the comparison lanes' thread's to fill in (a
-    /// histogram's quantile scans its 4,200 buckets: not on the stepping thread).
-    fn counters(&self) -> LiveCounters {
-        LiveCounters {
-            samples_in: self.samples_in,
-            commands_out: self.commands_out,
-            deadline_misses: self.deadline_misses,
-            malformed: self.malformed,
-            frames_dropped: self.frames_dropped,
-            latency_p99_ms: 0.0,
-            step_p99_ms: 0.0,
-            deadline_share_p99: Vec::new(),
-            unit_warning: self.unit_warning.is_some(),
-            unreachable_outputs: 0,
-        }
-    }
 }
 
 /// A live session: input, engine, safety, outputs and frame sinks (the recording, Foxglove).
@@ -1014,33 +870,6 @@ impl LiveSession {
             lines.push(sink.finish()?);
         }
         Ok((summary, lines))
-    }
-}
-
-/// The share of a step's budget (µs from its start to its deadline) a lane's step took. A
-/// step begun at or past its deadline had no budget: counted as 1 µs, so that its share is
-/// large rather than infinite (a histogram keeps finite numbers).
-pub fn lane_share(lane_us: f64, budget_us: f64) -> f64 {
-    lane_us / budget_us.max(1.0)
-}
-
-/// A platform's change of phase, for the operator.
-fn platform_event(t_s: f64, output: &str, status: &PlatformStatus) -> Event {
-    let (level, what) = match status.phase {
-        PlatformPhase::Connecting => (EventLevel::Info, "connecting"),
-        PlatformPhase::Engaging => (
-            EventLevel::Info,
-            "engaging: poses held at neutral until it is engaged",
-        ),
-        PlatformPhase::Engaged => (EventLevel::Info, "engaged: the cue may fade in"),
-        PlatformPhase::Parking => (EventLevel::Info, "parking"),
-        PlatformPhase::Parked => (EventLevel::Info, "parked"),
-        PlatformPhase::Fault => (EventLevel::Error, "FAULT: no more poses"),
-    };
-    Event {
-        t_s,
-        level,
-        text: format!("{output}: base {what}: {}", status.detail),
     }
 }
 

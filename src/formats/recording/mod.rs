@@ -9,6 +9,7 @@
 //! read the same way, the latter up to their last complete chunk, and a damaged chunk is
 //! skipped, reading going on at the next intact one (`source.rs`).
 
+mod damage;
 mod reader;
 mod recover;
 mod source;
