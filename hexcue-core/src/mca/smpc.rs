@@ -45,6 +45,7 @@ use crate::model::stewart::Stewart;
 ///         sample,
 ///         preview: &[],
 ///         applied: &applied,
+///         deadline: None,
 ///     };
 ///     applied = smpc.step(&input);
 /// }

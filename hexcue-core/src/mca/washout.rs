@@ -325,6 +325,7 @@ impl TiltCoordination {
 ///         sample,
 ///         preview: &[],
 ///         applied: &applied,
+///         deadline: None,
 ///     };
 ///     // A loop of one's own limits the command here before it is applied.
 ///     applied = cwf.step(&input);

@@ -139,6 +139,7 @@ pub struct MpcOutcome {
 ///         sample,
 ///         preview: &[],
 ///         applied: &applied,
+///         deadline: None,
 ///     };
 ///     applied = mpc.step(&input);
 /// }
