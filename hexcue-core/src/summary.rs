@@ -321,9 +321,7 @@ pub struct SummaryBuilder {
 impl SummaryBuilder {
     /// An empty summary of `profile` over the source named `trace_name`.
     pub fn new(profile: &Profile, trace_name: &str) -> Self {
-        let v = &profile.vestibular;
-        let w = v.canal_threshold_radps();
-        let onset_thresholds = jolts::onset_thresholds(v, jolts::JOLT_WINDOW_S);
+        let onset_thresholds = jolts::onset_thresholds(&profile.vestibular, jolts::JOLT_WINDOW_S);
         let onset_window = jolts::window_steps(profile.rate_hz);
         SummaryBuilder {
             trace: trace_name.to_string(),
@@ -331,14 +329,7 @@ impl SummaryBuilder {
             rate_hz: profile.rate_hz,
             stewart: profile.stewart(),
             excursion: profile.limits.si().excursion,
-            thresholds: [
-                v.otolith_threshold_mps2[0],
-                v.otolith_threshold_mps2[1],
-                v.otolith_threshold_mps2[2],
-                w.x,
-                w.y,
-                w.z,
-            ],
+            thresholds: crate::bound::thresholds(profile),
             steps: 0,
             algorithms: BTreeMap::new(),
             input_limits: (

@@ -999,6 +999,14 @@ mod tests {
     use hexcue_core::testing::full_flight;
 
     fn session() -> (LiveSession, std::net::SocketAddr) {
+        session_of(&[AlgorithmId::Cwf], AlgorithmId::Cwf)
+    }
+
+    /// A session listening for JSBSim on a free port, with these algorithms and this drive.
+    fn session_of(
+        algorithms: &[AlgorithmId],
+        drive: AlgorithmId,
+    ) -> (LiveSession, std::net::SocketAddr) {
         let input = LiveInput::with_decoder(
             "jsbsim://127.0.0.1:0",
             Box::new(Jsbsim::default()),
@@ -1007,7 +1015,7 @@ mod tests {
         .unwrap();
         let addr = input.local_addr().unwrap();
         let profile = full_flight();
-        let s = LiveSession::new(&profile, &[AlgorithmId::Cwf], AlgorithmId::Cwf, input).unwrap();
+        let s = LiveSession::new(&profile, algorithms, drive, input).unwrap();
         (s, addr)
     }
 
@@ -1209,16 +1217,9 @@ mod tests {
     /// stepping the same samples with the same cue gains and resets, bit for bit.
     #[test]
     fn the_comparison_lanes_step_on_their_own_thread_as_in_one_engine() {
-        let input = LiveInput::with_decoder(
-            "jsbsim://127.0.0.1:0",
-            Box::new(Jsbsim::default()),
-            Endpoint::Listen("127.0.0.1:0".parse().unwrap()),
-        )
-        .unwrap();
-        let addr = input.local_addr().unwrap();
         let profile = full_flight();
         let order = [AlgorithmId::Mpc, AlgorithmId::Cwf];
-        let mut s = LiveSession::new(&profile, &order, AlgorithmId::Cwf, input).unwrap();
+        let (mut s, addr) = session_of(&order, AlgorithmId::Cwf);
         let sender = std::thread::spawn(move || {
             let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
             for k in 0..300 {
