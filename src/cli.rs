@@ -200,6 +200,12 @@ pub struct PlayArgs {
     /// does, instead of predicting it as a live simulator must (`[mpc] reference`).
     #[arg(long)]
     pub preview: bool,
+    /// Keep the profile's wall-clock limit on each MPC step (`[mpc] time_limit_ms`), as a
+    /// live session does: the results then depend on the machine's speed and load. Without
+    /// it an offline run is limited by the solvers' iteration cap only, and the same trace
+    /// and profile give the same result on any machine (docs/performance.md).
+    #[arg(long)]
+    pub realtime_budget: bool,
     /// With --headless: compute the yardstick (docs/bound.md) and show each algorithm's error
     /// above the bound (its cueable error) per channel; the summary gains a `bound` object.
     #[arg(long, requires = "headless")]

@@ -462,3 +462,52 @@ fn preview_is_a_profile_option_the_summary_and_compare_name() {
         stderr(&refused)
     );
 }
+
+/// Offline, a result does not depend on the machine: `play` lifts the MPCs' wall-clock limit
+/// (`Profile::offline`), so a profile whose limit no solve can meet (a picosecond) plays
+/// exactly as the shipped one; `--realtime-budget` keeps the limit, as a live session does,
+/// and every MPC step then runs out of time (the MPC holds its fallback, another score).
+#[test]
+fn offline_play_lifts_the_wall_clock_limit_and_realtime_budget_keeps_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = dir.path().join("step.csv");
+    write_trace(&trace, 100.0, 4.0, |t| {
+        let mut s = quiet_sample();
+        s[0] = if t >= 1.0 { 2.0 } else { 0.0 };
+        s
+    });
+    let shipped = std::fs::read_to_string(repo().join("profiles/full-flight.toml")).unwrap();
+    let line = "time_limit_ms = 20.0";
+    assert_eq!(
+        shipped.matches(line).count(),
+        1,
+        "the MPC's time limit moved"
+    );
+    let no_time = dir.path().join("no-time.toml");
+    std::fs::write(&no_time, shipped.replace(line, "time_limit_ms = 1e-9")).unwrap();
+    let score = |profile: &std::path::Path, extra: &[&str], name: &str| {
+        let summary = dir.path().join(name);
+        let mut args: Vec<&std::ffi::OsStr> =
+            ["play", "--headless", "--algorithms", "mpc", "--trace"]
+                .iter()
+                .map(|s| s.as_ref())
+                .collect();
+        args.push(trace.as_os_str());
+        args.extend(["--profile".as_ref(), profile.as_os_str()]);
+        args.extend(["--summary".as_ref(), summary.as_os_str()]);
+        args.extend(extra.iter().map(std::ffi::OsStr::new));
+        let run = hexcue(&args);
+        assert!(run.status.success(), "{}", stderr(&run));
+        read_json(&summary)["algorithms"]["mpc"]["score"]
+            .as_f64()
+            .unwrap()
+    };
+    let shipped_score = score(&repo().join("profiles/full-flight.toml"), &[], "a.json");
+    let lifted = score(&no_time, &[], "b.json");
+    let budgeted = score(&no_time, &["--realtime-budget"], "c.json");
+    assert_eq!(lifted.to_bits(), shipped_score.to_bits());
+    assert!(
+        (budgeted - shipped_score).abs() > 1e-3,
+        "with a picosecond budget the MPC cannot solve: {budgeted} against {shipped_score}"
+    );
+}

@@ -5,10 +5,8 @@
 //! (the fade-in, the first sample's events and the 10 s unit checks are over) for 3 s.
 //!
 //! Each counted allocation's backtrace is kept, so that a failure says where it came from.
-//! The core's `Engine::step` is another engineer's (alloc37): until it allocates nothing,
-//! the tests that always run assert that nothing *outside* it allocates (the input, the
-//! safety stage, the outputs, the statistics, the hand-off), and the strict ones, `#[ignore]`d
-//! with that reason, that nothing does at all.
+//! Nothing at all: the input, the safety stage, the core's `Engine::step` with the driving
+//! algorithm, the outputs, the statistics and the hand-off to the other threads.
 
 mod common;
 
@@ -181,23 +179,8 @@ fn stepping_allocations(
     (traces, counted)
 }
 
-/// The allocations not made inside the core's `Engine::step` (alloc37's): those whose
-/// backtrace has no frame `step` in `hexcue-core/src/engine.rs` (the test build's line
-/// tables name a frame by its function and its file).
-fn outside_the_core_step(traces: &[String]) -> Vec<&String> {
-    let in_core_step = |trace: &str| {
-        let lines: Vec<&str> = trace.lines().collect();
-        lines.windows(2).any(|w| {
-            w[0].trim_start()
-                .split_once(": ")
-                .is_some_and(|(_, f)| f == "step")
-                && w[1].contains("hexcue-core/src/engine.rs:")
-        })
-    };
-    traces.iter().filter(|t| !in_core_step(t)).collect()
-}
-
-fn assert_none(traces: &[String], what: &str) {
+fn assert_none(traces: &[String], counted: u64, what: &str) {
+    assert_eq!(counted, COUNTED_STEPS);
     assert!(
         traces.is_empty(),
         "{} allocations on the stepping thread {what}; the first:\n{}",
@@ -206,74 +189,33 @@ fn assert_none(traces: &[String], what: &str) {
     );
 }
 
-fn assert_none_outside_the_core_step(traces: &[String], counted: u64) {
-    assert_eq!(counted, COUNTED_STEPS);
-    let outside = outside_the_core_step(traces);
-    assert!(
-        outside.is_empty(),
-        "{} of {} allocations on the stepping thread outside Engine::step; the first:\n{}",
-        outside.len(),
-        traces.len(),
-        outside[0]
-    );
-}
-
-#[test]
-fn the_stepping_thread_allocates_nothing_of_its_own_cwf_json() {
-    let (traces, counted) =
-        stepping_allocations(&[AlgorithmId::Cwf], AlgorithmId::Cwf, Output::Json);
-    assert_none_outside_the_core_step(&traces, counted);
-}
-
-#[test]
-fn the_stepping_thread_allocates_nothing_of_its_own_cwf_moog() {
-    let (traces, counted) =
-        stepping_allocations(&[AlgorithmId::Cwf], AlgorithmId::Cwf, Output::Moog);
-    assert_none_outside_the_core_step(&traces, counted);
-}
-
-#[test]
-fn the_stepping_thread_allocates_nothing_of_its_own_mpc() {
-    let (traces, counted) =
-        stepping_allocations(&[AlgorithmId::Mpc], AlgorithmId::Mpc, Output::Json);
-    assert_none_outside_the_core_step(&traces, counted);
-}
-
-#[test]
-fn the_stepping_thread_allocates_nothing_of_its_own_smpc() {
-    let (traces, counted) =
-        stepping_allocations(&[AlgorithmId::Smpc], AlgorithmId::Smpc, Output::Json);
-    assert_none_outside_the_core_step(&traces, counted);
-}
-
 /// The MPCs run beside the CWF as comparison lanes, on their own thread: whatever they
 /// allocate, the stepping thread does not.
 #[test]
 fn the_comparison_lanes_allocate_off_the_stepping_thread() {
     let all = [AlgorithmId::Smpc, AlgorithmId::Mpc, AlgorithmId::Cwf];
     let (traces, counted) = stepping_allocations(&all, AlgorithmId::Cwf, Output::Json);
-    assert_none_outside_the_core_step(&traces, counted);
+    assert_none(&traces, counted, "driving with the CWF beside the MPCs");
 }
 
 #[test]
-#[ignore = "alloc37: Engine::step allocates the frame's lanes until its allocation-free step is merged"]
 fn the_stepping_thread_allocates_nothing_cwf_json_and_moog() {
     for output in [Output::Json, Output::Moog] {
-        let (traces, _) = stepping_allocations(&[AlgorithmId::Cwf], AlgorithmId::Cwf, output);
-        assert_none(&traces, "driving with the CWF");
+        let (traces, counted) = stepping_allocations(&[AlgorithmId::Cwf], AlgorithmId::Cwf, output);
+        assert_none(&traces, counted, "driving with the CWF");
     }
 }
 
 #[test]
-#[ignore = "alloc37: the MPC's step allocates until its allocation-free step is merged"]
 fn the_stepping_thread_allocates_nothing_mpc() {
-    let (traces, _) = stepping_allocations(&[AlgorithmId::Mpc], AlgorithmId::Mpc, Output::Json);
-    assert_none(&traces, "driving with the MPC");
+    let (traces, counted) =
+        stepping_allocations(&[AlgorithmId::Mpc], AlgorithmId::Mpc, Output::Json);
+    assert_none(&traces, counted, "driving with the MPC");
 }
 
 #[test]
-#[ignore = "alloc37: the S-MPC's step allocates until its allocation-free step is merged"]
 fn the_stepping_thread_allocates_nothing_smpc() {
-    let (traces, _) = stepping_allocations(&[AlgorithmId::Smpc], AlgorithmId::Smpc, Output::Json);
-    assert_none(&traces, "driving with the S-MPC");
+    let (traces, counted) =
+        stepping_allocations(&[AlgorithmId::Smpc], AlgorithmId::Smpc, Output::Json);
+    assert_none(&traces, counted, "driving with the S-MPC");
 }

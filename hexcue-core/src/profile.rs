@@ -134,6 +134,25 @@ pub struct InputLimits {
 }
 
 impl Profile {
+    /// The profile for an offline run (a recorded or scripted flight: `play`, `compare`,
+    /// `tune`, `eval`, `bound`, the OMCT, a notebook): the MPCs' wall-clock safety net
+    /// (`[mpc] time_limit_ms`) lifted, so that "solved in time" means within the iteration
+    /// cap (`max_iterations`) and a result does not depend on what else the machine is
+    /// doing. Under the limit, a loaded machine hands some active-set solves to Clarabel,
+    /// whose answer differs in the last digits, and the S-MPC's supervisor may then switch
+    /// at another step. A live session keeps the limit: there a late command is worse than
+    /// a slightly different one.
+    ///
+    /// ```
+    /// let profile = hexcue_core::profile::text::default_profile();
+    /// assert!(profile.mpc.time_limit_ms.is_finite());
+    /// assert_eq!(profile.offline().mpc.time_limit_ms, f64::INFINITY);
+    /// ```
+    pub fn offline(mut self) -> Self {
+        self.mpc.time_limit_ms = f64::INFINITY;
+        self
+    }
+
     /// The step of every algorithm: 1 / `rate_hz` (s).
     pub fn dt_s(&self) -> f64 {
         1.0 / self.rate_hz

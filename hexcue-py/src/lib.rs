@@ -527,9 +527,14 @@ impl PyRun {
 /// engine (with the trace's future offered to the MPCs, as a trace file's is) and its summary.
 /// `specific_force_mps2` and `angular_velocity_radps` are (n, 3) arrays, one row per sample at
 /// the profile's rate from t = 0, unless `t_s` gives their times (then they are resampled to
-/// the profile's rate as a trace file is). `algorithms` defaults to all three.
+/// the profile's rate as a trace file is). `algorithms` defaults to all three. Offline, as
+/// `play` runs by default: the MPCs' wall-clock limit is lifted so that the same input gives
+/// the same result on any machine; `realtime_budget = True` keeps the profile's
+/// `time_limit_ms`, as `play --realtime-budget` does.
 #[pyfunction]
-#[pyo3(signature = (specific_force_mps2, angular_velocity_radps, profile = None, algorithms = None, t_s = None, name = DEFAULT_RUN_NAME))]
+#[pyo3(signature = (specific_force_mps2, angular_velocity_radps, profile = None, algorithms = None, t_s = None, name = DEFAULT_RUN_NAME, realtime_budget = false))]
+// Each argument is one of the Python function's keyword arguments.
+#[allow(clippy::too_many_arguments)]
 fn run(
     py: Python<'_>,
     specific_force_mps2: PyArrayLike2<'_, f64, AllowTypeChange>,
@@ -538,8 +543,14 @@ fn run(
     algorithms: Option<Vec<String>>,
     t_s: Option<PyArrayLike1<'_, f64, AllowTypeChange>>,
     name: &str,
+    realtime_budget: bool,
 ) -> PyResult<PyRun> {
     let profile = profile.map_or_else(default_profile, |p| p.inner.clone());
+    let profile = if realtime_budget {
+        profile
+    } else {
+        profile.offline()
+    };
     let mut ids = match algorithms {
         None => AlgorithmId::ALL.to_vec(),
         Some(keys) => keys

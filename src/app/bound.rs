@@ -121,12 +121,11 @@ pub fn bound_with_algorithms(
 
 pub fn run(args: &BoundArgs) -> Result<()> {
     let started = Instant::now();
-    let (mut profile, _) = match &args.profile {
+    let (profile, _) = match &args.profile {
         Some(path) => load_profile(path)?,
         None => (default_profile(), String::new()),
     };
-    // As in `compare`: offline, "solved in time" means within the iteration cap.
-    profile.mpc.time_limit_ms = f64::INFINITY;
+    let profile = profile.offline();
     let algorithms = parse_algorithms(&args.algorithms)?;
     let alone = parse_channels(&args.channels)?;
     if let Some(path) = &args.json {

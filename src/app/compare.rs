@@ -50,13 +50,11 @@ fn run_one(
 
 /// Runs every algorithm on every trace of the folder and writes the report.
 pub fn run(args: &CompareArgs) -> Result<()> {
-    let (mut profile, _) = match &args.profile {
+    let (profile, _) = match &args.profile {
         Some(path) => crate::app::common::load_profile_warned(path)?,
         None => (default_profile(), String::new()),
     };
-    // Offline, the report must not depend on what else the machine is doing: the solvers'
-    // wall-clock safety net is lifted, and "solved in time" means within the iteration cap.
-    profile.mpc.time_limit_ms = f64::INFINITY;
+    let profile = profile.offline();
     let algorithms = parse_algorithms(&args.algorithms)?;
     if let Some(path) = &args.out {
         let inputs = inputs(&[

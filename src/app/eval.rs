@@ -375,9 +375,7 @@ fn infeasibility(candidate: &Candidate, bounds: &[f64], names: &[String]) -> Opt
 /// limit lifted as in `tune` and `compare`, so that a score does not depend on the machine's
 /// load.
 fn offline_profile(text: &str, source: &str) -> Result<Profile> {
-    let mut p = parse_profile(text, source)?;
-    p.mpc.time_limit_ms = f64::INFINITY;
-    Ok(p)
+    Ok(parse_profile(text, source)?.offline())
 }
 
 pub fn run(args: &EvalArgs) -> Result<()> {

@@ -17,7 +17,8 @@ pub fn run(args: &OmctArgs) -> Result<()> {
     let profile = match &args.profile {
         Some(path) => crate::app::common::load_profile_warned(path)?.0,
         None => default_profile(),
-    };
+    }
+    .offline();
     let algorithms = parse_algorithms(&args.algorithms)?;
     let tests = parse_tests(&args.tests)?;
     let frequencies = frequency_subset(args.frequencies as usize);

@@ -53,6 +53,9 @@ pub fn load_play(args: &PlayArgs) -> Result<(Profile, String, Vec<AlgorithmId>)>
     if args.preview {
         profile.mpc.preview = true;
     }
+    if !args.realtime_budget {
+        profile = profile.offline();
+    }
     Ok((profile, profile_toml, algorithms))
 }
 

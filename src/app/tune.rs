@@ -358,8 +358,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     let tuned = add_header(&evaluator.document(&best.values)?, &header);
     // The same loader and validation as any profile, then scored again from that text.
     let shown = args.out.display().to_string();
-    let mut written = parse_profile(&tuned, &shown)?;
-    written.mpc.time_limit_ms = f64::INFINITY;
+    let written = parse_profile(&tuned, &shown)?.offline();
     std::fs::write(&args.out, &tuned)
         .with_context(|| format!("{shown}: cannot write the tuned profile"))?;
     let after = evaluator.run(&written)?;

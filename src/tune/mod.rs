@@ -216,11 +216,7 @@ impl Evaluator {
     /// The profile for `values`, read by the loader of every profile.
     pub fn profile(&self, values: &[f64]) -> Result<Profile> {
         let text = self.document(values)?;
-        let mut profile = parse_profile(&text, "candidate")?;
-        // As in `compare`: offline, "solved in time" means within the iteration cap, so
-        // that a score does not depend on what else the machine is doing.
-        profile.mpc.time_limit_ms = f64::INFINITY;
-        Ok(profile)
+        Ok(parse_profile(&text, "candidate")?.offline())
     }
 
     /// Runs one profile on every trace, in parallel; `None` once stopped.
