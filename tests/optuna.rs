@@ -44,6 +44,33 @@ impl Campaign {
         }
     }
 
+    /// A study on a database storage: an SQLite file, through the URL Optuna's
+    /// `RDBStorage` takes (SQLAlchemy comes with Optuna), as a PostgreSQL or MySQL URL
+    /// would be given on a cluster.
+    fn on_database(python: &Path, dir: &Path, name: &str) -> Self {
+        Campaign {
+            python: python.to_path_buf(),
+            storage: format!("sqlite:///{}", dir.join(format!("{name}.db")).display()).into(),
+        }
+    }
+
+    /// `work` in `n` worker processes at once, each checked to end well.
+    fn work_in_parallel(&self, n: usize) {
+        let workers: Vec<_> = (0..n)
+            .map(|_| {
+                self.command("work", env!("CARGO_BIN_EXE_hexcue"), &[])
+                    .stdout(Stdio::piped())
+                    .stderr(Stdio::piped())
+                    .spawn()
+                    .unwrap()
+            })
+            .collect();
+        for w in workers {
+            let out = w.wait_with_output().unwrap();
+            assert!(out.status.success(), "worker: {}", stderr(&out));
+        }
+    }
+
     fn command(&self, sub: &str, hexcue: &str, extra: &[&str]) -> Command {
         let mut c = Command::new(&self.python);
         c.arg(repo().join("integrations/optuna/hexcue_optuna.py"))
@@ -184,19 +211,7 @@ fn two_workers_on_one_journal_find_the_same_best_as_one_worker() {
     let two = Campaign::new(&python, dir.path(), "two");
     two.create();
     let started = Instant::now();
-    let workers: Vec<_> = (0..2)
-        .map(|_| {
-            two.command("work", env!("CARGO_BIN_EXE_hexcue"), &[])
-                .stdout(Stdio::piped())
-                .stderr(Stdio::piped())
-                .spawn()
-                .unwrap()
-        })
-        .collect();
-    for w in workers {
-        let out = w.wait_with_output().unwrap();
-        assert!(out.status.success(), "worker: {}", stderr(&out));
-    }
+    two.work_in_parallel(2);
     let two_wall = started.elapsed();
     let status = two.status();
 
@@ -321,6 +336,26 @@ fn two_workers_on_one_journal_find_the_same_best_as_one_worker() {
         tuned["validation"]["mean_score"].as_f64().unwrap()
             < base["validation"]["mean_score"].as_f64().unwrap()
     );
+}
+
+/// The same study on a database storage (the storage a cluster without a shared file system
+/// uses): two workers on one SQLite URL score the same candidates as one worker on a journal.
+#[test]
+fn two_workers_on_a_database_find_the_same_best_as_one_on_a_journal() {
+    let Some(python) = optuna_python() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (_, reference, _) = one_worker(&python, dir.path());
+    let db = Campaign::on_database(&python, dir.path(), "db");
+    db.create();
+    db.work_in_parallel(2);
+    let status = db.status();
+    let c = counted(&status);
+    assert_eq!(c.len(), 9, "{status}");
+    assert!(c.iter().all(|t| t["state"] == "COMPLETE"), "{status}");
+    assert_eq!(scores(&reference), scores(&status));
+    assert_eq!(best(&scores(&reference)), best(&scores(&status)));
 }
 
 #[test]
