@@ -271,25 +271,31 @@ impl ActiveSetQp {
                 self.h[r * n + c] = h[c * n + r];
             }
         }
-        // Cholesky H = L Lᵀ into `jm` (column-major, lower), then J0 = L⁻ᵀ.
-        let l = &mut self.jm;
-        l.fill(0.0);
+        // Cholesky H = L Lᵀ, L's rows stored one after the other in `r` (free until the
+        // next solve, which rebuilds the active set's factors after a new Hessian), so that
+        // each entry's sum is a dot product of two contiguous rows.
+        let lt = &mut self.r;
+        lt.fill(0.0);
         for j in 0..n {
-            let mut s = self.h[j * n + j];
-            for k in 0..j {
-                s -= l[k * n + j] * l[k * n + j];
-            }
+            let row_j = j * n;
+            let s = self.h[j * n + j] - dot(&lt[row_j..row_j + j], &lt[row_j..row_j + j]);
             if !s.is_finite() || s <= 0.0 {
                 return Err(QpError::NotPositiveDefinite { column: j });
             }
             let ljj = s.sqrt();
-            l[j * n + j] = ljj;
+            lt[row_j + j] = ljj;
             for i in j + 1..n {
-                let mut s = self.h[j * n + i];
-                for k in 0..j {
-                    s -= l[k * n + i] * l[k * n + j];
-                }
-                l[j * n + i] = s / ljj;
+                let row_i = i * n;
+                let s = self.h[j * n + i] - dot(&lt[row_i..row_i + j], &lt[row_j..row_j + j]);
+                lt[row_i + j] = s / ljj;
+            }
+        }
+        // L column-major into `jm`: column i of L is row i of Lᵀ, which the back
+        // substitution reads.
+        let l = &mut self.jm;
+        for c in 0..n {
+            for r in 0..n {
+                l[c * n + r] = lt[r * n + c];
             }
         }
         // Lᵀ J0 = I, column by column (back substitution; column c is zero below c).
@@ -297,11 +303,13 @@ impl ActiveSetQp {
         j0.fill(0.0);
         for c in 0..n {
             for i in (0..=c).rev() {
-                let mut s = if i == c { 1.0 } else { 0.0 };
-                // (Lᵀ)[i, k] = L[k, i] for k > i.
-                for k in i + 1..=c {
-                    s -= l[i * n + k] * j0[c * n + k];
-                }
+                let unit = if i == c { 1.0 } else { 0.0 };
+                // (Lᵀ)[i, k] = L[k, i] for k > i: column i of L, contiguous.
+                let s = unit
+                    - dot(
+                        &l[i * n + i + 1..i * n + c + 1],
+                        &j0[c * n + i + 1..c * n + c + 1],
+                    );
                 j0[c * n + i] = s / l[i * n + i];
             }
         }
