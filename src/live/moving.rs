@@ -326,3 +326,111 @@ impl LanesEnd {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use hexcue_core::testing::{full_flight, manoeuvre};
+
+    /// The hand-over's protocol on its own, with no thread: both ends stepped by hand over
+    /// the same trace. The comparison side is two steps behind when it serves the request
+    /// (a lagging thread), the stepping side has reset its lanes and retuned the lane while
+    /// it travelled: the lane arrives two steps late and says so, is reset, takes the held
+    /// retune, and then steps exactly as a lane reset and retuned at that step where it
+    /// stood; the drive switches to it. The lane sent back joins the comparison engine at
+    /// the step it left, not before, with its metrics.
+    #[test]
+    fn a_late_lane_is_reset_and_retuned_on_arrival_and_one_sent_back_waits_for_its_step() {
+        let profile = full_flight();
+        let trace = Arc::new(manoeuvre());
+        let mut stepping = Engine::new(&profile, trace.clone(), &[AlgorithmId::Cwf]).unwrap();
+        let mut lanes = Engine::new(&profile, trace.clone(), &[AlgorithmId::Mpc]).unwrap();
+        let mut stood = Engine::new(&profile, trace.clone(), &[AlgorithmId::Mpc]).unwrap();
+        let mut summaries = [0, 1].map(|_| SummaryBuilder::new(&profile, &trace.name));
+        let (mut here, mut there) = ends();
+        let mut drives = DriveSwitch::new(AlgorithmId::Cwf);
+        let mut moving = false;
+        for _ in 0..300 {
+            summaries[0].push(&stepping.step().unwrap());
+            summaries[1].push(&lanes.step().unwrap());
+            stood.step().unwrap();
+        }
+        here.drive(AlgorithmId::Mpc, false, 300);
+        let mut tuned = profile.clone();
+        tuned.mpc.specific_force_weight[0] *= 2.0;
+        let retune = Retune::build(&profile, &tuned, &[AlgorithmId::Mpc]).unwrap();
+        assert!(here.route(Box::new(retune)).is_none(), "held for the lane");
+        // The stepping side runs on and resets its lanes (a fade-in again) at step 302.
+        for k in 300..303 {
+            if k == 302 {
+                stepping.reset_lanes();
+            }
+            summaries[0].push(&stepping.step().unwrap());
+            stood.step().unwrap();
+        }
+        // The comparison side, behind, steps 300 and serves the request.
+        summaries[1].push(&lanes.step().unwrap());
+        let [ours, theirs] = &mut summaries;
+        there.serve(&mut lanes, theirs, 0);
+        assert!(!lanes.has_lane(AlgorithmId::Mpc));
+        let mut arrived = Vec::new();
+        here.receive(&mut stepping, ours, &mut drives, 1, 3.0, |a| {
+            arrived.push(a.text(AlgorithmId::Cwf, 3.0))
+        });
+        assert_eq!(arrived.len(), 1);
+        assert!(
+            arrived[0].starts_with(
+                "drive: mpc's lane came over from the comparison lanes' thread 2 steps late"
+            ),
+            "{}",
+            arrived[0]
+        );
+        assert_eq!(drives.drive(), AlgorithmId::Mpc);
+        assert!(stepping.has_lane(AlgorithmId::Mpc));
+        assert_eq!(
+            stepping.profile().mpc,
+            tuned.mpc,
+            "the held retune was applied"
+        );
+        // Where it stood at step 303 (in the surge pulse): reset, then retuned.
+        stood.reset_lanes();
+        stood.retune(
+            Retune::build(&profile, &tuned, &[AlgorithmId::Mpc]).unwrap(),
+            3.0,
+        );
+        for k in 303..400 {
+            let (a, b) = (stepping.step().unwrap(), stood.step().unwrap());
+            ours.push(&a);
+            let (a, b) = (a.lane(AlgorithmId::Mpc).unwrap(), &b.lanes[0]);
+            let close = (a.command.pose - b.command.pose).amax();
+            assert!(close <= 1e-7, "step {k}: {:?} {:?}", a.command, b.command);
+            moving |= a.command.pose.amax() > 1e-3;
+        }
+        assert!(moving, "the MPC never moved: nothing was compared");
+        // The CWF is no longer heard once the drive is the MPC alone: it goes back, and the
+        // comparison side, at step 301, takes it in only at step 400, where it left.
+        let alone = DriveSwitch::new(AlgorithmId::Mpc);
+        here.release(&mut stepping, ours, &alone, 1);
+        assert!(!stepping.has_lane(AlgorithmId::Cwf));
+        assert!(
+            ours.take_lane(AlgorithmId::Cwf).is_none(),
+            "its metrics went"
+        );
+        while lanes.position() < 400 {
+            there.take_back(&mut lanes, theirs, 1);
+            assert!(!lanes.has_lane(AlgorithmId::Cwf), "{}", lanes.position());
+            theirs.push(&lanes.step().unwrap());
+        }
+        there.take_back(&mut lanes, theirs, 1);
+        assert!(lanes.has_lane(AlgorithmId::Cwf));
+        let frame = lanes.step().unwrap();
+        assert_eq!(frame.lanes.len(), 1);
+        theirs.push(&frame);
+        let cwf = theirs
+            .take_lane(AlgorithmId::Cwf)
+            .expect("its metrics came with it");
+        assert_eq!(cwf.id(), AlgorithmId::Cwf);
+    }
+}
