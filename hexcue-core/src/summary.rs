@@ -278,6 +278,19 @@ fn head_signal(df: &nalgebra::Vector3<f64>, w: &nalgebra::Vector3<f64>) -> [f64;
 /// DoF names in pose order.
 pub const DOFS: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
 
+/// One lane's metrics so far, on its way from one builder to another.
+pub struct LaneAccumulator {
+    id: AlgorithmId,
+    acc: AlgorithmAccumulator,
+}
+
+impl LaneAccumulator {
+    /// The algorithm whose lane it is.
+    pub fn id(&self) -> AlgorithmId {
+        self.id
+    }
+}
+
 #[derive(Clone)]
 struct AlgorithmAccumulator {
     channels: Vec<ChannelAccumulator>,
@@ -417,6 +430,22 @@ impl SummaryBuilder {
                 *usage = usage.max(lane.command.pose[i].abs() / self.excursion[i]);
             }
         }
+    }
+
+    /// Takes out what has been gathered of algorithm `id`'s lane, to go on in another
+    /// builder with the lane itself (a live session moves a lane between threads,
+    /// [`crate::engine::Engine::take_lane`]); `None` if no frame had it. No allocation.
+    pub fn take_lane(&mut self, id: AlgorithmId) -> Option<LaneAccumulator> {
+        self.algorithms
+            .remove(&id)
+            .map(|acc| LaneAccumulator { id, acc })
+    }
+
+    /// Goes on with a lane's metrics another builder gathered ([`SummaryBuilder::take_lane`]);
+    /// its next frames add to them. No allocation once this builder has had a lane (the map
+    /// of at most three keeps its one node).
+    pub fn put_lane(&mut self, lane: LaneAccumulator) {
+        self.algorithms.insert(lane.id, lane.acc);
     }
 
     /// The summary of the steps pushed so far.
