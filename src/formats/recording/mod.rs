@@ -10,6 +10,7 @@
 //! skipped, reading going on at the next intact one (`source.rs`).
 
 mod damage;
+pub mod meta_key;
 mod reader;
 mod recover;
 mod source;
@@ -412,6 +413,8 @@ mod tests {
         let (trace, _, bytes, _) = recorded();
         let dir = tempfile::tempdir().unwrap();
         let rec = Recording::open(&write_temp(&dir, "r.mcap", bytes)).unwrap();
+        // The keys as docs/recordings.md spells them, not `meta_key`'s constants: a constant
+        // changed by mistake would change the format and still pass.
         let m = &rec.metadata;
         assert_eq!(m["tool_version"], env!("CARGO_PKG_VERSION"));
         assert_eq!(rec.tool_version, env!("CARGO_PKG_VERSION"));
