@@ -340,7 +340,9 @@ fn channels_of(path: &std::path::Path) -> BTreeMap<String, String> {
 /// long enough for the input to be lost, resumes, and is still sending when --duration ends
 /// the session with a stop: a WebSocket client sees the recording's channels advertised,
 /// transforms, and the session's events (input lost, to neutral, stopping) on `/events`; the
-/// session's recording has the same channels as a playback's, and the same events.
+/// session's recording has the same channels as a playback's, and the same events. The
+/// server is fed from the recorder (`LiveRecording::serve`): every message on the wire is the
+/// recording's, byte for byte and at the same log time.
 #[test]
 fn a_live_session_serves_its_channels_and_events_to_foxglove() {
     let dir = tempfile::tempdir().unwrap();
@@ -377,6 +379,7 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
         "subscriptions": [
             {"id": 1, "channelId": channels["/events"].id},
             {"id": 2, "channelId": channels["/cwf/tf"].id},
+            {"id": 3, "channelId": channels["/cwf/platform"].id},
         ],
     });
     socket
@@ -408,6 +411,8 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
 
     let mut events: Vec<String> = Vec::new();
     let mut transforms = 0;
+    // What came over the wire: (topic, log time) → bytes.
+    let mut served: BTreeMap<(&str, u64), Vec<u8>> = BTreeMap::new();
     let until = Instant::now() + PATIENCE;
     while Instant::now() < until
         && !events
@@ -423,15 +428,24 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
             continue;
         }
         let sub = u32::from_le_bytes(data[1..5].try_into().unwrap());
-        match sub {
-            1 => events.push(
-                ::foxglove::messages::Log::decode(&data[13..])
-                    .unwrap()
-                    .message,
-            ),
-            2 => transforms += 1,
+        let t = u64::from_le_bytes(data[5..13].try_into().unwrap());
+        let topic = match sub {
+            1 => {
+                events.push(
+                    ::foxglove::messages::Log::decode(&data[13..])
+                        .unwrap()
+                        .message,
+                );
+                "/events"
+            }
+            2 => {
+                transforms += 1;
+                "/cwf/tf"
+            }
+            3 => "/cwf/platform",
             other => panic!("a message for subscription {other}"),
-        }
+        };
+        served.insert((topic, t), data[13..].to_vec());
     }
     sending.store(false, std::sync::atomic::Ordering::Relaxed);
     sender.join().unwrap();
@@ -480,6 +494,38 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
         assert!(
             recorded.contains(e),
             "`{e}` served but not recorded: {recorded:#?}"
+        );
+    }
+
+    // One encoding for both: each served message whose step the recording also holds is the
+    // recording's message at that log time, byte for byte (the transforms are served at every
+    // step but recorded at 30 Hz; events and the platform are recorded at every one).
+    let bytes = std::fs::read(&mcap).unwrap();
+    let in_file: BTreeMap<(String, u64), Vec<u8>> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(Result::unwrap)
+        .map(|m| ((m.channel.topic.clone(), m.log_time), m.data.into_owned()))
+        .collect();
+    let mut same = BTreeMap::<&str, usize>::new();
+    for ((topic, t), data) in &served {
+        match in_file.get(&(topic.to_string(), *t)) {
+            Some(recorded) => {
+                assert!(
+                    recorded == data,
+                    "{topic} at {t}: the bytes served differ from the recording's"
+                );
+                *same.entry(topic).or_default() += 1;
+            }
+            None => assert_eq!(
+                *topic, "/cwf/tf",
+                "{topic} served at {t}, a log time the recording does not have"
+            ),
+        }
+    }
+    for topic in ["/events", "/cwf/tf", "/cwf/platform"] {
+        assert!(
+            same.get(topic).is_some_and(|n| *n > 0),
+            "no {topic} message both served and recorded: {same:?}"
         );
     }
 }

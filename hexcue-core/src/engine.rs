@@ -429,7 +429,7 @@ struct Window {
 /// let summary = summary.finish();
 /// assert_eq!(summary.steps as usize, trace.len());
 /// for id in AlgorithmId::ALL {
-///     assert!(summary.algorithms[id.key()].score.is_finite());
+///     assert!(summary.algorithm(*id).unwrap().score.is_finite());
 /// }
 /// ```
 pub struct Engine {
@@ -876,6 +876,7 @@ pub(crate) mod tests {
     use super::*;
     use crate::summary::SummaryBuilder;
     use crate::testing::{full_flight, manoeuvre};
+    use crate::vocab::Channel;
 
     #[test]
     fn cwf_runs_a_manoeuvre_inside_the_workspace() {
@@ -906,16 +907,20 @@ pub(crate) mod tests {
         assert_eq!(frames, 3000);
         assert!(engine.step().is_none());
         let s = summary.finish();
-        let cwf = &s.algorithms["cwf"];
+        let cwf = s.algorithm(AlgorithmId::Cwf).unwrap();
         assert_eq!(cwf.leg_violations, 0);
         assert!(cwf.max_leg_usage > 0.0 && cwf.max_leg_usage < 1.0);
         // Cueing that follows the aircraft: positively correlated on the driven channels.
-        for ch in ["fx", "fy"] {
-            let m = &cwf.metrics[ch];
+        for ch in [Channel::Fx, Channel::Fy] {
+            let m = &cwf.metrics[&ch];
             assert!(m.pc > 0.5 && m.rae.is_finite(), "{ch}: {m:?}");
         }
         // Roll also carries the sub-threshold tilt that cues the sway, which the canals sense.
-        assert!(cwf.metrics["wx"].pc > 0.2, "{:?}", cwf.metrics["wx"]);
+        assert!(
+            cwf.metrics[&Channel::Wx].pc > 0.2,
+            "{:?}",
+            cwf.metrics[&Channel::Wx]
+        );
         // A 1 s heave pulse is cued at its onset with the right sign; the high-pass's rebound
         // afterwards is the classical washout's known false cue.
         assert!(

@@ -293,8 +293,7 @@ impl PyAlgorithm {
     /// gives it.
     fn score(&self) -> PyResult<f64> {
         self.finished()
-            .algorithms
-            .get(self.id.key())
+            .algorithm(self.id)
             .map(|a| a.score)
             .ok_or_else(|| value_error("no step yet: the score needs at least one"))
     }
@@ -614,7 +613,7 @@ fn run(
     let scores = summary
         .algorithms
         .iter()
-        .map(|(k, a)| (k.clone(), a.score))
+        .map(|(k, a)| (k.key().to_string(), a.score))
         .collect();
     Ok(PyRun {
         summary: pythonize::pythonize(py, &summary)?.unbind(),

@@ -85,8 +85,17 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
     for url in &args.output {
         session.add_output(crate::sinks::open_output(url, &profile, session.period())?);
     }
+    let server = match args.foxglove {
+        Some(addr) => Some(start_foxglove(
+            addr,
+            &profile,
+            &algorithms,
+            Some(session.tuning()),
+        )?),
+        None => None,
+    };
     if let Some(path) = &args.record {
-        session.add_frame_sink(Box::new(LiveRecording::create(
+        let mut recording = LiveRecording::create(
             path,
             &profile,
             &profile_toml,
@@ -94,15 +103,14 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
             &algorithms,
             drive,
             profile.rate_hz,
-        )?));
-    }
-    if let Some(addr) = args.foxglove {
-        session.add_frame_sink(Box::new(start_foxglove(
-            addr,
-            &profile,
-            &algorithms,
-            Some(session.tuning()),
-        )?));
+        )?;
+        // Recorded and served: the server sends the recording's bytes, encoded once.
+        if let Some(server) = server {
+            recording.serve(server);
+        }
+        session.add_frame_sink(Box::new(recording));
+    } else if let Some(server) = server {
+        session.add_frame_sink(Box::new(server));
     }
     Ok(LiveSetup {
         profile,

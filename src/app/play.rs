@@ -280,7 +280,7 @@ pub fn start_foxglove(
     algorithms: &[AlgorithmId],
     tuning: Option<crate::tuning::TuningHandle>,
 ) -> Result<FoxgloveServer> {
-    let server = FoxgloveServer::start_tuned(addr, profile, algorithms, tuning)?;
+    let server = FoxgloveServer::start(addr, profile, algorithms, tuning)?;
     eprintln!(
         "foxglove: serving ws://{} (in Foxglove: Open connection → Foxglove WebSocket)",
         server.addr()

@@ -6,8 +6,8 @@ use std::fmt::Write;
 use super::common::{channel_name, label, metric, ordered, TraceResult};
 use super::discussion::*;
 use super::verdict::*;
-use hexcue_core::summary::Summary;
-use hexcue_core::vocab::Channel;
+use hexcue_core::summary::{AlgorithmRun, Summary};
+use hexcue_core::vocab::{AlgorithmId, Channel};
 
 pub fn render_markdown(
     results: &[TraceResult],
@@ -104,9 +104,8 @@ pub fn render_markdown(
                 })
                 .collect();
             let jolts: Vec<String> = Channel::ALL
-                .map(Channel::key)
                 .iter()
-                .map(|c| match a.metrics.get(*c) {
+                .map(|c| match a.metrics.get(c) {
                     Some(m) => format!("{}/{}", m.jolts.charged, m.jolts.count),
                     None => "–".to_string(),
                 })
@@ -121,10 +120,9 @@ pub fn render_markdown(
         }
         if !s.aircraft_jolts.is_empty() {
             let own: Vec<String> = Channel::ALL
-                .map(Channel::key)
                 .iter()
                 .map(|c| {
-                    let n = s.aircraft_jolts.get(*c).map_or(0, |j| j.count);
+                    let n = s.aircraft_jolts.get(c).map_or(0, |j| j.count);
                     format!("{c} {n}")
                 })
                 .collect();
@@ -146,14 +144,12 @@ pub fn render_markdown(
         let _ = writeln!(out, "|---|{}", "---:|".repeat(header.len()));
         for (k, a) in ordered(s) {
             let rae: Vec<String> = Channel::ALL
-                .map(Channel::key)
                 .iter()
-                .map(|c| format!("{:.3}", metric(a, c, |m| m.rae)))
+                .map(|&c| format!("{:.3}", metric(a, c, |m| m.rae)))
                 .collect();
             let naad: Vec<String> = Channel::ALL
-                .map(Channel::key)
                 .iter()
-                .map(|c| format!("{:.4}", metric(a, c, |m| m.naad)))
+                .map(|&c| format!("{:.4}", metric(a, c, |m| m.naad)))
                 .collect();
             let _ = writeln!(
                 out,
@@ -179,14 +175,12 @@ pub fn render_markdown(
         let _ = writeln!(out, "|---|{}", "---:|".repeat(header.len()));
         for (k, a) in ordered(s) {
             let false_s: Vec<String> = Channel::ALL
-                .map(Channel::key)
                 .iter()
-                .map(|c| format!("{:.1}", metric(a, c, |m| m.false_cue_s)))
+                .map(|&c| format!("{:.1}", metric(a, c, |m| m.false_cue_s)))
                 .collect();
             let pcs: Vec<String> = Channel::ALL
-                .map(Channel::key)
                 .iter()
-                .map(|c| format!("{:.3}", metric(a, c, |m| m.pc)))
+                .map(|&c| format!("{:.3}", metric(a, c, |m| m.pc)))
                 .collect();
             let _ = writeln!(
                 out,
@@ -284,10 +278,13 @@ pub fn bound_table(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
         b.achieved.total,
         cells.join(" | ")
     );
-    let cwf_cueable = s.algorithms.get("cwf").map(|a| total(a) - b.lower.total);
+    let cwf_cueable = s
+        .algorithm(AlgorithmId::Cwf)
+        .map(|a| total(a) - b.lower.total);
     let mut shares = Vec::new();
     if let Some(cwf) = cwf_cueable.filter(|c| *c > 0.0) {
-        for (k, a) in algs.iter().filter(|(k, _)| *k != "cwf") {
+        let cwf_run = AlgorithmRun::causal(AlgorithmId::Cwf);
+        for (k, a) in algs.iter().filter(|(k, _)| *k != cwf_run) {
             let removed = (cwf - (total(a) - b.lower.total)) / cwf;
             shares.push(format!("{} {:.0} %", label(k), 100.0 * removed));
         }
@@ -359,7 +356,7 @@ pub(super) fn verdict_table(summary: &Summary) -> String {
         names.join(" / ")
     );
     let _ = writeln!(out, "|---|---|---:|---|---|");
-    for ch in Channel::ALL.map(Channel::key) {
+    for ch in Channel::ALL {
         let v = verdict(summary, ch);
         let false_s: Vec<String> = v
             .algorithms
@@ -407,9 +404,8 @@ pub fn pilot_table(results: &[TraceResult]) -> String {
         out,
         "| trace | {} |",
         Channel::ALL
-            .map(Channel::key)
             .iter()
-            .map(|c| channel_name(c))
+            .map(|&c| channel_name(c))
             .collect::<Vec<_>>()
             .join(" | ")
     );
@@ -420,9 +416,8 @@ pub fn pilot_table(results: &[TraceResult]) -> String {
         let s = &r.summary;
         let mut worse_here = Vec::new();
         let cells: Vec<String> = Channel::ALL
-            .map(Channel::key)
             .iter()
-            .map(|ch| {
+            .map(|&ch| {
                 let v = verdict(s, ch);
                 cases += 1;
                 let mpcs: Vec<&str> = v.worse_than_cwf().iter().map(|(k, _)| label(k)).collect();
@@ -452,7 +447,8 @@ pub fn pilot_table(results: &[TraceResult]) -> String {
          rest (RAE ≥ 1). ‡: the best's cue runs against the aircraft's motion (PC < 0)."
     );
     let mpcs_ran = results.iter().any(|r| {
-        r.summary.algorithms.contains_key("cwf") && r.summary.algorithms.keys().any(|k| k != "cwf")
+        let cwf = AlgorithmRun::causal(AlgorithmId::Cwf);
+        r.summary.algorithms.contains_key(&cwf) && r.summary.algorithms.keys().any(|k| *k != cwf)
     });
     if mpcs_ran {
         if worse.is_empty() {
@@ -479,9 +475,8 @@ pub(super) fn count_cases_with_worse(results: &[TraceResult]) -> usize {
         .iter()
         .map(|r| {
             Channel::ALL
-                .map(Channel::key)
-                .iter()
-                .filter(|ch| !verdict(&r.summary, ch).worse_than_cwf().is_empty())
+                .into_iter()
+                .filter(|&ch| !verdict(&r.summary, ch).worse_than_cwf().is_empty())
                 .count()
         })
         .sum()

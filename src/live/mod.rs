@@ -833,7 +833,7 @@ impl LiveSession {
                 sink.event(event)?;
             }
             if let Some(fault) = &self.stats.platform_fault {
-                sink.annotate("platform_fault", fault);
+                sink.annotate(crate::formats::recording::meta_key::PLATFORM_FAULT, fault);
             }
             lines.push(sink.finish()?);
         }
@@ -1249,7 +1249,7 @@ mod tests {
         let live = summary.live.unwrap();
         assert_eq!(
             live.deadline_share.keys().collect::<Vec<_>>(),
-            ["cwf", "mpc"]
+            [&AlgorithmId::Mpc, &AlgorithmId::Cwf]
         );
     }
 

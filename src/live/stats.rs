@@ -89,7 +89,7 @@ impl LiveStats {
                         p99: h.quantile(0.99) / 1e6,
                         max: h.summary().max / 1e6,
                     };
-                    (id.key().to_string(), share)
+                    (*id, share)
                 })
                 .collect(),
             comparison_late_steps: self.comparison_late_steps,

@@ -399,10 +399,16 @@ fn the_columns_show_what_the_verdict_decides_by() {
     // by the score; each column shows those, compactly at 80×24.
     let (mut app, mut s) = dressed_snapshot();
     let mut summary = (**s.summary.as_ref().expect("a running summary")).clone();
-    let cwf = summary.algorithms.get_mut("cwf").unwrap();
+    let cwf = summary
+        .algorithms
+        .get_mut(&AlgorithmId::Cwf.into())
+        .unwrap();
     cwf.score = 3.21;
     cwf.score_terms.felt.insert("fx".into(), 0.123);
-    let fx = cwf.metrics.get_mut("fx").unwrap();
+    let fx = cwf
+        .metrics
+        .get_mut(&hexcue_core::vocab::Channel::Fx)
+        .unwrap();
     fx.false_cue_s = 1.5;
     fx.jolts.charged = 2;
     fx.jolts.count = 5;

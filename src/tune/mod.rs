@@ -297,7 +297,7 @@ impl Evaluator {
         let mut s = summary.finish();
         let a = s
             .algorithms
-            .remove(self.algorithm.key())
+            .remove(&self.algorithm.into())
             .ok_or_else(|| anyhow!("{}: no summary of {}", trace.name, self.algorithm))?;
         Ok(Some(a))
     }
@@ -775,7 +775,10 @@ mod tests {
         while let Some(f) = engine.step() {
             s.push(&f);
         }
-        assert_eq!(r.base.mean_score(), s.finish().algorithms["cwf"].score);
+        assert_eq!(
+            r.base.mean_score(),
+            s.finish().algorithm(AlgorithmId::Cwf).unwrap().score
+        );
         let best = r.best.unwrap_or_else(|| panic!("{:?}", r.base.outcomes));
         assert!(best.feasible() && best.mean_score() <= r.base.mean_score());
         assert!(

@@ -49,19 +49,6 @@ impl From<QpStatus> for crate::vocab::SolveStatus {
     }
 }
 
-impl QpStatus {
-    /// In words, in the snake case of the solver reports.
-    pub fn word(self) -> &'static str {
-        match self {
-            QpStatus::Solved => "solved",
-            QpStatus::Infeasible => "primal_infeasible",
-            QpStatus::MaxIterations => "max_iterations",
-            QpStatus::MaxTime => "max_time",
-            QpStatus::NumericalError => "numerical_error",
-        }
-    }
-}
-
 /// Which side of a row is held.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Side {
