@@ -1,8 +1,10 @@
 """The Python module `hexcue` against the CLI (tests/python.rs runs this in its venv).
 
 Arguments: the trace CSV, the CLI's `--summary` JSON, the CSV `hexcue export` wrote of the
-recorded S-MPC commands, the JSON of the Rust engine's S-MPC commands at full precision, and
-the profile all three ran with (the default without the MPC's wall-clock limit).
+recorded S-MPC commands, the JSON of the Rust engine's S-MPC commands at full precision, the
+profile all three ran with (the default without the MPC's wall-clock limit), the trace's
+first 20 s as a file of its own, and the summary of `play --headless --preview` of the MPC
+on that file.
 Prints one line per check; any failure raises (exit status 1).
 """
 
@@ -33,7 +35,8 @@ def same(ours, theirs, path="summary"):
         assert ours == theirs, (path, ours, theirs)
 
 
-trace_csv, summary_json, recorded_csv, engine_json, profile_toml = sys.argv[1:6]
+(trace_csv, summary_json, recorded_csv, engine_json, profile_toml, slice_csv,
+ preview_json) = sys.argv[1:8]
 
 # hexcue's own trace format (docs/formats.md): t, fx, fy, fz (m/s²), p, q, r (rad/s), ...
 data = np.loadtxt(trace_csv, delimiter=",", skiprows=1)
@@ -127,7 +130,61 @@ assert {s["mode"] for s in states[switched[0]:]} & {"blend", "free"}, first
 reasons = [states[k]["last_switch_reason"] for k in switched]
 print(f"state: {len(switched)} switches, at steps {switched}: {reasons}")
 
-# (3) A bad profile raises with hexcue's message naming the key.
+# (3) read_trace: the application's reader, as play reads the file.
+trace = hexcue.read_trace(trace_csv, profile=profile)
+assert trace["name"] == "landing" and trace["rate_hz"] == 100.0, (trace["name"], trace["rate_hz"])
+assert trace["t_s"].shape == (len(f),) and trace["specific_force_mps2"].shape == (len(f), 3)
+# A native 100 Hz trace in SI is taken as written: the same doubles as NumPy parses.
+assert np.array_equal(trace["specific_force_mps2"], f)
+assert np.array_equal(trace["angular_velocity_radps"], w)
+assert np.array_equal(trace["attitude_rad"], data[:, 7:10])
+assert np.allclose(trace["t_s"], data[:, 0], rtol=0, atol=1e-12)
+assert trace["info"] is not None and trace["info"]["name"] == "landing", trace["info"]
+from_file = hexcue.run(trace["specific_force_mps2"], trace["angular_velocity_radps"],
+                       profile=profile, algorithms=["smpc"], name=trace["name"])
+assert from_file.score("smpc") == score, (from_file.score("smpc"), score)
+print(f"read_trace: {len(trace['t_s'])} samples, the CSV's numbers; run() on them scores {score!r}")
+
+# ... and run(preview=True) is `play --headless --preview`: the MPC sees the flight's future.
+part = hexcue.read_trace(slice_csv, profile=profile)
+with open(preview_json) as fh:
+    cli_preview = json.load(fh)
+assert cli_preview["mpc_reference"] == "preview", cli_preview.get("mpc_reference")
+ahead = hexcue.run(part["specific_force_mps2"], part["angular_velocity_radps"], profile=profile,
+                   algorithms=["mpc"], name=part["name"], preview=True)
+same(ahead.summary, cli_preview)
+causal = hexcue.run(part["specific_force_mps2"], part["angular_velocity_radps"], profile=profile,
+                    algorithms=["mpc"], name=part["name"])
+assert causal.summary["mpc_reference"] == "decay", causal.summary["mpc_reference"]
+assert causal.score("mpc") != ahead.score("mpc"), "the preview changes the MPC's run"
+print(f"preview: score {ahead.score('mpc')!r} as `play --preview`, "
+      f"{causal.score('mpc')!r} without")
+
+# A bad trace raises with the reader's message: the file, the line, what was expected.
+import os, tempfile
+with tempfile.TemporaryDirectory() as tmp:
+    bad_trace = os.path.join(tmp, "bad.csv")
+    with open(slice_csv) as fh:
+        lines = fh.read().splitlines()
+    lines[5] = lines[5].replace(",", ",x", 1)
+    with open(bad_trace, "w") as fh:
+        fh.write("\n".join(lines) + "\n")
+    try:
+        hexcue.read_trace(bad_trace)
+    except hexcue.TraceError as e:
+        assert isinstance(e, ValueError)
+        assert "bad.csv:6:" in str(e), str(e)
+        print(f"bad trace: {e}")
+    else:
+        raise AssertionError("a trace with a bad number was read")
+    try:
+        hexcue.read_trace(os.path.join(tmp, "missing.csv"))
+    except FileNotFoundError as e:
+        assert "missing.csv" in str(e), str(e)
+    else:
+        raise AssertionError("a missing trace was read")
+
+# (4) A bad profile raises with hexcue's message naming the key.
 with open(profile_toml) as fh:
     text = fh.read()
 bad = text.replace("rate_hz = 100.0", "rate_hz = \"fast\"", 1)

@@ -175,6 +175,21 @@ fn inputs_are_checked_before_the_work() {
     let run = hexcue(&args);
     assert!(!run.status.success());
     assert!(stderr(&run).contains("lqr"), "{}", stderr(&run));
+    // A budget too small to search (the base and one generation of 4) is refused, rather
+    // than the base written back as if tuned; 5 searches.
+    for small in ["0", "4"] {
+        let run = hexcue(&tune_args(&trace, &fresh, small, "1"));
+        assert!(!run.status.success(), "--budget {small}");
+        let err = stderr(&run);
+        assert!(
+            err.contains(&format!("--budget {small}")) && err.contains("at least 5"),
+            "{err}"
+        );
+        assert!(!fresh.exists());
+    }
+    let run = hexcue(&tune_args(&trace, &fresh, "5", "1"));
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(stdout(&run).contains("5 candidates"), "{}", stdout(&run));
 }
 
 #[test]

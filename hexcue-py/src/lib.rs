@@ -5,7 +5,8 @@
 //! Everything numerical is `hexcue_core`'s: the stepping object is the core's [`Engine`] with
 //! one lane, fed by the caller instead of a trace; `run` is the engine over an in-memory trace
 //! with the core's [`SummaryBuilder`]. This file only converts between NumPy arrays and the
-//! core's types, and turns the core's errors into Python exceptions.
+//! core's types, and turns the core's errors into Python exceptions. A trace file is read by
+//! the application's own reader (`hexcue::formats::trace`), the one `play --trace` uses.
 
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -21,7 +22,7 @@ use hexcue_core::trace::{resample_uniform, AircraftSample, Trace};
 use nalgebra::Vector3;
 use numpy::ndarray::ArrayView2;
 use numpy::{AllowTypeChange, PyArray1, PyArrayLike1, PyArrayLike2, PyArrayMethods};
-use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -31,6 +32,14 @@ pyo3::create_exception!(
     PyValueError,
     "A profile that could not be parsed or validated; the message names the source, the line \
      and column, and the key."
+);
+
+pyo3::create_exception!(
+    hexcue,
+    TraceError,
+    PyValueError,
+    "A trace file that hexcue refuses; the message names the file, the line and column, and \
+     what was expected, as `hexcue play --trace` says it."
 );
 
 /// The trace name summaries give when the caller names none.
@@ -527,9 +536,12 @@ impl PyRun {
 /// engine (with the trace's future offered to the MPCs, as a trace file's is) and its summary.
 /// `specific_force_mps2` and `angular_velocity_radps` are (n, 3) arrays, one row per sample at
 /// the profile's rate from t = 0, unless `t_s` gives their times (then they are resampled to
-/// the profile's rate as a trace file is). `algorithms` defaults to all three.
+/// the profile's rate as a trace file is). `algorithms` defaults to all three. `preview`
+/// (True or False) overrides the profile's `[mpc] preview`, as `play --preview` does: the
+/// MPCs then see the flight's true future over their horizon.
 #[pyfunction]
-#[pyo3(signature = (specific_force_mps2, angular_velocity_radps, profile = None, algorithms = None, t_s = None, name = DEFAULT_RUN_NAME))]
+#[pyo3(signature = (specific_force_mps2, angular_velocity_radps, profile = None, algorithms = None, t_s = None, name = DEFAULT_RUN_NAME, preview = None))]
+#[allow(clippy::too_many_arguments)] // Python's keyword arguments, each optional
 fn run(
     py: Python<'_>,
     specific_force_mps2: PyArrayLike2<'_, f64, AllowTypeChange>,
@@ -538,8 +550,13 @@ fn run(
     algorithms: Option<Vec<String>>,
     t_s: Option<PyArrayLike1<'_, f64, AllowTypeChange>>,
     name: &str,
+    preview: Option<bool>,
 ) -> PyResult<PyRun> {
-    let profile = profile.map_or_else(default_profile, |p| p.inner.clone());
+    let mut profile = profile.map_or_else(default_profile, |p| p.inner.clone());
+    // `play --preview` sets the same key (src/app/play.rs); None keeps the profile's.
+    if let Some(preview) = preview {
+        profile.mpc.preview = preview;
+    }
     let mut ids = match algorithms {
         None => AlgorithmId::ALL.to_vec(),
         Some(keys) => keys
@@ -650,13 +667,69 @@ fn perceive<'py>(
     Ok(d)
 }
 
+/// A trace file (hexcue's CSV or JSBSim's, docs/formats.md) read by the application's reader,
+/// as `hexcue play --trace` reads it: checked, converted to SI and put on the grid of the
+/// profile's rate (the default profile's, 100 Hz, when none is given), with its sidecar when
+/// there is one. Returns a dict: `t_s` (n,), `specific_force_mps2`, `angular_velocity_radps`,
+/// `attitude_rad` ((n, 3) each), `name`, `rate_hz`, `notices` (what was done to the input on
+/// the way in) and `info` (the sidecar's fields, or None).
+#[pyfunction]
+#[pyo3(signature = (path, profile = None, max_trace_mb = None))]
+fn read_trace<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    profile: Option<PyRef<'_, PyProfile>>,
+    max_trace_mb: Option<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use hexcue::formats::trace::{load_trace_within, TraceError as AppTraceError};
+    let rate_hz = profile.map_or_else(|| default_profile().rate_hz, |p| p.inner.rate_hz);
+    let loaded = py
+        .detach(|| load_trace_within(&path, rate_hz, max_trace_mb))
+        .map_err(|e| match &e {
+            AppTraceError::Io { error, .. } if error.kind() == std::io::ErrorKind::NotFound => {
+                PyFileNotFoundError::new_err(e.to_string())
+            }
+            AppTraceError::Io { .. } => PyOSError::new_err(e.to_string()),
+            _ => TraceError::new_err(e.to_string()),
+        })?;
+    let trace = loaded.trace;
+    let n = trace.samples.len();
+    let (mut t, mut f, mut w, mut att) = (
+        Vec::with_capacity(n),
+        Vec::with_capacity(3 * n),
+        Vec::with_capacity(3 * n),
+        Vec::with_capacity(3 * n),
+    );
+    for s in &trace.samples {
+        t.push(s.t_s);
+        f.extend(s.specific_force_mps2.iter());
+        w.extend(s.angular_velocity_radps.iter());
+        att.extend(s.attitude_rad.iter());
+    }
+    let d = PyDict::new(py);
+    d.set_item("name", &trace.name)?;
+    d.set_item("rate_hz", trace.rate_hz)?;
+    d.set_item("t_s", PyArray1::from_vec(py, t))?;
+    d.set_item("specific_force_mps2", rows(py, f, 3)?)?;
+    d.set_item("angular_velocity_radps", rows(py, w, 3)?)?;
+    d.set_item("attitude_rad", rows(py, att, 3)?)?;
+    d.set_item("notices", &trace.notices)?;
+    match &trace.info {
+        Some(info) => d.set_item("info", pythonize::pythonize(py, info)?)?,
+        None => d.set_item("info", py.None())?,
+    }
+    Ok(d)
+}
+
 /// hexcue's motion cueing from Python: profiles, the classical washout (CWF), the MPC and the
 /// switchable MPC (S-MPC) stepped one sample at a time or run over a whole flight, the
 /// vestibular model and the cueing score (docs/python.md).
 #[pymodule(name = "hexcue")]
 mod hexcue_module {
     #[pymodule_export]
-    use super::{perceive, run, ProfileError, PyAlgorithm, PyProfile, PyRun};
+    use super::{
+        perceive, read_trace, run, ProfileError, PyAlgorithm, PyProfile, PyRun, TraceError,
+    };
 
     use pyo3::prelude::*;
 
