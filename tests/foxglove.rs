@@ -122,6 +122,8 @@ struct Advertised {
     encoding: String,
     schema_name: String,
     schema_encoding: String,
+    /// The schema as advertised: JSON Schema text, or a base64 FileDescriptorSet.
+    schema: String,
 }
 
 /// Reads text messages until the advertised topics include `wanted`.
@@ -146,6 +148,7 @@ fn advertised(socket: &mut Socket, wanted: &[&str]) -> BTreeMap<String, Advertis
                         encoding: s("encoding"),
                         schema_name: s("schemaName"),
                         schema_encoding: s("schemaEncoding"),
+                        schema: s("schema"),
                     },
                 );
             }
@@ -528,4 +531,220 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
             "no {topic} message both served and recorded: {same:?}"
         );
     }
+}
+
+/// The topics a table of `doc` lists, with their schemas: rows `` | `TOPIC` | `SCHEMA` | … ``,
+/// `ALG` standing for each algorithm.
+fn documented_topics(doc: &str) -> BTreeMap<String, String> {
+    let text = std::fs::read_to_string(repo().join(doc)).unwrap();
+    let mut topics = BTreeMap::new();
+    for line in text.lines() {
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        let [_, topic, schema, ..] = cells[..] else {
+            continue;
+        };
+        let (Some(topic), Some(schema)) = (
+            topic.strip_prefix("`/").and_then(|t| t.strip_suffix('`')),
+            schema.strip_prefix('`').and_then(|s| s.strip_suffix('`')),
+        ) else {
+            continue;
+        };
+        if topic.contains('`')
+            || !(schema.starts_with("hexcue.") || schema.starts_with("foxglove."))
+        {
+            continue;
+        }
+        for alg in ["smpc", "mpc", "cwf"] {
+            topics.insert(
+                format!("/{}", topic.replace("ALG", alg)),
+                schema.to_string(),
+            );
+        }
+    }
+    topics
+}
+
+/// `value` against the top level of a JSON schema: an object with every `required` property,
+/// none that the schema does not list, each of the type the schema gives it (and of its
+/// length, for arrays of a fixed one). Returns what is wrong.
+fn schema_faults(schema: &serde_json::Value, value: &serde_json::Value) -> Vec<String> {
+    let mut faults = Vec::new();
+    let Some(object) = value.as_object() else {
+        return vec![format!("not an object: {value}")];
+    };
+    let properties = schema["properties"]
+        .as_object()
+        .expect("a schema with properties");
+    for key in schema["required"].as_array().into_iter().flatten() {
+        let key = key.as_str().unwrap();
+        if !object.contains_key(key) {
+            faults.push(format!("`{key}` missing"));
+        }
+    }
+    for (key, v) in object {
+        let Some(property) = properties.get(key) else {
+            faults.push(format!("`{key}` not in the schema"));
+            continue;
+        };
+        let types: Vec<&str> = match &property["type"] {
+            serde_json::Value::String(t) => vec![t.as_str()],
+            serde_json::Value::Array(ts) => ts.iter().filter_map(|t| t.as_str()).collect(),
+            _ => continue, // a `$ref` or `anyOf`: not checked here
+        };
+        let fits = |t: &str| match t {
+            "number" => v.is_number(),
+            "integer" => v.is_u64() || v.is_i64(),
+            "string" => v.is_string(),
+            "boolean" => v.is_boolean(),
+            "array" => v.is_array(),
+            "object" => v.is_object(),
+            "null" => v.is_null(),
+            _ => true,
+        };
+        if !types.iter().any(|t| fits(t)) {
+            faults.push(format!("`{key}` = {v} is not {types:?}"));
+        }
+        if let (Some(items), Some(n)) = (v.as_array(), property["minItems"].as_u64()) {
+            if property["maxItems"].as_u64() == Some(n) && items.len() as u64 != n {
+                faults.push(format!("`{key}` has {} items, not {n}", items.len()));
+            }
+        }
+    }
+    faults
+}
+
+/// Issue 38: a client that subscribes to everything a headless `play` of the three algorithms
+/// serves finds the channels docs/recordings.md and docs/foxglove.md list, with their schemas
+/// and nothing else, and on each a message its advertised schema decodes: JSON that fits the
+/// advertised JSON schema, protobuf that the `foxglove` crate's types decode. `/events`
+/// included, with the surge limit cut so that the limiters act.
+#[test]
+fn a_client_subscribed_to_everything_decodes_every_documented_channel() {
+    let mut documented = documented_topics("docs/recordings.md");
+    documented.extend(documented_topics("docs/foxglove.md"));
+    documented.insert("/events".into(), "foxglove.Log".into());
+    assert!(documented.len() >= 21, "{documented:#?}");
+
+    // The default profile with 5 cm of surge, so that every algorithm's limiter acts within
+    // the first seconds of the stall and `/events` has its `limiter acting` warnings.
+    let dir = tempfile::tempdir().unwrap();
+    let profile = dir.path().join("short-surge.toml");
+    let text = std::fs::read_to_string(repo().join("profiles/full-flight.toml")).unwrap();
+    let line = "[limits.surge]\nexcursion_m = 1.7";
+    assert!(text.contains(line), "the surge limit moved");
+    std::fs::write(
+        &profile,
+        text.replacen(line, "[limits.surge]\nexcursion_m = 0.05", 1),
+    )
+    .unwrap();
+    let hexcue = Hexcue::spawn(&[
+        "play",
+        "--headless",
+        "--profile",
+        profile.to_str().unwrap(),
+        "--foxglove",
+        "127.0.0.1:0",
+        "--speed",
+        "4",
+    ]);
+    let addr = hexcue.serving();
+    let mut socket = connect(&addr);
+    let wanted: Vec<&str> = documented.keys().map(String::as_str).collect();
+    let channels = advertised(&mut socket, &wanted);
+    let served: BTreeMap<String, String> = channels
+        .iter()
+        .map(|(t, c)| (t.clone(), c.schema_name.clone()))
+        .collect();
+    assert_eq!(
+        served, documented,
+        "served channels against the docs' tables"
+    );
+
+    let mut json_schemas: BTreeMap<u64, serde_json::Value> = BTreeMap::new();
+    let mut topic_of: BTreeMap<u32, &str> = BTreeMap::new();
+    let mut subscriptions = Vec::new();
+    for (k, (topic, c)) in channels.iter().enumerate() {
+        let sub = k as u32 + 1;
+        topic_of.insert(sub, topic);
+        subscriptions.push(serde_json::json!({"id": sub, "channelId": c.id}));
+        let expected = if c.encoding == "json" {
+            "jsonschema"
+        } else {
+            "protobuf"
+        };
+        assert_eq!(c.schema_encoding, expected, "{topic}");
+        if c.encoding == "json" {
+            let schema = serde_json::from_str(&c.schema)
+                .unwrap_or_else(|e| panic!("{topic}: the advertised JSON schema is not JSON: {e}"));
+            json_schemas.insert(c.id, schema);
+        }
+    }
+    socket
+        .send(Message::Text(
+            serde_json::json!({"op": "subscribe", "subscriptions": subscriptions})
+                .to_string()
+                .into(),
+        ))
+        .unwrap();
+
+    let mut received: BTreeMap<&str, usize> = BTreeMap::new();
+    let mut events = Vec::new();
+    let until = Instant::now() + PATIENCE * 4;
+    while received.len() < channels.len() {
+        assert!(
+            Instant::now() < until,
+            "nothing on {:?} (received {received:?})",
+            topic_of
+                .values()
+                .filter(|t| !received.contains_key(*t))
+                .collect::<Vec<_>>()
+        );
+        let message = socket.read().unwrap_or_else(|e| {
+            panic!("the server stopped ({e}) before every channel sent: {received:?}")
+        });
+        let Message::Binary(data) = message else {
+            continue;
+        };
+        if data[0] != 1 {
+            continue;
+        }
+        let sub = u32::from_le_bytes(data[1..5].try_into().unwrap());
+        let payload = &data[13..];
+        let topic = topic_of[&sub];
+        let c = &channels[topic];
+        if c.encoding == "json" {
+            let value: serde_json::Value = serde_json::from_slice(payload)
+                .unwrap_or_else(|e| panic!("{topic}: not JSON: {e}"));
+            let faults = schema_faults(&json_schemas[&c.id], &value);
+            assert!(faults.is_empty(), "{topic}: {faults:?} in {value}");
+        } else {
+            match c.schema_name.as_str() {
+                "foxglove.FrameTransforms" => {
+                    let tf = FrameTransforms::decode(payload).unwrap();
+                    assert_eq!(
+                        tf.transforms.len(),
+                        3,
+                        "{topic}: world → base → platform → eye"
+                    );
+                }
+                "foxglove.SceneUpdate" => {
+                    let scene = SceneUpdate::decode(payload).unwrap();
+                    assert_eq!(scene.entities.len(), 3, "{topic}: base, platform, legs");
+                }
+                "foxglove.Log" => {
+                    events.push(::foxglove::messages::Log::decode(payload).unwrap().message)
+                }
+                other => panic!("{topic}: an undocumented schema {other}"),
+            }
+        }
+        *received.entry(topic).or_default() += 1;
+    }
+    socket.close(None).ok();
+    eprintln!("received {received:?}; events {events:?}");
+    assert!(
+        events.iter().any(|e| e.contains("limiter acting")),
+        "{events:?}"
+    );
+    let status = hexcue.interrupt();
+    assert!(status.success(), "hexcue ended with {status}");
 }

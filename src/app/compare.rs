@@ -149,9 +149,16 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         });
     }
     bar.finish_and_clear();
+    // The command that makes this report again, `--algorithms` included when not all ran.
+    let keys: Vec<&str> = algorithms.iter().map(|a| a.key()).collect();
     let command = format!(
-        "hexcue compare{}{}{}{}",
+        "hexcue compare{}{}{}{}{}",
         if args.bound { " --bound" } else { "" },
+        if algorithms.len() == AlgorithmId::ALL.len() {
+            String::new()
+        } else {
+            format!(" --algorithms {}", keys.join(","))
+        },
         args.traces
             .as_ref()
             .map(|t| format!(" --traces {}", t.display()))

@@ -78,7 +78,16 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
         name: profile.name.clone(),
     };
     let algorithms = parse_algorithms(&args.algorithms)?;
-    let drive = args.drive;
+    // `--algorithms cwf` alone drives with the CWF, rather than refusing a default the user
+    // never gave.
+    let drive = match args.drive {
+        Some(d) => d,
+        None => hexcue_core::vocab::AlgorithmId::ALL
+            .iter()
+            .copied()
+            .find(|a| algorithms.contains(a))
+            .context("--algorithms: expected at least one")?,
+    };
     let input = crate::sources::live::LiveInput::open(&args.input)?;
     let mut session = LiveSession::new(&profile, &algorithms, drive, input)?;
     session.set_realtime((!args.no_realtime).then_some(args.realtime_priority));

@@ -1372,11 +1372,11 @@ mod tests {
         assert!(at(501, "drive: mpc's lane came over"), "{texts:?}");
         assert_eq!(texts.len(), 4, "{texts:?}");
         let summary = s.summary();
-        let ours = &summary.algorithms["cwf"];
-        let theirs = &alone_summary.finish().algorithms["cwf"];
+        let ours = &summary.algorithms[&AlgorithmId::Cwf.into()];
+        let theirs = &alone_summary.finish().algorithms[&AlgorithmId::Cwf.into()];
         assert_eq!(ours.metrics, theirs.metrics);
         assert_eq!(ours.score, theirs.score);
-        assert!(summary.algorithms["mpc"].score.is_finite());
+        assert!(summary.algorithms[&AlgorithmId::Mpc.into()].score.is_finite());
         let changes = summary.tuning.unwrap().changes;
         assert_eq!(changes.len(), 2, "{changes:?}");
         assert!(changes[1].undo);
