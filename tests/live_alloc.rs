@@ -244,7 +244,11 @@ fn a_lane_handed_over_for_a_drive_switch_allocates_nothing_on_the_stepping_threa
         Output::Json,
         Some((AlgorithmId::Mpc, 1.0)),
     );
-    assert_none(&traces, counted, "switching the drive from the CWF to the MPC");
+    assert_none(
+        &traces,
+        counted,
+        "switching the drive from the CWF to the MPC",
+    );
 }
 
 #[test]

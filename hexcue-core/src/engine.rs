@@ -1101,7 +1101,10 @@ pub(crate) mod tests {
         );
         let [left, took, ran] = summaries.map(|s| s.finish());
         assert!(left.algorithms.is_empty(), "{:?}", left.algorithms.keys());
-        let (took, ran) = (&took.algorithms[&AlgorithmId::Cwf.into()], &ran.algorithms[&AlgorithmId::Cwf.into()]);
+        let (took, ran) = (
+            &took.algorithms[&AlgorithmId::Cwf.into()],
+            &ran.algorithms[&AlgorithmId::Cwf.into()],
+        );
         assert_eq!(took.metrics, ran.metrics);
         assert_eq!(took.score, ran.score);
         assert_eq!(took.limiter_steps, ran.limiter_steps);

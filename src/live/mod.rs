@@ -1376,7 +1376,9 @@ mod tests {
         let theirs = &alone_summary.finish().algorithms[&AlgorithmId::Cwf.into()];
         assert_eq!(ours.metrics, theirs.metrics);
         assert_eq!(ours.score, theirs.score);
-        assert!(summary.algorithms[&AlgorithmId::Mpc.into()].score.is_finite());
+        assert!(summary.algorithms[&AlgorithmId::Mpc.into()]
+            .score
+            .is_finite());
         let changes = summary.tuning.unwrap().changes;
         assert_eq!(changes.len(), 2, "{changes:?}");
         assert!(changes[1].undo);
