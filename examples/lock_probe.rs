@@ -1,6 +1,7 @@
 //! Why the limiter acts on the free MPC: runs the MPC alone with the workspace limiter in the
 //! loop, as the engine does, and counts the limiter's reasons (`WorkspaceLimiter::rejection`).
-//! `cargo run --release --example lock_probe -- TRACE.csv [PROFILE.toml] [SECONDS] [--preview]`
+//! `cargo run --release --example lock_probe -- TRACE.csv [PROFILE.toml] [SECONDS] [--preview]
+//! [--smpc]`; with `--smpc` the S-MPC (both controllers, its switching) instead of the free MPC.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -10,12 +11,19 @@ use hexcue::formats::trace::load_trace;
 use hexcue_core::engine::cue_sample;
 use hexcue_core::mca::limiter::WorkspaceLimiter;
 use hexcue_core::mca::mpc::{Mpc, Terminal};
-use hexcue_core::mca::{CueInput, PlatformCommand};
+use hexcue_core::mca::{AlgorithmId, CueInput, Mode, PlatformCommand};
+
+/// What one step gave, from either controller.
+struct Outcome {
+    command: PlatformCommand,
+    feasible: bool,
+}
 use hexcue_core::profile::text::default_profile;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let preview = args.iter().any(|a| a == "--preview");
+    let smpc = args.iter().any(|a| a == "--smpc");
     let args: Vec<&String> = args.iter().filter(|a| !a.starts_with("--")).collect();
     let trace_path = args
         .first()
@@ -35,6 +43,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dt = profile.dt_s();
     let n = cues.len().min((seconds / dt).round() as usize);
     let mut mpc = Mpc::new(&profile.mpc, &profile.setting(), Terminal::Free)?;
+    let mut smpc_lane = if smpc {
+        Some(profile.algorithm(AlgorithmId::Smpc)?)
+    } else {
+        None
+    };
     let stewart = profile.stewart();
     let mut limiter = WorkspaceLimiter::new(
         stewart.clone(),
@@ -60,7 +73,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             applied: &applied,
             deadline: None,
         };
-        let out = mpc.solve(&input);
+        let out = match smpc_lane.as_mut() {
+            Some(lane) => {
+                let command = lane.step(&input);
+                let state = lane.state();
+                Outcome {
+                    command,
+                    feasible: state.mode != Mode::Fallback,
+                }
+            }
+            None => {
+                let o = mpc.solve(&input);
+                Outcome {
+                    command: o.command,
+                    feasible: o.feasible,
+                }
+            }
+        };
         unsolved += usize::from(!out.feasible);
         if let Some(r) = limiter.rejection(&out.command) {
             *reasons.entry(format!("{r:?}")).or_default() += 1;

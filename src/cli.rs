@@ -75,9 +75,10 @@ pub struct LiveArgs {
     /// frame: serial://PATH?baud=N (8N1) or udp://HOST:PORT?frame=actuators.
     #[arg(long, value_name = "URL")]
     pub output: Vec<String>,
-    /// The algorithm whose command drives the platform.
-    #[arg(long, value_name = "ALG", value_enum, default_value_t = AlgorithmId::Smpc, ignore_case = true)]
-    pub drive: AlgorithmId,
+    /// The algorithm whose command drives the platform. Default: the first of --algorithms in
+    /// the order smpc, mpc, cwf (the S-MPC when it runs).
+    #[arg(long, value_name = "ALG", value_enum, ignore_case = true)]
+    pub drive: Option<AlgorithmId>,
     /// Algorithms to run side by side, comma-separated (the driving one among them): smpc
     /// (or s-mpc), mpc, cwf.
     #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = DEFAULT_ALGORITHMS)]

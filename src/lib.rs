@@ -9,17 +9,21 @@
 //! and units: docs/design.md §1.
 
 pub(crate) mod app;
-pub mod channels;
+pub(crate) mod channels;
 pub(crate) mod cli;
 pub(crate) mod compare;
 pub(crate) mod export;
 pub mod formats;
-pub mod foxglove;
+pub(crate) mod foxglove;
+/// `pub` for tests/live_alloc.rs, which runs a live session (`live::{run, Control,
+/// LiveSession}`) under a counting allocator in the test's own process.
 pub mod live;
 pub(crate) mod outputs;
 pub mod plot;
 pub(crate) mod session;
 pub mod sinks;
+/// `pub` for tests/live_alloc.rs (`sources::live::LiveInput`); the other sources are private
+/// to the crate (`sources/mod.rs`).
 pub mod sources;
 pub mod tui;
 pub(crate) mod tune;

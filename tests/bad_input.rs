@@ -160,6 +160,48 @@ fn a_missing_trace_file_is_named() {
     assert!(stderr(&out).contains("does-not-exist.csv"));
 }
 
+/// The console without a terminal (a script, a pipe): a mistyped input is named before the
+/// missing terminal is, so that the user fixes the path rather than looking for a tty.
+#[test]
+fn the_console_names_a_bad_input_before_the_missing_terminal() {
+    for (args, named) in [
+        (
+            &["review", "no-such-recording.mcap"][..],
+            "no-such-recording.mcap",
+        ),
+        (
+            &["review", "recordings/traces/landing.csv"][..],
+            "not an MCAP file",
+        ),
+        (
+            &["play", "--trace", "no-such-trace.csv"][..],
+            "no-such-trace.csv",
+        ),
+        (
+            &[
+                "play",
+                "--profile",
+                "tests/corpus/profiles/unknown-key.toml",
+            ][..],
+            "rate_hertz",
+        ),
+    ] {
+        let out = hexcue(args);
+        assert!(!out.status.success(), "{args:?}");
+        let err = stderr(&out);
+        assert!(err.contains(named), "{args:?}: {err}");
+        assert!(!err.contains("needs a terminal"), "{args:?}: {err}");
+    }
+    // Good inputs, no terminal: that is then what is said.
+    let out = hexcue(&["play"]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("needs a terminal"),
+        "{}",
+        stderr(&out)
+    );
+}
+
 /// (file, words the error must contain)
 const BAD_PROFILES: &[(&str, &[&str])] = &[
     ("unknown-key.toml", &["rate_hertz", ":12:"]),

@@ -122,6 +122,8 @@ struct Advertised {
     encoding: String,
     schema_name: String,
     schema_encoding: String,
+    /// The schema as advertised: JSON Schema text, or a base64 FileDescriptorSet.
+    schema: String,
 }
 
 /// Reads text messages until the advertised topics include `wanted`.
@@ -146,6 +148,7 @@ fn advertised(socket: &mut Socket, wanted: &[&str]) -> BTreeMap<String, Advertis
                         encoding: s("encoding"),
                         schema_name: s("schemaName"),
                         schema_encoding: s("schemaEncoding"),
+                        schema: s("schema"),
                     },
                 );
             }
@@ -340,7 +343,9 @@ fn channels_of(path: &std::path::Path) -> BTreeMap<String, String> {
 /// long enough for the input to be lost, resumes, and is still sending when --duration ends
 /// the session with a stop: a WebSocket client sees the recording's channels advertised,
 /// transforms, and the session's events (input lost, to neutral, stopping) on `/events`; the
-/// session's recording has the same channels as a playback's, and the same events.
+/// session's recording has the same channels as a playback's, and the same events. The
+/// server is fed from the recorder (`LiveRecording::serve`): every message on the wire is the
+/// recording's, byte for byte and at the same log time.
 #[test]
 fn a_live_session_serves_its_channels_and_events_to_foxglove() {
     let dir = tempfile::tempdir().unwrap();
@@ -377,6 +382,7 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
         "subscriptions": [
             {"id": 1, "channelId": channels["/events"].id},
             {"id": 2, "channelId": channels["/cwf/tf"].id},
+            {"id": 3, "channelId": channels["/cwf/platform"].id},
         ],
     });
     socket
@@ -408,6 +414,8 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
 
     let mut events: Vec<String> = Vec::new();
     let mut transforms = 0;
+    // What came over the wire: (topic, log time) → bytes.
+    let mut served: BTreeMap<(&str, u64), Vec<u8>> = BTreeMap::new();
     let until = Instant::now() + PATIENCE;
     while Instant::now() < until
         && !events
@@ -423,15 +431,24 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
             continue;
         }
         let sub = u32::from_le_bytes(data[1..5].try_into().unwrap());
-        match sub {
-            1 => events.push(
-                ::foxglove::messages::Log::decode(&data[13..])
-                    .unwrap()
-                    .message,
-            ),
-            2 => transforms += 1,
+        let t = u64::from_le_bytes(data[5..13].try_into().unwrap());
+        let topic = match sub {
+            1 => {
+                events.push(
+                    ::foxglove::messages::Log::decode(&data[13..])
+                        .unwrap()
+                        .message,
+                );
+                "/events"
+            }
+            2 => {
+                transforms += 1;
+                "/cwf/tf"
+            }
+            3 => "/cwf/platform",
             other => panic!("a message for subscription {other}"),
-        }
+        };
+        served.insert((topic, t), data[13..].to_vec());
     }
     sending.store(false, std::sync::atomic::Ordering::Relaxed);
     sender.join().unwrap();
@@ -482,4 +499,252 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
             "`{e}` served but not recorded: {recorded:#?}"
         );
     }
+
+    // One encoding for both: each served message whose step the recording also holds is the
+    // recording's message at that log time, byte for byte (the transforms are served at every
+    // step but recorded at 30 Hz; events and the platform are recorded at every one).
+    let bytes = std::fs::read(&mcap).unwrap();
+    let in_file: BTreeMap<(String, u64), Vec<u8>> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(Result::unwrap)
+        .map(|m| ((m.channel.topic.clone(), m.log_time), m.data.into_owned()))
+        .collect();
+    let mut same = BTreeMap::<&str, usize>::new();
+    for ((topic, t), data) in &served {
+        match in_file.get(&(topic.to_string(), *t)) {
+            Some(recorded) => {
+                assert!(
+                    recorded == data,
+                    "{topic} at {t}: the bytes served differ from the recording's"
+                );
+                *same.entry(topic).or_default() += 1;
+            }
+            None => assert_eq!(
+                *topic, "/cwf/tf",
+                "{topic} served at {t}, a log time the recording does not have"
+            ),
+        }
+    }
+    for topic in ["/events", "/cwf/tf", "/cwf/platform"] {
+        assert!(
+            same.get(topic).is_some_and(|n| *n > 0),
+            "no {topic} message both served and recorded: {same:?}"
+        );
+    }
+}
+
+/// The topics a table of `doc` lists, with their schemas: rows `` | `TOPIC` | `SCHEMA` | … ``,
+/// `ALG` standing for each algorithm.
+fn documented_topics(doc: &str) -> BTreeMap<String, String> {
+    let text = std::fs::read_to_string(repo().join(doc)).unwrap();
+    let mut topics = BTreeMap::new();
+    for line in text.lines() {
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        let [_, topic, schema, ..] = cells[..] else {
+            continue;
+        };
+        let (Some(topic), Some(schema)) = (
+            topic.strip_prefix("`/").and_then(|t| t.strip_suffix('`')),
+            schema.strip_prefix('`').and_then(|s| s.strip_suffix('`')),
+        ) else {
+            continue;
+        };
+        if topic.contains('`')
+            || !(schema.starts_with("hexcue.") || schema.starts_with("foxglove."))
+        {
+            continue;
+        }
+        for alg in ["smpc", "mpc", "cwf"] {
+            topics.insert(
+                format!("/{}", topic.replace("ALG", alg)),
+                schema.to_string(),
+            );
+        }
+    }
+    topics
+}
+
+/// `value` against the top level of a JSON schema: an object with every `required` property,
+/// none that the schema does not list, each of the type the schema gives it (and of its
+/// length, for arrays of a fixed one). Returns what is wrong.
+fn schema_faults(schema: &serde_json::Value, value: &serde_json::Value) -> Vec<String> {
+    let mut faults = Vec::new();
+    let Some(object) = value.as_object() else {
+        return vec![format!("not an object: {value}")];
+    };
+    let properties = schema["properties"]
+        .as_object()
+        .expect("a schema with properties");
+    for key in schema["required"].as_array().into_iter().flatten() {
+        let key = key.as_str().unwrap();
+        if !object.contains_key(key) {
+            faults.push(format!("`{key}` missing"));
+        }
+    }
+    for (key, v) in object {
+        let Some(property) = properties.get(key) else {
+            faults.push(format!("`{key}` not in the schema"));
+            continue;
+        };
+        let types: Vec<&str> = match &property["type"] {
+            serde_json::Value::String(t) => vec![t.as_str()],
+            serde_json::Value::Array(ts) => ts.iter().filter_map(|t| t.as_str()).collect(),
+            _ => continue, // a `$ref` or `anyOf`: not checked here
+        };
+        let fits = |t: &str| match t {
+            "number" => v.is_number(),
+            "integer" => v.is_u64() || v.is_i64(),
+            "string" => v.is_string(),
+            "boolean" => v.is_boolean(),
+            "array" => v.is_array(),
+            "object" => v.is_object(),
+            "null" => v.is_null(),
+            _ => true,
+        };
+        if !types.iter().any(|t| fits(t)) {
+            faults.push(format!("`{key}` = {v} is not {types:?}"));
+        }
+        if let (Some(items), Some(n)) = (v.as_array(), property["minItems"].as_u64()) {
+            if property["maxItems"].as_u64() == Some(n) && items.len() as u64 != n {
+                faults.push(format!("`{key}` has {} items, not {n}", items.len()));
+            }
+        }
+    }
+    faults
+}
+
+/// Issue 38: a client that subscribes to everything a headless `play` of the three algorithms
+/// serves finds the channels docs/recordings.md and docs/foxglove.md list, with their schemas
+/// and nothing else, and on each a message its advertised schema decodes: JSON that fits the
+/// advertised JSON schema, protobuf that the `foxglove` crate's types decode. `/events`
+/// included, with the surge limit cut so that the limiters act.
+#[test]
+fn a_client_subscribed_to_everything_decodes_every_documented_channel() {
+    let mut documented = documented_topics("docs/recordings.md");
+    documented.extend(documented_topics("docs/foxglove.md"));
+    documented.insert("/events".into(), "foxglove.Log".into());
+    assert!(documented.len() >= 21, "{documented:#?}");
+
+    // The default profile with 5 cm of surge, so that every algorithm's limiter acts within
+    // the first seconds of the stall and `/events` has its `limiter acting` warnings.
+    let dir = tempfile::tempdir().unwrap();
+    let profile = dir.path().join("short-surge.toml");
+    let text = std::fs::read_to_string(repo().join("profiles/full-flight.toml")).unwrap();
+    let line = "[limits.surge]\nexcursion_m = 1.7";
+    assert!(text.contains(line), "the surge limit moved");
+    std::fs::write(
+        &profile,
+        text.replacen(line, "[limits.surge]\nexcursion_m = 0.05", 1),
+    )
+    .unwrap();
+    let hexcue = Hexcue::spawn(&[
+        "play",
+        "--headless",
+        "--profile",
+        profile.to_str().unwrap(),
+        "--foxglove",
+        "127.0.0.1:0",
+        "--speed",
+        "4",
+    ]);
+    let addr = hexcue.serving();
+    let mut socket = connect(&addr);
+    let wanted: Vec<&str> = documented.keys().map(String::as_str).collect();
+    let channels = advertised(&mut socket, &wanted);
+    let served: BTreeMap<String, String> = channels
+        .iter()
+        .map(|(t, c)| (t.clone(), c.schema_name.clone()))
+        .collect();
+    assert_eq!(
+        served, documented,
+        "served channels against the docs' tables"
+    );
+
+    let mut json_schemas: BTreeMap<u64, serde_json::Value> = BTreeMap::new();
+    let mut topic_of: BTreeMap<u32, &str> = BTreeMap::new();
+    let mut subscriptions = Vec::new();
+    for (k, (topic, c)) in channels.iter().enumerate() {
+        let sub = k as u32 + 1;
+        topic_of.insert(sub, topic);
+        subscriptions.push(serde_json::json!({"id": sub, "channelId": c.id}));
+        let expected = if c.encoding == "json" {
+            "jsonschema"
+        } else {
+            "protobuf"
+        };
+        assert_eq!(c.schema_encoding, expected, "{topic}");
+        if c.encoding == "json" {
+            let schema = serde_json::from_str(&c.schema)
+                .unwrap_or_else(|e| panic!("{topic}: the advertised JSON schema is not JSON: {e}"));
+            json_schemas.insert(c.id, schema);
+        }
+    }
+    socket
+        .send(Message::Text(
+            serde_json::json!({"op": "subscribe", "subscriptions": subscriptions})
+                .to_string()
+                .into(),
+        ))
+        .unwrap();
+
+    let mut received: BTreeMap<&str, usize> = BTreeMap::new();
+    let mut events = Vec::new();
+    let until = Instant::now() + PATIENCE * 4;
+    while received.len() < channels.len() {
+        assert!(
+            Instant::now() < until,
+            "nothing on {:?} (received {received:?})",
+            topic_of
+                .values()
+                .filter(|t| !received.contains_key(*t))
+                .collect::<Vec<_>>()
+        );
+        let message = socket.read().unwrap_or_else(|e| {
+            panic!("the server stopped ({e}) before every channel sent: {received:?}")
+        });
+        let Message::Binary(data) = message else {
+            continue;
+        };
+        if data[0] != 1 {
+            continue;
+        }
+        let sub = u32::from_le_bytes(data[1..5].try_into().unwrap());
+        let payload = &data[13..];
+        let topic = topic_of[&sub];
+        let c = &channels[topic];
+        if c.encoding == "json" {
+            let value: serde_json::Value = serde_json::from_slice(payload)
+                .unwrap_or_else(|e| panic!("{topic}: not JSON: {e}"));
+            let faults = schema_faults(&json_schemas[&c.id], &value);
+            assert!(faults.is_empty(), "{topic}: {faults:?} in {value}");
+        } else {
+            match c.schema_name.as_str() {
+                "foxglove.FrameTransforms" => {
+                    let tf = FrameTransforms::decode(payload).unwrap();
+                    assert_eq!(
+                        tf.transforms.len(),
+                        3,
+                        "{topic}: world → base → platform → eye"
+                    );
+                }
+                "foxglove.SceneUpdate" => {
+                    let scene = SceneUpdate::decode(payload).unwrap();
+                    assert_eq!(scene.entities.len(), 3, "{topic}: base, platform, legs");
+                }
+                "foxglove.Log" => {
+                    events.push(::foxglove::messages::Log::decode(payload).unwrap().message)
+                }
+                other => panic!("{topic}: an undocumented schema {other}"),
+            }
+        }
+        *received.entry(topic).or_default() += 1;
+    }
+    socket.close(None).ok();
+    eprintln!("received {received:?}; events {events:?}");
+    assert!(
+        events.iter().any(|e| e.contains("limiter acting")),
+        "{events:?}"
+    );
+    let status = hexcue.interrupt();
+    assert!(status.success(), "hexcue ended with {status}");
 }

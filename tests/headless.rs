@@ -454,6 +454,19 @@ fn preview_is_a_profile_option_the_summary_and_compare_name() {
         md.contains("MPC (preview)") && md.contains("--preview"),
         "{md}"
     );
+    // The title names what ran, and the command given makes the same report (issue 38).
+    let first = md.lines().next().unwrap();
+    assert_eq!(
+        first, "# Motion cueing compared: MPC, CWF and MPC (preview)",
+        "{md}"
+    );
+    assert!(
+        md.contains(&format!(
+            "`hexcue compare --algorithms mpc,cwf --traces {} --preview`",
+            folder.display()
+        )),
+        "{md}"
+    );
     let refused = hexcue(&["compare", "--algorithms", "cwf", "--preview"]);
     assert!(!refused.status.success());
     assert!(

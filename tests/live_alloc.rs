@@ -95,6 +95,20 @@ fn stepping_allocations(
     drive: AlgorithmId,
     output: Output,
 ) -> (Vec<String>, u64) {
+    stepping_allocations_switching(algorithms, drive, output, None)
+}
+
+/// [`stepping_allocations`], with the drive switched to `switch` (its `drive` code) 1 s
+/// before the counted part: its lane comes over then (its event is made before counting),
+/// the two lanes blend through the first 2 s counted, and the old lane goes back to the
+/// comparison lanes' thread within them (asserted). A lane's hand-over makes no event
+/// after the request's and the arrival's.
+fn stepping_allocations_switching(
+    algorithms: &[AlgorithmId],
+    drive: AlgorithmId,
+    output: Output,
+    switch: Option<(AlgorithmId, f64)>,
+) -> (Vec<String>, u64) {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let profile = hexcue_core::testing::full_flight();
     let in_port = free_udp_port();
@@ -124,10 +138,24 @@ fn stepping_allocations(
     WHERE.lock().unwrap().clear();
     let mut counted = 0;
     let mut running_at_warm_up = None;
+    // Whether the stepping thread stepped both lanes mid-blend, and only the new one at the
+    // end.
+    let (mut blending, mut released) = (false, false);
     run(
         &mut session,
         |s| {
             let k = s.stats().commands_out;
+            if let Some((to, code)) = switch {
+                if k == WARM_UP_STEPS - 100 {
+                    s.tuning().lock().unwrap().set("drive", code).unwrap();
+                }
+                if k == WARM_UP_STEPS + 50 {
+                    blending = s.steps_lane(drive) && s.steps_lane(to);
+                }
+                if k == WARM_UP_STEPS + COUNTED_STEPS - 1 {
+                    released = !s.steps_lane(drive) && s.steps_lane(to);
+                }
+            }
             if k == WARM_UP_STEPS {
                 running_at_warm_up = Some(s.safety().state());
                 COUNTING.with(|c| c.set(true));
@@ -160,6 +188,14 @@ fn stepping_allocations(
         "{:?}",
         summary.live
     );
+    if switch.is_some() {
+        assert!(
+            blending && released,
+            "blending {blending}, released {released}"
+        );
+        let tuning = summary.tuning.as_ref().unwrap();
+        assert_eq!(tuning.changes.len(), 1, "{tuning:?}");
+    }
     let live = summary.live.unwrap();
     assert_eq!(live.frames_dropped, 0, "{live:?}");
     assert!(live.first_input_s.is_some_and(|t| t < 1.0), "{live:?}");
@@ -196,6 +232,23 @@ fn the_comparison_lanes_allocate_off_the_stepping_thread() {
     let all = [AlgorithmId::Smpc, AlgorithmId::Mpc, AlgorithmId::Cwf];
     let (traces, counted) = stepping_allocations(&all, AlgorithmId::Cwf, Output::Json);
     assert_none(&traces, counted, "driving with the CWF beside the MPCs");
+}
+
+/// The drive switched to a comparison lane (issue 36): the lanes blending on the stepping
+/// thread, and the old one's return to the comparison lanes' thread, allocate nothing there.
+#[test]
+fn a_lane_handed_over_for_a_drive_switch_allocates_nothing_on_the_stepping_thread() {
+    let (traces, counted) = stepping_allocations_switching(
+        &[AlgorithmId::Mpc, AlgorithmId::Cwf],
+        AlgorithmId::Cwf,
+        Output::Json,
+        Some((AlgorithmId::Mpc, 1.0)),
+    );
+    assert_none(
+        &traces,
+        counted,
+        "switching the drive from the CWF to the MPC",
+    );
 }
 
 #[test]

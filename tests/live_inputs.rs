@@ -521,6 +521,35 @@ fn a_session_with_no_input_says_so_while_waiting_and_is_not_called_clean() {
     assert!(summary["live"]["first_input_s"].is_null(), "{summary}");
 }
 
+/// `--algorithms cwf` without `--drive` drives with the CWF (the first of the algorithms in
+/// the order smpc, mpc, cwf) instead of refusing a `--drive smpc` the user never gave.
+#[test]
+fn the_driving_algorithm_defaults_to_the_first_one_running() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_udp_port();
+    let mcap = dir.path().join("live.mcap");
+    let out = Command::new(env!("CARGO_BIN_EXE_hexcue"))
+        .args(["live", "--headless", "--no-realtime", "--input"])
+        .arg(format!("jsbsim://127.0.0.1:{port}"))
+        .args(["--algorithms", "cwf,mpc", "--duration", "0.5", "--record"])
+        .arg(&mcap)
+        .current_dir(repo())
+        .stdin(Stdio::null())
+        .output()
+        .expect("the hexcue binary runs");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("--drive"), "{err}");
+    // No input came, so the session is not a clean one (exit 1), but it ran and recorded.
+    assert!(err.contains("no input received"), "{err}");
+    // The metadata record's `drive` (MCAP strings: a u32 length, then the bytes).
+    let bytes = std::fs::read(&mcap).unwrap();
+    let drive_mpc = b"\x05\x00\x00\x00drive\x03\x00\x00\x00mpc";
+    assert!(
+        bytes.windows(drive_mpc.len()).any(|w| w == drive_mpc),
+        "the recording's metadata does not say drive = mpc"
+    );
+}
+
 #[test]
 fn malformed_input_is_reported_as_it_happens() {
     let dir = tempfile::tempdir().unwrap();

@@ -134,17 +134,84 @@ fn serving(stderr: &mpsc::Receiver<String>, seen: &mut Vec<String>) -> String {
     panic!("hexcue never said where it serves: {seen:?}");
 }
 
+/// A live session under test: `hexcue live` of `algorithms` driven by `drive`, a Foxglove
+/// client connected, the JSON commands listened to, and the steep turn streamed from its
+/// roll-in (25 s of manoeuvring, more than a test needs), after a second of running.
+struct Flight {
+    dir: tempfile::TempDir,
+    stop: Arc<AtomicBool>,
+    commands: Commands,
+    listener: std::thread::JoinHandle<()>,
+    child: Child,
+    stderr: mpsc::Receiver<String>,
+    lines: Vec<String>,
+    socket: Socket,
+    sim: std::thread::JoinHandle<usize>,
+}
+
+impl Flight {
+    fn start(algorithms: &str, drive: &str) -> (Flight, Value) {
+        let dir = tempfile::tempdir().unwrap();
+        let stop = Arc::new(AtomicBool::new(false));
+        let (out_port, commands, listener) = command_listener(stop.clone());
+        let in_port = free_udp_port();
+        let (child, stderr) = spawn(in_port, out_port, dir.path(), algorithms, drive);
+        let mut lines = Vec::new();
+        let addr = serving(&stderr, &mut lines);
+        let mut socket = connect(&addr);
+        let (info, _) = read_until(&mut socket, |v| v["op"] == "serverInfo");
+        wait_for_commands(&commands, PATIENCE, "first command", |c| !c.is_empty());
+        let rows: Vec<Vec<f64>> = trace_rows("steep-turn.csv")
+            .into_iter()
+            .skip(2500)
+            .take(2500)
+            .collect();
+        let sim = replay_jsbsim(in_port, rows);
+        // A second of flight after the fade-in.
+        wait_for_commands(&commands, PATIENCE, "a second running", |c| {
+            c.iter().filter(|c| c["state"] == "running").count() >= 100
+        });
+        let flight = Flight {
+            dir,
+            stop,
+            commands,
+            listener,
+            child,
+            stderr,
+            lines,
+            socket,
+            sim,
+        };
+        (flight, info)
+    }
+
+    /// Waits for `n` more commands after the `k0`-th, the stand-in still streaming; then
+    /// stops hexcue (SIGINT) and returns every command it sent.
+    fn end_after(mut self, k0: usize, n: usize) -> (Vec<Value>, tempfile::TempDir) {
+        wait_for_commands(
+            &self.commands,
+            PATIENCE,
+            "the steps after the change",
+            |c| c.len() >= k0 + n,
+        );
+        assert!(
+            !self.sim.is_finished(),
+            "the stand-in ran out before the check"
+        );
+        signal_int(&self.child);
+        let status = wait_child(&mut self.child);
+        self.stop.store(true, Ordering::Relaxed);
+        self.listener.join().unwrap();
+        self.lines.extend(self.stderr.try_iter());
+        assert!(status.success(), "{status}: {:?}", self.lines);
+        let commands = self.commands.lock().unwrap().clone();
+        (commands, self.dir)
+    }
+}
+
 #[test]
 fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt() {
-    let dir = tempfile::tempdir().unwrap();
-    let stop = Arc::new(AtomicBool::new(false));
-    let (out_port, commands, listener) = command_listener(stop.clone());
-    let in_port = free_udp_port();
-    let (mut child, stderr) = spawn(in_port, out_port, dir.path(), "cwf", "cwf");
-    let mut lines = Vec::new();
-    let addr = serving(&stderr, &mut lines);
-    let mut socket = connect(&addr);
-    let (info, _) = read_until(&mut socket, |v| v["op"] == "serverInfo");
+    let (mut flight, info) = Flight::start("cwf", "cwf");
     assert!(
         info["capabilities"]
             .as_array()
@@ -152,24 +219,13 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
             .contains(&json!("parameters")),
         "{info}"
     );
-    wait_for_commands(&commands, PATIENCE, "first command", |c| !c.is_empty());
-    // The steep turn from its roll-in: 25 s of manoeuvring, more than the session needs.
-    let rows: Vec<Vec<f64>> = trace_rows("steep-turn.csv")
-        .into_iter()
-        .skip(2500)
-        .take(2500)
-        .collect();
-    let sim = replay_jsbsim(in_port, rows);
-    // A second of flight after the fade-in.
-    wait_for_commands(&commands, PATIENCE, "a second running", |c| {
-        c.iter().filter(|c| c["state"] == "running").count() >= 100
-    });
+    let socket = &mut flight.socket;
 
     send(
-        &mut socket,
+        socket,
         json!({"op": "getParameters", "parameterNames": [], "id": "list"}),
     );
-    let (list, _) = read_until(&mut socket, |v| {
+    let (list, _) = read_until(socket, |v| {
         v["op"] == "parameterValues" && v["id"] == "list"
     });
     assert_eq!(parameter(&list, "motion_gain"), Some(1.0), "{list}");
@@ -178,13 +234,11 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
 
     // 2.0 is refused, with the range, and changes nothing.
     send(
-        &mut socket,
+        socket,
         json!({"op": "setParameters", "id": "bad",
                "parameters": [{"name": "motion_gain", "value": 2.0, "type": "float64"}]}),
     );
-    let (answer, before) = read_until(&mut socket, |v| {
-        v["op"] == "parameterValues" && v["id"] == "bad"
-    });
+    let (answer, before) = read_until(socket, |v| v["op"] == "parameterValues" && v["id"] == "bad");
     assert_eq!(parameter(&answer, "motion_gain"), Some(1.0), "{answer}");
     let refusal = before
         .iter()
@@ -197,28 +251,18 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
     );
 
     // Mid-flight: the gain to 0.
-    let k0 = commands.lock().unwrap().len();
+    let k0 = flight.commands.lock().unwrap().len();
     send(
-        &mut socket,
+        socket,
         json!({"op": "setParameters", "id": "zero",
                "parameters": [{"name": "motion_gain", "value": 0.0, "type": "float64"}]}),
     );
-    let (answer, _) = read_until(&mut socket, |v| {
+    let (answer, _) = read_until(socket, |v| {
         v["op"] == "parameterValues" && v["id"] == "zero"
     });
     assert_eq!(parameter(&answer, "motion_gain"), Some(0.0), "{answer}");
     // 7 s more: the 5 s allowed and 2 s of staying there, the input still manoeuvring.
-    wait_for_commands(&commands, PATIENCE, "7 s after the change", |c| {
-        c.len() >= k0 + 700
-    });
-    assert!(!sim.is_finished(), "the stand-in ran out before the check");
-    signal_int(&child);
-    let status = wait_child(&mut child);
-    stop.store(true, Ordering::Relaxed);
-    listener.join().unwrap();
-    lines.extend(stderr.try_iter());
-    assert!(status.success(), "{status}: {lines:?}");
-    let commands = commands.lock().unwrap();
+    let (commands, dir) = flight.end_after(k0, 700);
 
     let poses: Vec<[f64; 6]> = commands.iter().map(|c| vec6(c, "pose")).collect();
     let near = |p: &[f64; 6]| {
@@ -286,7 +330,9 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
 }
 
 /// Issue 36's "the driving algorithm switched live through a blend, never a jump": a session
-/// of the MPC and the CWF, the MPC driving, replaying the steep turn; mid-flight a Foxglove
+/// of the MPC and the CWF, the MPC driving (the CWF a comparison lane, on the comparison
+/// lanes' thread, whose lane comes over to the stepping thread for the switch: an event
+/// says when), replaying the steep turn; mid-flight a Foxglove
 /// client asks for `drive` = 2 (the S-MPC, not in this session: refused with the session's
 /// list, nothing changes), then `drive` = 0. The JSON stream's `algorithm` goes from `mpc`
 /// to `cwf` at the change; through the switch and the blend (the `[safety]` fade-in, 3 s)
@@ -294,41 +340,21 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
 /// within 2 m/s² and 30 °/s² and the jerk (third difference) within the hand-over's 20 m/s³
 /// and 300 °/s³; the change is on `/events` and in the summary.
 #[test]
-#[ignore = "issue 36/37: the comparison lanes step on their own thread since issue 37, so live cannot blend to one yet (the switch is refused with an event); the blend itself is tested in bumpless and tuning"]
 fn the_drive_switched_from_foxglove_mid_flight_blends_within_the_hand_over_bounds() {
-    let dir = tempfile::tempdir().unwrap();
-    let stop = Arc::new(AtomicBool::new(false));
-    let (out_port, commands, listener) = command_listener(stop.clone());
-    let in_port = free_udp_port();
-    let (mut child, stderr) = spawn(in_port, out_port, dir.path(), "mpc,cwf", "mpc");
-    let mut lines = Vec::new();
-    let addr = serving(&stderr, &mut lines);
-    let mut socket = connect(&addr);
-    read_until(&mut socket, |v| v["op"] == "serverInfo");
-    wait_for_commands(&commands, PATIENCE, "first command", |c| !c.is_empty());
-    let rows: Vec<Vec<f64>> = trace_rows("steep-turn.csv")
-        .into_iter()
-        .skip(2500)
-        .take(2500)
-        .collect();
-    let sim = replay_jsbsim(in_port, rows);
-    wait_for_commands(&commands, PATIENCE, "a second running", |c| {
-        c.iter().filter(|c| c["state"] == "running").count() >= 100
-    });
+    let (mut flight, _) = Flight::start("mpc,cwf", "mpc");
+    let socket = &mut flight.socket;
     send(
-        &mut socket,
+        socket,
         json!({"op": "getParameters", "parameterNames": ["drive"], "id": "now"}),
     );
-    let (now, _) = read_until(&mut socket, |v| {
-        v["op"] == "parameterValues" && v["id"] == "now"
-    });
+    let (now, _) = read_until(socket, |v| v["op"] == "parameterValues" && v["id"] == "now");
     assert_eq!(parameter(&now, "drive"), Some(1.0), "{now}");
     send(
-        &mut socket,
+        socket,
         json!({"op": "setParameters", "id": "smpc",
                "parameters": [{"name": "drive", "value": 2.0, "type": "float64"}]}),
     );
-    let (answer, before) = read_until(&mut socket, |v| {
+    let (answer, before) = read_until(socket, |v| {
         v["op"] == "parameterValues" && v["id"] == "smpc"
     });
     assert_eq!(parameter(&answer, "drive"), Some(1.0), "{answer}");
@@ -342,27 +368,15 @@ fn the_drive_switched_from_foxglove_mid_flight_blends_within_the_hand_over_bound
         "{message}"
     );
 
-    let k0 = commands.lock().unwrap().len();
+    let k0 = flight.commands.lock().unwrap().len();
     send(
-        &mut socket,
+        socket,
         json!({"op": "setParameters", "id": "cwf",
                "parameters": [{"name": "drive", "value": 0.0, "type": "float64"}]}),
     );
-    let (answer, _) = read_until(&mut socket, |v| {
-        v["op"] == "parameterValues" && v["id"] == "cwf"
-    });
+    let (answer, _) = read_until(socket, |v| v["op"] == "parameterValues" && v["id"] == "cwf");
     assert_eq!(parameter(&answer, "drive"), Some(0.0), "{answer}");
-    wait_for_commands(&commands, PATIENCE, "4 s after the switch", |c| {
-        c.len() >= k0 + 400
-    });
-    assert!(!sim.is_finished(), "the stand-in ran out before the check");
-    signal_int(&child);
-    let status = wait_child(&mut child);
-    stop.store(true, Ordering::Relaxed);
-    listener.join().unwrap();
-    lines.extend(stderr.try_iter());
-    assert!(status.success(), "{status}: {lines:?}");
-    let commands = commands.lock().unwrap();
+    let (commands, dir) = flight.end_after(k0, 400);
     assert!(commands[..k0].iter().all(|c| c["algorithm"] == "mpc"));
     let switched = (k0..commands.len())
         .find(|k| commands[*k]["algorithm"] == "cwf")
@@ -416,6 +430,16 @@ fn the_drive_switched_from_foxglove_mid_flight_blends_within_the_hand_over_bound
         changes[0].starts_with("parameter drive set: 1 → 0 (mpc → cwf)"),
         "{}",
         changes[0]
+    );
+    // The CWF's lane came over from the comparison lanes' thread, and the blend began.
+    let arrived: Vec<&String> = events.iter().filter(|e| e.starts_with("drive: ")).collect();
+    assert_eq!(arrived.len(), 1, "{events:?}");
+    eprintln!("events: {} | {}", changes[0], arrived[0]);
+    assert!(
+        arrived[0].starts_with("drive: cwf's lane came over from the comparison lanes' thread")
+            && arrived[0].ends_with("the command blends from mpc's to cwf's within 3.00 s"),
+        "{}",
+        arrived[0]
     );
     let summary = read_json(&dir.path().join("summary.json"));
     let tuning = &summary["tuning"];

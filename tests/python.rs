@@ -1,9 +1,10 @@
 //! The Python module `hexcue` (hexcue-py/, docs/python.md) built with maturin into a venv under
 //! target/ and checked against the CLI by tests/python_module.py on the shipped landing: the
 //! S-MPC stepped from Python gives the Rust engine's commands (to 1e-9) and the recording's (to
-//! its resolution), `run()`'s score is `play --headless --summary`'s (to 1e-12), and a bad
-//! profile raises with hexcue's message naming the key. Skipped, saying why, only when the
-//! venv cannot be made (no Python venv module or no PyPI).
+//! its resolution), `run()`'s score is `play --headless --summary`'s (to 1e-12),
+//! `run(preview=True)` gives `play --preview`'s summary, and a bad profile raises with
+//! hexcue's message naming the key. Skipped, saying why, only when the venv cannot be made
+//! (no Python venv module or no PyPI).
 
 mod common;
 
@@ -130,6 +131,28 @@ fn the_python_module_steps_runs_and_scores_as_the_cli() {
     let engine_json = dir.path().join("engine.json");
     write_engine_commands(&profile_toml, &engine_json);
 
+    // The preview through the module: the MPC with the flight's future, on the landing's
+    // first 20 s (a file of its own, so that the CLI and the module see the same future).
+    let slice = dir.path().join("landing-20s.csv");
+    let text = std::fs::read_to_string(repo().join(TRACE)).unwrap();
+    let first: Vec<&str> = text.lines().take(1 + 2000).collect();
+    std::fs::write(&slice, first.join("\n") + "\n").unwrap();
+    let preview_summary = dir.path().join("preview.json");
+    let out = hexcue(&[
+        "play",
+        "--headless",
+        "--trace",
+        slice.to_str().unwrap(),
+        "--algorithms",
+        "mpc",
+        "--preview",
+        "--profile",
+        profile.to_str().unwrap(),
+        "--summary",
+        preview_summary.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+
     let started = Instant::now();
     let out = Command::new(&python)
         .arg(repo().join("tests/python_module.py"))
@@ -138,6 +161,8 @@ fn the_python_module_steps_runs_and_scores_as_the_cli() {
         .arg(&commands_csv)
         .arg(&engine_json)
         .arg(&profile)
+        .arg(&slice)
+        .arg(&preview_summary)
         .current_dir(repo())
         .stdin(Stdio::null())
         .output()

@@ -1,8 +1,10 @@
 """The Python module `hexcue` against the CLI (tests/python.rs runs this in its venv).
 
 Arguments: the trace CSV, the CLI's `--summary` JSON, the CSV `hexcue export` wrote of the
-recorded S-MPC commands, the JSON of the Rust engine's S-MPC commands at full precision, and
-the profile all three ran with (the default without the MPC's wall-clock limit).
+recorded S-MPC commands, the JSON of the Rust engine's S-MPC commands at full precision, the
+profile all three ran with (the default without the MPC's wall-clock limit), the trace's
+first 20 s as a file of its own, and the summary of `play --headless --preview` of the MPC
+on that file.
 Prints one line per check; any failure raises (exit status 1).
 """
 
@@ -33,7 +35,8 @@ def same(ours, theirs, path="summary"):
         assert ours == theirs, (path, ours, theirs)
 
 
-trace_csv, summary_json, recorded_csv, engine_json, profile_toml = sys.argv[1:6]
+(trace_csv, summary_json, recorded_csv, engine_json, profile_toml, slice_csv,
+ preview_json) = sys.argv[1:8]
 
 # hexcue's own trace format (docs/formats.md): t, fx, fy, fz (m/s²), p, q, r (rad/s), ...
 data = np.loadtxt(trace_csv, delimiter=",", skiprows=1)
@@ -127,7 +130,25 @@ assert {s["mode"] for s in states[switched[0]:]} & {"blend", "free"}, first
 reasons = [states[k]["last_switch_reason"] for k in switched]
 print(f"state: {len(switched)} switches, at steps {switched}: {reasons}")
 
-# (3) A bad profile raises with hexcue's message naming the key.
+# (3) run(preview=True) is `play --headless --preview`: the MPC sees the flight's future.
+part_data = np.loadtxt(slice_csv, delimiter=",", skiprows=1)
+part = {"specific_force_mps2": np.ascontiguousarray(part_data[:, 1:4]),
+        "angular_velocity_radps": np.ascontiguousarray(part_data[:, 4:7]),
+        "name": "landing-20s"}
+with open(preview_json) as fh:
+    cli_preview = json.load(fh)
+assert cli_preview["mpc_reference"] == "preview", cli_preview.get("mpc_reference")
+ahead = hexcue.run(part["specific_force_mps2"], part["angular_velocity_radps"], profile=profile,
+                   algorithms=["mpc"], name=part["name"], preview=True)
+same(ahead.summary, cli_preview)
+causal = hexcue.run(part["specific_force_mps2"], part["angular_velocity_radps"], profile=profile,
+                    algorithms=["mpc"], name=part["name"])
+assert causal.summary["mpc_reference"] == "decay", causal.summary["mpc_reference"]
+assert causal.score("mpc") != ahead.score("mpc"), "the preview changes the MPC's run"
+print(f"preview: score {ahead.score('mpc')!r} as `play --preview`, "
+      f"{causal.score('mpc')!r} without")
+
+# (4) A bad profile raises with hexcue's message naming the key.
 with open(profile_toml) as fh:
     text = fh.read()
 bad = text.replace("rate_hz = 100.0", "rate_hz = \"fast\"", 1)

@@ -175,6 +175,34 @@ fn inputs_are_checked_before_the_work() {
     let run = hexcue(&args);
     assert!(!run.status.success());
     assert!(stderr(&run).contains("lqr"), "{}", stderr(&run));
+    // A budget too small to search (the base and one generation of 4) is refused, rather
+    // than the base written back as if tuned; 5 searches.
+    for small in ["0", "4"] {
+        let run = hexcue(&tune_args(&trace, &fresh, small, "1"));
+        assert!(!run.status.success(), "--budget {small}");
+        let err = stderr(&run);
+        assert!(
+            err.contains(&format!("--budget {small}")) && err.contains("at least 5"),
+            "{err}"
+        );
+        assert!(!fresh.exists());
+    }
+    // Validated k-fold by flight (two flights, two folds), each fold needs 5 of its own.
+    let second = synthetic_trace(dir.path(), 6);
+    let two = std::ffi::OsString::from(format!("{},{}", trace.display(), second.display()));
+    let mut args = tune_args(&trace, &fresh, "9", "1");
+    args[4] = &two;
+    let run = hexcue(&args);
+    assert!(!run.status.success());
+    let err = stderr(&run);
+    assert!(
+        err.contains("--budget 9") && err.contains("at least 10"),
+        "{err}"
+    );
+    assert!(!fresh.exists());
+    let run = hexcue(&tune_args(&trace, &fresh, "5", "1"));
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(stdout(&run).contains("5 candidates"), "{}", stdout(&run));
 }
 
 #[test]

@@ -227,6 +227,12 @@ impl DriveSwitch {
         self.lanes[self.n - 1]
     }
 
+    /// Whether the command still hears algorithm `id`'s lane (the drive, or one blending
+    /// out): a lane it does not hear may leave the engine.
+    pub fn hears(&self, id: AlgorithmId) -> bool {
+        self.lanes[..self.n].contains(&id)
+    }
+
     /// Whether an older lane is still heard.
     pub fn blending(&self) -> bool {
         self.n > 1
@@ -385,12 +391,14 @@ mod tests {
         let mut d = DriveSwitch::new(AlgorithmId::Cwf);
         assert!(!d.switch(AlgorithmId::Cwf, blend_s));
         assert!(!d.blending());
+        assert!(d.hears(AlgorithmId::Cwf) && !d.hears(AlgorithmId::Mpc));
         let mut poses = Vec::new();
         for k in 0..800 {
             if k == 200 {
                 d.switch(AlgorithmId::Mpc, blend_s);
             }
             if k == 300 {
+                assert!(d.hears(AlgorithmId::Cwf) && d.hears(AlgorithmId::Mpc));
                 d.switch(AlgorithmId::Cwf, blend_s);
                 assert!(d.blending());
             }
@@ -402,6 +410,7 @@ mod tests {
             // Both blends done 1.5 s after the second switch: the CWF's own, exactly.
             if k >= 300 + 150 {
                 assert!(!d.blending(), "{k}");
+                assert!(!d.hears(AlgorithmId::Mpc), "{k}");
                 assert_eq!(c, lane(AlgorithmId::Cwf, k));
             }
             d.advance(dt);

@@ -216,6 +216,44 @@ struct Lane {
     fade: Option<Fade>,
 }
 
+impl Lane {
+    fn reset(&mut self) {
+        self.algorithm.reset();
+        self.limiter.reset();
+        self.vestibular.reset();
+        self.fade = None;
+    }
+}
+
+/// A lane taken out of one engine with everything it runs on (the algorithm's state, its
+/// limiter, its perception model, a retune's blend under way), to go on in another engine
+/// stepping the same samples ([`Engine::take_lane`], [`Engine::put_lane`]): a live session
+/// moves the lane it switches the drive to between the comparison lanes' thread and the
+/// stepping thread. Moving it allocates nothing.
+pub struct LaneState {
+    lane: Lane,
+    /// The step it takes next.
+    position: usize,
+}
+
+impl LaneState {
+    /// The algorithm it runs.
+    pub fn id(&self) -> AlgorithmId {
+        self.lane.algorithm.id()
+    }
+
+    /// Index of the step it takes next: the position of the engine it left.
+    pub fn position(&self) -> usize {
+        self.position
+    }
+
+    /// Back to rest at neutral, as [`Engine::reset_lanes`] does (for a reset it missed on
+    /// its way).
+    pub fn reset(&mut self) {
+        self.lane.reset();
+    }
+}
+
 /// The old side of a retune's blend ([`Engine::retune`]).
 struct Fade {
     algorithm: Box<dyn MotionCueing>,
@@ -391,7 +429,7 @@ struct Window {
 /// let summary = summary.finish();
 /// assert_eq!(summary.steps as usize, trace.len());
 /// for id in AlgorithmId::ALL {
-///     assert!(summary.algorithms[id.key()].score.is_finite());
+///     assert!(summary.algorithm(*id).unwrap().score.is_finite());
 /// }
 /// ```
 pub struct Engine {
@@ -457,22 +495,20 @@ impl Engine {
                 reason: format!("an engine runs at most {MAX_LANES} algorithms"),
             });
         }
-        let lanes = algorithms
-            .iter()
-            .map(|&id| {
-                Ok(Lane {
-                    algorithm: profile.algorithm(id)?,
-                    limiter: WorkspaceLimiter::new(
-                        stewart.clone(),
-                        profile.limits.si(),
-                        profile.limiter.leg_margin_m,
-                        dt,
-                    ),
-                    vestibular: Vestibular::new(&profile.vestibular, dt),
-                    fade: None,
-                })
-            })
-            .collect::<Result<Vec<_>, BuildError>>()?;
+        let mut lanes = Vec::with_capacity(MAX_LANES);
+        for &id in algorithms {
+            lanes.push(Lane {
+                algorithm: profile.algorithm(id)?,
+                limiter: WorkspaceLimiter::new(
+                    stewart.clone(),
+                    profile.limits.si(),
+                    profile.limiter.leg_margin_m,
+                    dt,
+                ),
+                vestibular: Vestibular::new(&profile.vestibular, dt),
+                fade: None,
+            });
+        }
         let transitions = profile.safety.transition_limits(&profile.limits.si(), dt);
         let preview_len = (PREVIEW_HORIZON_S * profile.rate_hz).ceil() as usize;
         Ok(Engine {
@@ -629,11 +665,46 @@ impl Engine {
     /// a live session does this before it fades the cue in again.
     pub fn reset_lanes(&mut self) {
         for lane in &mut self.lanes {
-            lane.algorithm.reset();
-            lane.limiter.reset();
-            lane.vestibular.reset();
-            lane.fade = None;
+            lane.reset();
         }
+    }
+
+    /// Whether a lane runs algorithm `id` (no allocation, unlike [`Engine::algorithms`]).
+    pub fn has_lane(&self, id: AlgorithmId) -> bool {
+        self.lanes.iter().any(|l| l.algorithm.id() == id)
+    }
+
+    /// Takes the lane of `id` out, in the state it has reached; `None` when no lane runs it.
+    /// No allocation and no deallocation: the lanes' room is kept.
+    pub fn take_lane(&mut self, id: AlgorithmId) -> Option<LaneState> {
+        let i = self.lanes.iter().position(|l| l.algorithm.id() == id)?;
+        Some(LaneState {
+            lane: self.lanes.remove(i),
+            position: self.k,
+        })
+    }
+
+    /// Adds a lane another engine stepped ([`Engine::take_lane`]) after this engine's lanes;
+    /// it steps from the next step on. It should come at the position it left (this engine
+    /// steps the same samples): one from behind has missed the samples in between. Refused
+    /// (and handed back) when a lane already runs its algorithm or [`MAX_LANES`] do. No
+    /// allocation: [`Engine::with_source`] makes room for [`MAX_LANES`].
+    // The lane comes back by value, as it came: boxing it would allocate on a live
+    // session's stepping thread, which must not.
+    #[allow(clippy::result_large_err)]
+    pub fn put_lane(&mut self, lane: LaneState) -> Result<(), LaneState> {
+        if self.lanes.len() >= MAX_LANES || self.has_lane(lane.id()) {
+            return Err(lane);
+        }
+        let mut lane = lane.lane;
+        lane.algorithm.set_parallel(self.algorithms_parallel);
+        self.lanes.push(lane);
+        let heavy = self
+            .lanes
+            .iter()
+            .any(|l| l.algorithm.id() != AlgorithmId::Cwf);
+        self.parallel = self.algorithms_parallel && heavy;
+        Ok(())
     }
 
     /// Everything that changes from step to step, so that [`Engine::restore`] can come back
@@ -805,6 +876,7 @@ pub(crate) mod tests {
     use super::*;
     use crate::summary::SummaryBuilder;
     use crate::testing::{full_flight, manoeuvre};
+    use crate::vocab::Channel;
 
     #[test]
     fn cwf_runs_a_manoeuvre_inside_the_workspace() {
@@ -835,16 +907,20 @@ pub(crate) mod tests {
         assert_eq!(frames, 3000);
         assert!(engine.step().is_none());
         let s = summary.finish();
-        let cwf = &s.algorithms["cwf"];
+        let cwf = s.algorithm(AlgorithmId::Cwf).unwrap();
         assert_eq!(cwf.leg_violations, 0);
         assert!(cwf.max_leg_usage > 0.0 && cwf.max_leg_usage < 1.0);
         // Cueing that follows the aircraft: positively correlated on the driven channels.
-        for ch in ["fx", "fy"] {
-            let m = &cwf.metrics[ch];
+        for ch in [Channel::Fx, Channel::Fy] {
+            let m = &cwf.metrics[&ch];
             assert!(m.pc > 0.5 && m.rae.is_finite(), "{ch}: {m:?}");
         }
         // Roll also carries the sub-threshold tilt that cues the sway, which the canals sense.
-        assert!(cwf.metrics["wx"].pc > 0.2, "{:?}", cwf.metrics["wx"]);
+        assert!(
+            cwf.metrics[&Channel::Wx].pc > 0.2,
+            "{:?}",
+            cwf.metrics[&Channel::Wx]
+        );
         // A 1 s heave pulse is cued at its onset with the right sign; the high-pass's rebound
         // afterwards is the classical washout's known false cue.
         assert!(
@@ -969,6 +1045,69 @@ pub(crate) mod tests {
         // A trace reads its own samples.
         let mut file = Engine::new(&profile, Arc::new(manoeuvre()), &[AlgorithmId::Cwf]).unwrap();
         assert!(!file.push_sample(pushed));
+    }
+
+    /// A lane moved mid-flight from one engine to another stepping the same samples goes on
+    /// exactly as if it had never moved: its commands, and its summary's metrics moved with
+    /// it, are bit for bit those of an engine that ran it throughout. The engine it left
+    /// steps on without it; one that runs it already refuses a second.
+    #[test]
+    fn a_lane_moved_between_engines_goes_on_as_if_it_had_stayed() {
+        let profile = full_flight();
+        let trace = Arc::new(manoeuvre());
+        let mut from = Engine::new(&profile, trace.clone(), &[AlgorithmId::Cwf]).unwrap();
+        let mut to = Engine::new(&profile, trace.clone(), &[]).unwrap();
+        let mut alone = Engine::new(&profile, trace.clone(), &[AlgorithmId::Cwf]).unwrap();
+        let mut summaries = [0, 1, 2].map(|_| SummaryBuilder::new(&profile, &trace.name));
+        let mut moved = false;
+        for k in 0..700 {
+            if k == 250 {
+                let lane = from.take_lane(AlgorithmId::Cwf).unwrap();
+                assert_eq!((lane.id(), lane.position()), (AlgorithmId::Cwf, 250));
+                assert!(from.take_lane(AlgorithmId::Cwf).is_none());
+                to.put_lane(lane).map_err(|_| "refused").unwrap();
+                let acc = summaries[0].take_lane(AlgorithmId::Cwf).unwrap();
+                assert_eq!(acc.id(), AlgorithmId::Cwf);
+                summaries[1].put_lane(acc);
+                // A second CWF lane is handed back.
+                let again = alone.take_lane(AlgorithmId::Cwf).unwrap();
+                let again = to.put_lane(again).expect_err("refused");
+                alone.put_lane(again).map_err(|_| "refused").unwrap();
+            }
+            let frames = [&mut from, &mut to, &mut alone].map(|e| e.step().unwrap());
+            for (s, f) in summaries.iter_mut().zip(&frames) {
+                s.push(f);
+            }
+            let (held, reference) = if k < 250 {
+                (&frames[0], &frames[2])
+            } else {
+                (&frames[1], &frames[2])
+            };
+            assert_eq!(held.lanes.len(), 1, "step {k}");
+            assert_eq!(
+                held.lanes[0].command, reference.lanes[0].command,
+                "step {k}"
+            );
+            assert_eq!(
+                frames[if k < 250 { 1 } else { 0 }].lanes.len(),
+                0,
+                "step {k}"
+            );
+            moved |= k >= 250 && reference.lanes[0].command.pose.amax() > 1e-3;
+        }
+        assert!(
+            moved,
+            "the CWF never moved after the hand-over: nothing was compared"
+        );
+        let [left, took, ran] = summaries.map(|s| s.finish());
+        assert!(left.algorithms.is_empty(), "{:?}", left.algorithms.keys());
+        let (took, ran) = (
+            &took.algorithms[&AlgorithmId::Cwf.into()],
+            &ran.algorithms[&AlgorithmId::Cwf.into()],
+        );
+        assert_eq!(took.metrics, ran.metrics);
+        assert_eq!(took.score, ran.score);
+        assert_eq!(took.limiter_steps, ran.limiter_steps);
     }
 
     #[test]

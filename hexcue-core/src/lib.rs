@@ -15,6 +15,7 @@ pub mod bumpless;
 pub mod engine;
 pub mod events;
 pub mod jolts;
+pub mod keyed;
 pub mod mca;
 pub mod metrics;
 pub mod model;

@@ -20,6 +20,98 @@ use crate::vocab::Channel;
 /// Lags searched for the equivalent delay (s).
 pub const MAX_LAG_S: f64 = 1.0;
 
+/// Which run of an algorithm a summary's entry is: the causal one every command makes, or
+/// (`compare --preview`) a second run whose MPCs knew the flight's future over their
+/// horizon. The JSON keys them `mpc` and `mpc-preview`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct AlgorithmRun {
+    /// The algorithm.
+    pub id: AlgorithmId,
+    /// The run previewed the flight's future (`[mpc] preview`).
+    pub preview: bool,
+}
+
+impl AlgorithmRun {
+    /// Every run a summary may hold: each algorithm's causal run, then its preview.
+    pub const ALL: [AlgorithmRun; 6] = [
+        AlgorithmRun::causal(AlgorithmId::Smpc),
+        AlgorithmRun::causal(AlgorithmId::Mpc),
+        AlgorithmRun::causal(AlgorithmId::Cwf),
+        AlgorithmRun::previewed(AlgorithmId::Smpc),
+        AlgorithmRun::previewed(AlgorithmId::Mpc),
+        AlgorithmRun::previewed(AlgorithmId::Cwf),
+    ];
+
+    /// `id`'s causal run.
+    pub const fn causal(id: AlgorithmId) -> Self {
+        AlgorithmRun { id, preview: false }
+    }
+
+    /// `id`'s run with preview.
+    pub const fn previewed(id: AlgorithmId) -> Self {
+        AlgorithmRun { id, preview: true }
+    }
+
+    /// The key in the JSON: the algorithm's, with `-preview` for a preview run.
+    pub fn key(self) -> &'static str {
+        match (self.id, self.preview) {
+            (AlgorithmId::Smpc, false) => "smpc",
+            (AlgorithmId::Mpc, false) => "mpc",
+            (AlgorithmId::Cwf, false) => "cwf",
+            (AlgorithmId::Smpc, true) => "smpc-preview",
+            (AlgorithmId::Mpc, true) => "mpc-preview",
+            (AlgorithmId::Cwf, true) => "cwf-preview",
+        }
+    }
+
+    /// Its name for people: `S-MPC`, `S-MPC (preview)`.
+    pub fn label(self) -> &'static str {
+        match (self.id, self.preview) {
+            (id, false) => id.label(),
+            (AlgorithmId::Smpc, true) => "S-MPC (preview)",
+            (AlgorithmId::Mpc, true) => "MPC (preview)",
+            (AlgorithmId::Cwf, true) => "CWF (preview)",
+        }
+    }
+}
+
+impl From<AlgorithmId> for AlgorithmRun {
+    fn from(id: AlgorithmId) -> Self {
+        AlgorithmRun::causal(id)
+    }
+}
+
+/// In the order of the keys' text, as the summary's JSON and tables have always listed them
+/// (`cwf`, `mpc`, `mpc-preview`, `smpc`, …), not the console's.
+impl Ord for AlgorithmRun {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.key().cmp(other.key())
+    }
+}
+
+impl PartialOrd for AlgorithmRun {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// Its key, padded as asked (`{:<6}` in the tables).
+impl std::fmt::Display for AlgorithmRun {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(self.key())
+    }
+}
+
+impl crate::keyed::Word for AlgorithmRun {
+    const WHAT: &'static str = "algorithm";
+    fn all() -> &'static [Self] {
+        &AlgorithmRun::ALL
+    }
+    fn word(self) -> &'static str {
+        self.key()
+    }
+}
+
 /// A run judged: per algorithm the perception metrics, the score and its terms, step times
 /// and limiter activity, with what the run was (trace, profile, steps). The JSON of
 /// `--summary` and `compare`.
@@ -33,16 +125,18 @@ pub struct Summary {
     pub steps: u64,
     /// The profile's rate (Hz).
     pub rate_hz: f64,
-    /// Per algorithm (`smpc`, `mpc`, `cwf`) its summary.
-    pub algorithms: BTreeMap<String, AlgorithmSummary>,
+    /// Per algorithm's run its summary (in the JSON keyed `cwf`, `mpc`, `smpc`, and
+    /// `mpc-preview`, `smpc-preview` for `compare --preview`'s second runs).
+    #[serde(with = "crate::keyed::by_word")]
+    pub algorithms: BTreeMap<AlgorithmRun, AlgorithmSummary>,
     /// Samples of the aircraft's motion clipped by the profile's `[input]` limits, per axis
     /// (fx, fy, fz as the change from 1 g; p, q, r), before any algorithm saw them.
     #[serde(default)]
     pub input_clipped: BTreeMap<String, u64>,
     /// The aircraft's own jolts per channel (fx..wz), measured at the head as the
     /// simulator's are (`crate::jolts`): the onsets that excuse the simulator's.
-    #[serde(default)]
-    pub aircraft_jolts: BTreeMap<String, Jolts>,
+    #[serde(default, with = "crate::keyed::by_word")]
+    pub aircraft_jolts: BTreeMap<Channel, Jolts>,
     /// A live session's real-time record (`hexcue live`); absent for a playback.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub live: Option<LiveSummary>,
@@ -88,6 +182,11 @@ pub struct ParameterChange {
 pub const INPUT_AXES: [&str; 6] = ["fx", "fy", "fz", "p", "q", "r"];
 
 impl Summary {
+    /// `id`'s causal run, if it ran.
+    pub fn algorithm(&self, id: AlgorithmId) -> Option<&AlgorithmSummary> {
+        self.algorithms.get(&AlgorithmRun::causal(id))
+    }
+
     /// For a live session in which no sample ever arrived: what that means, in one line.
     /// Such a session cued nothing, and its zeros must not read as a clean run.
     pub fn no_input_line(&self) -> Option<String> {
@@ -151,8 +250,8 @@ pub struct LiveSummary {
     /// start to the start of its period plus one period; 0.25 = a quarter of the time it
     /// had). The driving algorithm's is the one the platform waits for; the comparison
     /// lanes run on a thread of their own, and theirs is of the same budget.
-    #[serde(default)]
-    pub deadline_share: BTreeMap<String, Quantiles>,
+    #[serde(default, with = "crate::keyed::by_word")]
+    pub deadline_share: BTreeMap<AlgorithmId, Quantiles>,
     /// Steps at which the comparison lanes (the algorithms not driving) finished after the
     /// step's deadline, on their own thread: they lag the driving lane, which they never
     /// delay; and the most they lagged (s).
@@ -244,7 +343,8 @@ pub struct Quantiles {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AlgorithmSummary {
     /// Per channel: fx, fy, fz, wx, wy, wz.
-    pub metrics: BTreeMap<String, ChannelMetrics>,
+    #[serde(with = "crate::keyed::by_word")]
+    pub metrics: BTreeMap<Channel, ChannelMetrics>,
     /// Median, 99th percentile and maximum of its step times (µs).
     pub step_time_us: StepTimes,
     /// Steps at which the limiter changed the command.
@@ -277,6 +377,19 @@ fn head_signal(df: &nalgebra::Vector3<f64>, w: &nalgebra::Vector3<f64>) -> [f64;
 
 /// DoF names in pose order.
 pub const DOFS: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
+
+/// One lane's metrics so far, on its way from one builder to another.
+pub struct LaneAccumulator {
+    id: AlgorithmId,
+    acc: AlgorithmAccumulator,
+}
+
+impl LaneAccumulator {
+    /// The algorithm whose lane it is.
+    pub fn id(&self) -> AlgorithmId {
+        self.id
+    }
+}
 
 #[derive(Clone)]
 struct AlgorithmAccumulator {
@@ -419,6 +532,22 @@ impl SummaryBuilder {
         }
     }
 
+    /// Takes out what has been gathered of algorithm `id`'s lane, to go on in another
+    /// builder with the lane itself (a live session moves a lane between threads,
+    /// [`crate::engine::Engine::take_lane`]); `None` if no frame had it. No allocation.
+    pub fn take_lane(&mut self, id: AlgorithmId) -> Option<LaneAccumulator> {
+        self.algorithms
+            .remove(&id)
+            .map(|acc| LaneAccumulator { id, acc })
+    }
+
+    /// Goes on with a lane's metrics another builder gathered ([`SummaryBuilder::take_lane`]);
+    /// its next frames add to them. No allocation once this builder has had a lane (the map
+    /// of at most three keeps its one node).
+    pub fn put_lane(&mut self, lane: LaneAccumulator) {
+        self.algorithms.insert(lane.id, lane.acc);
+    }
+
     /// The summary of the steps pushed so far.
     pub fn finish(&self) -> Summary {
         let algorithms = self
@@ -433,7 +562,7 @@ impl SummaryBuilder {
                     .map(|((c, ch), j)| {
                         let mut m = ch.finish();
                         m.jolts = j;
-                        (c.key().to_string(), m)
+                        (*c, m)
                     })
                     .collect();
                 let (score, score_terms) = acc.score.finish(&acc.jolts.excess_sum());
@@ -462,7 +591,7 @@ impl SummaryBuilder {
                     score,
                     score_terms,
                 };
-                (id.key().to_string(), summary)
+                (AlgorithmRun::causal(*id), summary)
             })
             .collect();
         Summary {
@@ -479,7 +608,7 @@ impl SummaryBuilder {
             aircraft_jolts: Channel::ALL
                 .iter()
                 .zip(self.aircraft_onsets.jolts())
-                .map(|(c, j)| (c.key().to_string(), j))
+                .map(|(c, j)| (*c, j))
                 .collect(),
             live: None,
             bound: None,

@@ -293,8 +293,7 @@ impl PyAlgorithm {
     /// gives it.
     fn score(&self) -> PyResult<f64> {
         self.finished()
-            .algorithms
-            .get(self.id.key())
+            .algorithm(self.id)
             .map(|a| a.score)
             .ok_or_else(|| value_error("no step yet: the score needs at least one"))
     }
@@ -527,14 +526,15 @@ impl PyRun {
 /// engine (with the trace's future offered to the MPCs, as a trace file's is) and its summary.
 /// `specific_force_mps2` and `angular_velocity_radps` are (n, 3) arrays, one row per sample at
 /// the profile's rate from t = 0, unless `t_s` gives their times (then they are resampled to
-/// the profile's rate as a trace file is). `algorithms` defaults to all three. Offline, as
-/// `play` runs by default: the MPCs' wall-clock limit is lifted so that the same input gives
-/// the same result on any machine; `realtime_budget = True` keeps the profile's
-/// `time_limit_ms`, as `play --realtime-budget` does.
+/// the profile's rate as a trace file is). `algorithms` defaults to all three. `preview`
+/// (True or False) overrides the profile's `[mpc] preview`, as `play --preview` does: the
+/// MPCs then see the flight's true future over their horizon. Offline, as `play` runs by
+/// default: the MPCs' wall-clock limit is lifted so that the same input gives the same result
+/// on any machine; `realtime_budget = True` keeps the profile's `time_limit_ms`, as
+/// `play --realtime-budget` does.
 #[pyfunction]
-#[pyo3(signature = (specific_force_mps2, angular_velocity_radps, profile = None, algorithms = None, t_s = None, name = DEFAULT_RUN_NAME, realtime_budget = false))]
-// Each argument is one of the Python function's keyword arguments.
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (specific_force_mps2, angular_velocity_radps, profile = None, algorithms = None, t_s = None, name = DEFAULT_RUN_NAME, preview = None, realtime_budget = false))]
+#[allow(clippy::too_many_arguments)] // Python's keyword arguments, each optional
 fn run(
     py: Python<'_>,
     specific_force_mps2: PyArrayLike2<'_, f64, AllowTypeChange>,
@@ -543,14 +543,17 @@ fn run(
     algorithms: Option<Vec<String>>,
     t_s: Option<PyArrayLike1<'_, f64, AllowTypeChange>>,
     name: &str,
+    preview: Option<bool>,
     realtime_budget: bool,
 ) -> PyResult<PyRun> {
-    let profile = profile.map_or_else(default_profile, |p| p.inner.clone());
-    let profile = if realtime_budget {
-        profile
-    } else {
-        profile.offline()
-    };
+    let mut profile = profile.map_or_else(default_profile, |p| p.inner.clone());
+    // `play --preview` sets the same key (src/app/play.rs); None keeps the profile's.
+    if let Some(preview) = preview {
+        profile.mpc.preview = preview;
+    }
+    if !realtime_budget {
+        profile = profile.offline();
+    }
     let mut ids = match algorithms {
         None => AlgorithmId::ALL.to_vec(),
         Some(keys) => keys
@@ -614,7 +617,7 @@ fn run(
     let scores = summary
         .algorithms
         .iter()
-        .map(|(k, a)| (k.clone(), a.score))
+        .map(|(k, a)| (k.key().to_string(), a.score))
         .collect();
     Ok(PyRun {
         summary: pythonize::pythonize(py, &summary)?.unbind(),

@@ -60,7 +60,7 @@ pub fn run_algorithms(
 
 /// Per-channel errors of one algorithm in a summary (fx..wz).
 pub fn channel_errors(summary: &Summary, id: AlgorithmId) -> Option<[f64; 6]> {
-    let a = summary.algorithms.get(id.key())?;
+    let a = summary.algorithm(id)?;
     Some(std::array::from_fn(|c| {
         a.score_terms
             .error

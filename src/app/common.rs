@@ -10,8 +10,8 @@ use std::sync::Arc;
 use anyhow::{bail, Context, Result};
 
 use crate::outputs::{check_distinct, check_not_input, check_output_of, Input};
-use hexcue_core::summary::Summary;
-use hexcue_core::vocab::Channel;
+use hexcue_core::summary::{AlgorithmRun, Summary};
+use hexcue_core::vocab::{AlgorithmId, Channel};
 
 /// Set by SIGINT, SIGTERM or SIGHUP so that a headless run stops cleanly and finishes its
 /// recording.
@@ -78,7 +78,7 @@ pub fn format_table(s: &Summary) -> String {
     for (name, alg) in &s.algorithms {
         for channel in Channel::ALL {
             let ch = channel.key();
-            if let Some(m) = alg.metrics.get(ch) {
+            if let Some(m) = alg.metrics.get(&channel) {
                 // AAD and RMSE in the channel's unit as the console and the plots show it
                 // (°/s for rates); the JSON summary keeps SI (rad/s).
                 let (unit, scale) = (channel.unit(), channel.display_scale());
@@ -218,7 +218,7 @@ fn bound_lines(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
         out.push_str(&format!(" {:>8}", c.key()));
     }
     out.push('\n');
-    let cueable = |name: &str| -> Option<(f64, Vec<f64>)> {
+    let cueable = |name: &AlgorithmRun| -> Option<(f64, Vec<f64>)> {
         let alg = s.algorithms.get(name)?;
         let total = alg.score_terms.error.values().sum::<f64>() - b.lower.total;
         let per = Channel::ALL
@@ -239,8 +239,9 @@ fn bound_lines(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
             out.push('\n');
         }
     }
-    if let Some((cwf_total, cwf_per)) = cueable("cwf") {
-        for name in s.algorithms.keys().filter(|n| *n != "cwf") {
+    let cwf = AlgorithmRun::causal(AlgorithmId::Cwf);
+    if let Some((cwf_total, cwf_per)) = cueable(&cwf) {
+        for name in s.algorithms.keys().filter(|n| **n != cwf) {
             if let Some((total, per)) = cueable(name) {
                 let share = |c: f64, a: f64| {
                     if c.abs() > 1e-9 {

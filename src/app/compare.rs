@@ -13,11 +13,8 @@ use crate::session::{FrameSink, Runner, SinkFailure};
 use crate::sinks::recorder::ProgressSink;
 use hexcue_core::engine::Engine;
 use hexcue_core::profile::text::default_profile;
-use hexcue_core::summary::Summary;
+use hexcue_core::summary::{AlgorithmRun, Summary};
 use hexcue_core::vocab::AlgorithmId;
-
-/// The suffix of an algorithm's key in the report when it ran with the flight's future.
-pub const PREVIEW_SUFFIX: &str = "-preview";
 
 /// One run of `algorithms` over `trace`, its progress shown on `bar` from `done` steps on.
 fn run_one(
@@ -116,10 +113,9 @@ pub fn run(args: &CompareArgs) -> Result<()> {
             // The same flight again with its future over the MPCs' horizon, beside the
             // causal runs under the `-preview` keys.
             let run = run_one(&preview.0, &trace, &preview.1, &bar, done, &stop)?;
-            for (key, a) in run.algorithms {
-                summary
-                    .algorithms
-                    .insert(format!("{key}{PREVIEW_SUFFIX}"), a);
+            for (run, a) in run.algorithms {
+                let previewed = AlgorithmRun::previewed(run.id);
+                summary.algorithms.insert(previewed, a);
             }
         }
         if args.bound {
@@ -153,9 +149,16 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         });
     }
     bar.finish_and_clear();
+    // The command that makes this report again, `--algorithms` included when not all ran.
+    let keys: Vec<&str> = algorithms.iter().map(|a| a.key()).collect();
     let command = format!(
-        "hexcue compare{}{}{}{}",
+        "hexcue compare{}{}{}{}{}",
         if args.bound { " --bound" } else { "" },
+        if algorithms.len() == AlgorithmId::ALL.len() {
+            String::new()
+        } else {
+            format!(" --algorithms {}", keys.join(","))
+        },
         args.traces
             .as_ref()
             .map(|t| format!(" --traces {}", t.display()))

@@ -78,15 +78,33 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
         name: profile.name.clone(),
     };
     let algorithms = parse_algorithms(&args.algorithms)?;
-    let drive = args.drive;
+    // `--algorithms cwf` alone drives with the CWF, rather than refusing a default the user
+    // never gave.
+    let drive = match args.drive {
+        Some(d) => d,
+        None => hexcue_core::vocab::AlgorithmId::ALL
+            .iter()
+            .copied()
+            .find(|a| algorithms.contains(a))
+            .context("--algorithms: expected at least one")?,
+    };
     let input = crate::sources::live::LiveInput::open(&args.input)?;
     let mut session = LiveSession::new(&profile, &algorithms, drive, input)?;
     session.set_realtime((!args.no_realtime).then_some(args.realtime_priority));
     for url in &args.output {
         session.add_output(crate::sinks::open_output(url, &profile, session.period())?);
     }
+    let server = match args.foxglove {
+        Some(addr) => Some(start_foxglove(
+            addr,
+            &profile,
+            &algorithms,
+            Some(session.tuning()),
+        )?),
+        None => None,
+    };
     if let Some(path) = &args.record {
-        session.add_frame_sink(Box::new(LiveRecording::create(
+        let mut recording = LiveRecording::create(
             path,
             &profile,
             &profile_toml,
@@ -94,15 +112,14 @@ pub fn live_setup(args: &LiveArgs) -> Result<LiveSetup> {
             &algorithms,
             drive,
             profile.rate_hz,
-        )?));
-    }
-    if let Some(addr) = args.foxglove {
-        session.add_frame_sink(Box::new(start_foxglove(
-            addr,
-            &profile,
-            &algorithms,
-            Some(session.tuning()),
-        )?));
+        )?;
+        // Recorded and served: the server sends the recording's bytes, encoded once.
+        if let Some(server) = server {
+            recording.serve(server);
+        }
+        session.add_frame_sink(Box::new(recording));
+    } else if let Some(server) = server {
+        session.add_frame_sink(Box::new(server));
     }
     Ok(LiveSetup {
         profile,

@@ -250,9 +250,11 @@ fn bound_of(
 /// Play in the console: the runner on its engine thread, a recording on `r` (or
 /// `--record`) through the sink factory.
 pub fn run_console(args: &PlayArgs) -> Result<()> {
-    require_terminal()?;
+    // The inputs first: a mistyped path or profile key is what to say, not the missing
+    // terminal.
     let (profile, profile_toml, algorithms) = load_play(args)?;
     let play = open_play_source(args, profile.rate_hz, None)?;
+    require_terminal()?;
     let info = SessionInfo::described(&play.name, play.info.as_ref(), &profile.name);
     let mut meta = recording_meta(&profile, profile_toml, &play, &algorithms);
     let trace_path = args.trace.clone();
@@ -280,7 +282,7 @@ pub fn start_foxglove(
     algorithms: &[AlgorithmId],
     tuning: Option<crate::tuning::TuningHandle>,
 ) -> Result<FoxgloveServer> {
-    let server = FoxgloveServer::start_tuned(addr, profile, algorithms, tuning)?;
+    let server = FoxgloveServer::start(addr, profile, algorithms, tuning)?;
     eprintln!(
         "foxglove: serving ws://{} (in Foxglove: Open connection → Foxglove WebSocket)",
         server.addr()

@@ -119,8 +119,9 @@ fn summarise(
 /// Review in the console: the recording's frames in memory, to seek and loop through.
 pub fn run_console(args: &ReviewArgs) -> Result<()> {
     let path = args.file.as_path();
-    require_terminal()?;
+    // The file first: a mistyped path is what to say, not the missing terminal.
     let recording = Recording::open(path)?;
+    require_terminal()?;
     let profile = recording
         .profile
         .as_ref()

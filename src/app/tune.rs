@@ -186,8 +186,13 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     }
     crate::outputs::check_output_of(&args.out, args.force, "--out", &inputs)?;
     let budget = args.budget.unwrap_or(default_budget(algorithm));
-    if budget == 0 {
-        bail!("--budget: expected at least 1 candidate");
+    if budget < crate::tune::MIN_BUDGET {
+        bail!(
+            "--budget {budget}: expected at least {} candidates, the base and one CMA-ES \
+             generation of {}; a smaller budget would only score the base",
+            crate::tune::MIN_BUDGET,
+            crate::tune::MIN_GENERATION
+        );
     }
     // A poor base wants a wide first step, a good one a narrow step that refines it: with 0.2
     // the MPC's search found no candidate better than the shipped base in three generations

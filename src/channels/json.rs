@@ -52,11 +52,6 @@ pub mod resolution {
     /// encoders resolve, and finer than `review` needs: its leg usage must agree with the
     /// run's within 10⁻⁵ relative, and 1 µm is 7 × 10⁻⁶ of the compact rig's half-stroke.
     pub const POSITION_DECIMALS: u32 = 6;
-    /// Leg margins: 0.1 mm. Read by people (the console shows whole mm) and for the least
-    /// margin of a run; the limiter's own margin is tens of mm, and `review`'s leg usage is
-    /// computed from the lengths, not from the margins. Was 1 µm, the lengths' resolution
-    /// (docs/recordings.md, "3D topics at 33 Hz").
-    pub const MARGIN_DECIMALS: u32 = 4;
     /// Platform and leg velocities: 1 mm/s and 10⁻³ rad/s (0.06 °/s, 1/50 of the 3 °/s
     /// rotation threshold). Nothing `review` computes reads them. Was 0.1 mm/s (docs/
     /// recordings.md, "3D topics at 33 Hz").
@@ -78,10 +73,6 @@ pub mod resolution {
 
     pub fn velocity(x: f64) -> f64 {
         rounded(x, VELOCITY_DECIMALS)
-    }
-
-    pub fn margin(x: f64) -> f64 {
-        rounded(x, MARGIN_DECIMALS)
     }
 
     pub fn acceleration(x: f64) -> f64 {
@@ -727,7 +718,6 @@ mod tests {
         for (x, d, f) in [
             (0.123_456_789, 6, resolution::position as fn(f64) -> f64),
             (-0.123_456_789, 3, resolution::velocity),
-            (0.123_456_789, 4, resolution::margin),
             (0.987_654_321, 3, resolution::acceleration),
         ] {
             assert_eq!(fixed(x, d).parse::<f64>().unwrap(), f(x), "{x}");

@@ -17,7 +17,6 @@ use ::foxglove::messages::{
 };
 use nalgebra::{UnitQuaternion, Vector3, Vector6};
 
-use super::{Channel, Kind};
 use hexcue_core::engine::{Frame, LaneFrame};
 use hexcue_core::events::EventLevel;
 use hexcue_core::mca::{AlgorithmId, Mode};
@@ -26,23 +25,12 @@ use hexcue_core::profile::Profile;
 
 /// Foxglove's fixed frame: z up.
 pub const WORLD_FRAME: &str = "world";
-pub use super::EVENTS_TOPIC;
 /// `Log.name` of events that belong to the session rather than to an algorithm.
 pub const SESSION_SOURCE: &str = "hexcue";
 
 /// Space left between two rigs standing side by side (m).
 const RIG_GAP_M: f64 = 1.5;
 const LEG_THICKNESS_M: f64 = 0.06;
-
-/// `/ALG/tf`: the algorithm's `FrameTransforms`.
-pub fn tf_topic(id: AlgorithmId) -> String {
-    Channel::lane(Kind::Tf, id).topic()
-}
-
-/// `/ALG/scene`: the algorithm's `SceneUpdate`.
-pub fn scene_topic(id: AlgorithmId) -> String {
-    Channel::lane(Kind::Scene, id).topic()
-}
 
 pub fn base_frame(id: AlgorithmId) -> String {
     format!("{}/base", id.key())

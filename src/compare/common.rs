@@ -1,7 +1,7 @@
 //! What the parts of the report share: the trace's results, and the algorithms' and
 //! channels' order and names as the report shows them.
 
-use hexcue_core::summary::{AlgorithmSummary, Summary};
+use hexcue_core::summary::{AlgorithmRun, AlgorithmSummary, Summary};
 use hexcue_core::vocab::{AlgorithmId, Channel};
 
 /// One trace's results with what the report says about the trace.
@@ -11,54 +11,37 @@ pub struct TraceResult {
     pub description: Option<String>,
 }
 
-/// An algorithm's name for people; a key this version does not know, as it is.
-pub(crate) fn label(key: &str) -> &str {
-    match (known(key), key) {
-        (Some(id), _) => id.label(),
-        (None, "smpc-preview") => "S-MPC (preview)",
-        (None, "mpc-preview") => "MPC (preview)",
-        (None, _) => key,
-    }
+/// The causal runs the report holds against each other.
+pub(crate) const SMPC: AlgorithmRun = AlgorithmRun::causal(AlgorithmId::Smpc);
+pub(crate) const MPC: AlgorithmRun = AlgorithmRun::causal(AlgorithmId::Mpc);
+pub(crate) const CWF: AlgorithmRun = AlgorithmRun::causal(AlgorithmId::Cwf);
+
+/// An algorithm's run's name for people ([`AlgorithmRun::label`]), from the run or a
+/// reference to it, as the report's lists hold either.
+pub(crate) fn label(run: impl std::borrow::Borrow<AlgorithmRun>) -> &'static str {
+    run.borrow().label()
 }
 
-/// The algorithm a summary's key names exactly.
-pub(crate) fn known(key: &str) -> Option<AlgorithmId> {
-    AlgorithmId::ALL.iter().copied().find(|id| id.key() == key)
-}
-
-/// The summary's algorithms in the order the report shows them ([`AlgorithmId::ALL`]), keys
-/// this version does not know last.
-pub(crate) fn ordered(summary: &Summary) -> Vec<(&str, &AlgorithmSummary)> {
-    let mut v: Vec<(&str, &AlgorithmSummary)> = AlgorithmId::ALL
+/// The summary's runs in the order the report shows them: the causal runs in the order of
+/// [`AlgorithmId::ALL`], then the preview runs in their keys' order (`mpc-preview`,
+/// `smpc-preview`), where the report has always put them.
+pub(crate) fn ordered(summary: &Summary) -> Vec<(AlgorithmRun, &AlgorithmSummary)> {
+    let causal = AlgorithmId::ALL
         .iter()
-        .filter_map(|id| {
-            summary
-                .algorithms
-                .get_key_value(id.key())
-                .map(|(k, a)| (k.as_str(), a))
-        })
-        .collect();
-    for (k, a) in &summary.algorithms {
-        if known(k).is_none() {
-            v.push((k.as_str(), a));
-        }
-    }
-    v
+        .filter_map(|&id| summary.algorithms.get_key_value(&AlgorithmRun::causal(id)));
+    let previews = summary.algorithms.iter().filter(|(run, _)| run.preview);
+    causal.chain(previews).map(|(run, a)| (*run, a)).collect()
 }
 
 pub(crate) fn metric(
     a: &AlgorithmSummary,
-    ch: &str,
+    ch: Channel,
     f: fn(&hexcue_core::metrics::ChannelMetrics) -> f64,
 ) -> f64 {
-    a.metrics.get(ch).map_or(f64::NAN, f)
+    a.metrics.get(&ch).map_or(f64::NAN, f)
 }
 
-/// What each channel is called in the report ([`Channel::label`]); a key this version does
-/// not know, as it is.
-pub(crate) fn channel_name(ch: &str) -> &str {
-    match Channel::from_key(ch) {
-        Some(c) => c.label(),
-        None => ch,
-    }
+/// What each channel is called in the report ([`Channel::label`]).
+pub(crate) fn channel_name(ch: Channel) -> &'static str {
+    ch.label()
 }

@@ -3,9 +3,9 @@
 
 use std::fmt::Write;
 
-use super::common::{channel_name, label, metric, ordered, TraceResult};
+use super::common::{channel_name, label, metric, ordered, TraceResult, CWF, MPC, SMPC};
 use super::verdict::*;
-use hexcue_core::summary::AlgorithmSummary;
+use hexcue_core::summary::{AlgorithmRun, AlgorithmSummary};
 use hexcue_core::vocab::{AlgorithmId, Channel};
 
 /// All six channels over every trace: which algorithm is best where, where an MPC is worse
@@ -16,23 +16,21 @@ pub(super) fn channels_discussion(results: &[TraceResult]) -> String {
     // The targets: every MPC's false-cue time within the CWF's plus 1 % of the flight, on
     // every channel; roll and pitch PC ≥ 0 for every MPC.
     let mut fc_total = 0;
-    let mut fc_misses: Vec<(String, &str)> = Vec::new();
+    let mut fc_misses: Vec<(String, Channel)> = Vec::new();
     let mut pc_total = 0;
     let mut pc_misses = Vec::new();
     for r in results {
         let s = &r.summary;
-        let Some(cwf) = s.algorithms.get("cwf") else {
+        let Some(cwf) = s.algorithms.get(&CWF) else {
             continue;
         };
         let margin_s = FALSE_CUE_MARGIN * flight_s(s);
-        let mpcs: Vec<(&str, &AlgorithmSummary)> = ordered(s)
-            .into_iter()
-            .filter(|(k, _)| *k != "cwf")
-            .collect();
+        let mpcs: Vec<(AlgorithmRun, &AlgorithmSummary)> =
+            ordered(s).into_iter().filter(|(k, _)| *k != CWF).collect();
         if mpcs.is_empty() {
             continue;
         }
-        for ch in Channel::ALL.map(Channel::key) {
+        for ch in Channel::ALL {
             fc_total += 1;
             let limit = metric(cwf, ch, |m| m.false_cue_s) + margin_s;
             let over: Vec<String> = mpcs
@@ -53,7 +51,7 @@ pub(super) fn channels_discussion(results: &[TraceResult]) -> String {
                     ch,
                 ));
             }
-            if ch == "wx" || ch == "wy" {
+            if matches!(ch, Channel::Wx | Channel::Wy) {
                 for (k, a) in &mpcs {
                     pc_total += 1;
                     let pc = metric(a, ch, |m| m.pc);
@@ -99,7 +97,7 @@ pub(super) fn channels_discussion(results: &[TraceResult]) -> String {
         }
     }
     out.push_str("Channel by channel (the verdict rule above):\n\n");
-    for ch in Channel::ALL.map(Channel::key) {
+    for ch in Channel::ALL {
         let mut by_best: Vec<(String, Vec<&str>)> = Vec::new();
         let mut worse = Vec::new();
         let mut at_rest = Vec::new();
@@ -116,7 +114,7 @@ pub(super) fn channels_discussion(results: &[TraceResult]) -> String {
                 Some((_, traces)) => traces.push(&s.trace),
                 None => by_best.push((best, vec![&s.trace])),
             }
-            let cwf = v.get("cwf");
+            let cwf = v.get(CWF);
             for (k, c) in v.worse_than_cwf() {
                 if let (Some(m), Some(cwf)) = (v.get(k), cwf) {
                     worse.push(format!(
@@ -174,10 +172,11 @@ pub(super) fn channels_discussion(results: &[TraceResult]) -> String {
 
 /// The likely source of the false cues that miss the target, by channel: the mechanisms of
 /// DESIGN §5 that the numbers point to. Nothing when every channel meets it.
-pub(super) fn false_cue_sources(misses: &[(String, &str)]) -> String {
-    let missed = |chs: &[&str]| misses.iter().any(|(_, ch)| chs.contains(ch));
+pub(super) fn false_cue_sources(misses: &[(String, Channel)]) -> String {
+    use Channel::*;
+    let missed = |chs: &[Channel]| misses.iter().any(|(_, ch)| chs.contains(ch));
     let mut parts = Vec::new();
-    if missed(&["wx", "wy"]) {
+    if missed(&[Wx, Wy]) {
         parts.push(
             "Roll and pitch: the platform's roll and pitch carry both the rotation cue and the \
              tilt that gives sustained sway and surge. A tilt made faster than the canals' \
@@ -185,7 +184,7 @@ pub(super) fn false_cue_sources(misses: &[(String, &str)]) -> String {
              or surge cue needs whatever the aircraft's own roll or pitch. Tilt coordination is only acceptable while the canals do not feel it (DESIGN §5).",
         );
     }
-    if missed(&["fz"]) {
+    if missed(&[Fz]) {
         parts.push(
             "Heave: the platform must come back to neutral after each heave cue, and the \
              acceleration that brings it back is felt as heave the other way when it exceeds \
@@ -193,7 +192,7 @@ pub(super) fn false_cue_sources(misses: &[(String, &str)]) -> String {
              (DESIGN §5).",
         );
     }
-    if missed(&["fx", "fy", "wz"]) {
+    if missed(&[Fx, Fy, Wz]) {
         parts.push(
             "Surge, sway and yaw: a false cue there is most often the platform's return to \
              neutral (its washout) felt above the perception threshold while the aircraft's \
@@ -223,7 +222,7 @@ pub(super) fn discussion(
     let complete = results.iter().all(|r| {
         AlgorithmId::ALL
             .iter()
-            .all(|id| r.summary.algorithms.contains_key(id.key()))
+            .all(|&id| r.summary.algorithm(id).is_some())
     });
     if !complete {
         out.push_str("Not every algorithm ran on every trace, so the ordering S-MPC ≤ MPC < CWF is not assessed.\n");
@@ -240,40 +239,45 @@ pub(super) fn discussion(
     let mut held = 0;
     let mut total = 0;
     for r in results {
-        let cells: Vec<&str> = [("fx", true), ("fy", true), ("fx", false), ("fy", false)]
-            .iter()
-            .map(|&(ch, rae)| {
-                let f: fn(&hexcue_core::metrics::ChannelMetrics) -> f64 =
-                    if rae { |m| m.rae } else { |m| m.naad };
-                let ok = ordering_holds(&r.summary, ch, f).unwrap_or(false);
-                total += 1;
-                held += usize::from(ok);
-                if ok {
-                    "holds"
-                } else {
-                    "**does not hold**"
-                }
-            })
-            .collect();
+        let cells: Vec<&str> = [
+            (Channel::Fx, true),
+            (Channel::Fy, true),
+            (Channel::Fx, false),
+            (Channel::Fy, false),
+        ]
+        .iter()
+        .map(|&(ch, rae)| {
+            let f: fn(&hexcue_core::metrics::ChannelMetrics) -> f64 =
+                if rae { |m| m.rae } else { |m| m.naad };
+            let ok = ordering_holds(&r.summary, ch, f).unwrap_or(false);
+            total += 1;
+            held += usize::from(ok);
+            if ok {
+                "holds"
+            } else {
+                "**does not hold**"
+            }
+        })
+        .collect();
         let _ = writeln!(out, "| {} | {} |", r.summary.trace, cells.join(" | "));
     }
     let _ = writeln!(out, "\nThe ordering holds in {held} of {total} cases.\n");
     for r in results {
         let s = &r.summary;
         let mut notes = Vec::new();
-        for ch in ["fx", "fy"] {
+        for ch in [Channel::Fx, Channel::Fy] {
             if ordering_holds(s, ch, |m| m.rae) == Some(false) {
-                let v = |k: &str| metric(&s.algorithms[k], ch, |m| m.rae);
+                let v = |k: AlgorithmRun| metric(&s.algorithms[&k], ch, |m| m.rae);
                 notes.push(format!(
                     "on {ch}, RAE is {:.3} (S-MPC), {:.3} (MPC), {:.3} (CWF)",
-                    v("smpc"),
-                    v("mpc"),
-                    v("cwf")
+                    v(SMPC),
+                    v(MPC),
+                    v(CWF)
                 ));
             }
         }
-        let smpc = &s.algorithms["smpc"];
-        let mpc = &s.algorithms["mpc"];
+        let smpc = &s.algorithms[&SMPC];
+        let mpc = &s.algorithms[&MPC];
         let mut facts = Vec::new();
         if smpc.switches > 0 {
             facts.push(format!("the S-MPC switched {} times", smpc.switches));
@@ -293,7 +297,7 @@ pub(super) fn discussion(
             "peak leg usage {:.2} / {:.2} / {:.2} (S-MPC / MPC / CWF)",
             peak(smpc),
             peak(mpc),
-            peak(&s.algorithms["cwf"])
+            peak(&s.algorithms[&CWF])
         ));
         let _ = write!(out, "- **{}**: ", s.trace);
         if notes.is_empty() {
@@ -317,15 +321,14 @@ pub(super) fn where_the_cwf_does_better(results: &[TraceResult]) -> String {
     );
     for r in results {
         let a = &r.summary.algorithms;
-        let cwf = &a["cwf"];
-        let parts: Vec<String> = ["smpc", "mpc"]
+        let cwf = &a[&CWF];
+        let parts: Vec<String> = [SMPC, MPC]
             .iter()
             .filter_map(|k| {
                 let channels: Vec<&str> = Channel::ALL
+                    .into_iter()
+                    .filter(|&c| metric(cwf, c, |m| m.rae) < metric(&a[k], c, |m| m.rae))
                     .map(Channel::key)
-                    .iter()
-                    .copied()
-                    .filter(|c| metric(cwf, c, |m| m.rae) < metric(&a[*k], c, |m| m.rae))
                     .collect();
                 (!channels.is_empty())
                     .then(|| format!("than the {}'s on {}", label(k), channels.join(", ")))
@@ -363,8 +366,8 @@ pub(super) fn fx_margin_over_cwf(results: &[TraceResult]) -> Option<(f64, f64)> 
         .iter()
         .flat_map(|r| {
             let a = &r.summary.algorithms;
-            let cwf = metric(&a["cwf"], "fx", |m| m.rae);
-            ["smpc", "mpc"].map(|k| cwf / metric(&a[k], "fx", |m| m.rae))
+            let cwf = metric(&a[&CWF], Channel::Fx, |m| m.rae);
+            [SMPC, MPC].map(|k| cwf / metric(&a[&k], Channel::Fx, |m| m.rae))
         })
         .filter(|v| v.is_finite())
         .collect();
@@ -382,7 +385,7 @@ pub(super) fn why_it_holds(
 ) -> String {
     let never_switched = results
         .iter()
-        .all(|r| r.summary.algorithms["smpc"].switches == 0);
+        .all(|r| r.summary.algorithms[&SMPC].switches == 0);
     if !never_switched {
         return String::new();
     }
@@ -419,16 +422,16 @@ pub(super) fn why_it_holds(
 pub(super) fn why(results: &[TraceResult], profile: &hexcue_core::profile::Profile) -> String {
     let fails_on_fx: Vec<&TraceResult> = results
         .iter()
-        .filter(|r| ordering_holds(&r.summary, "fx", |m| m.rae) == Some(false))
+        .filter(|r| ordering_holds(&r.summary, Channel::Fx, |m| m.rae) == Some(false))
         .collect();
     if fails_on_fx.is_empty() {
         return why_it_holds(results, profile);
     }
     let never_switched = fails_on_fx
         .iter()
-        .all(|r| r.summary.algorithms["smpc"].switches == 0);
+        .all(|r| r.summary.algorithms[&SMPC].switches == 0);
     let less_workspace = fails_on_fx.iter().all(|r| {
-        r.summary.algorithms["smpc"].max_leg_usage < r.summary.algorithms["mpc"].max_leg_usage
+        r.summary.algorithms[&SMPC].max_leg_usage < r.summary.algorithms[&MPC].max_leg_usage
     });
     let mut out = String::from("\n### Why\n\n");
     if never_switched {

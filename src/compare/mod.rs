@@ -13,12 +13,12 @@ pub use self::tables::render_markdown;
 #[cfg(test)]
 mod tests {
     use super::common::channel_name;
+    use super::common::{CWF, MPC, SMPC};
     use super::tables::*;
     use super::verdict::*;
     use super::*;
     use hexcue_core::metrics::{ChannelMetrics, StepTimes};
-    use hexcue_core::summary::AlgorithmSummary;
-    use hexcue_core::summary::Summary;
+    use hexcue_core::summary::{AlgorithmRun, AlgorithmSummary, Summary};
     use hexcue_core::testing::full_flight;
     use hexcue_core::vocab::Channel;
     use std::collections::BTreeMap;
@@ -28,13 +28,12 @@ mod tests {
     fn alg(rae_fx: f64, switches: u64) -> AlgorithmSummary {
         let rae = |c: &str| if c == "fx" { rae_fx } else { 0.5 };
         let metrics = Channel::ALL
-            .map(Channel::key)
             .iter()
             .map(|c| {
                 (
-                    c.to_string(),
+                    *c,
                     ChannelMetrics {
-                        rae: rae(c),
+                        rae: rae(c.key()),
                         naad: 0.1,
                         pc: 0.9,
                         ..Default::default()
@@ -79,9 +78,9 @@ mod tests {
 
     fn result_switching(smpc: f64, mpc: f64, cwf: f64, switches: u64) -> TraceResult {
         let mut algorithms = BTreeMap::new();
-        algorithms.insert("smpc".to_string(), alg(smpc, switches));
-        algorithms.insert("mpc".to_string(), alg(mpc, 0));
-        algorithms.insert("cwf".to_string(), alg(cwf, 0));
+        algorithms.insert(SMPC, alg(smpc, switches));
+        algorithms.insert(MPC, alg(mpc, 0));
+        algorithms.insert(CWF, alg(cwf, 0));
         TraceResult {
             summary: Summary {
                 trace: "t".into(),
@@ -122,7 +121,7 @@ mod tests {
             "{md}"
         );
         let mut r = result(0.2, 0.28, 0.25);
-        r.summary.algorithms.get_mut("cwf").unwrap().score = 0.5;
+        r.summary.algorithms.get_mut(&CWF).unwrap().score = 0.5;
         let md = render_markdown(&[r], &full_flight(), "hexcue compare");
         assert!(
             md.contains(
@@ -164,14 +163,19 @@ mod tests {
         assert!(!md.contains("COTC predicts over"), "{md}");
     }
 
+    /// The run a summary's key names (the tests name them as the JSON does).
+    fn run(key: &str) -> AlgorithmRun {
+        <AlgorithmRun as hexcue_core::keyed::Word>::from_word(key).unwrap()
+    }
+
     /// One channel's numbers for one algorithm of a result, on a 90 s flight (1 %: 0.9 s):
     /// the threshold-aware error, the felt error and the RAE are all set to `error`.
     fn set(r: &mut TraceResult, alg: &str, ch: &str, error: f64, pc: f64, false_s: f64) {
         r.summary.steps = 9000;
-        let a = r.summary.algorithms.get_mut(alg).unwrap();
+        let a = r.summary.algorithms.get_mut(&run(alg)).unwrap();
         a.score_terms.error.insert(ch.to_string(), error);
         a.score_terms.felt.insert(ch.to_string(), error);
-        let m = a.metrics.get_mut(ch).unwrap();
+        let m = a.metrics.get_mut(&Channel::from_key(ch).unwrap()).unwrap();
         m.rae = error;
         m.pc = pc;
         m.false_cue_s = false_s;
@@ -185,14 +189,11 @@ mod tests {
         set(&mut r, "smpc", "wx", 0.3, 0.6, 17.8);
         set(&mut r, "mpc", "wx", 0.35, 0.6, 12.5);
         set(&mut r, "cwf", "wx", 0.9, 0.5, 0.3);
-        let v = verdict(&r.summary, "wx");
-        assert_eq!(v.best(), Best::One("cwf"));
+        let v = verdict(&r.summary, Channel::Wx);
+        assert_eq!(v.best(), Best::One(CWF));
         assert_eq!(
             v.worse_than_cwf(),
-            vec![
-                ("smpc", Criterion::FalseCues),
-                ("mpc", Criterion::FalseCues)
-            ]
+            vec![(SMPC, Criterion::FalseCues), (MPC, Criterion::FalseCues)]
         );
         let md = render_markdown(&[r], &full_flight(), "hexcue compare");
         assert!(
@@ -218,8 +219,8 @@ mod tests {
         set(&mut r, "smpc", "fz", 0.9, 0.3, 1.1);
         set(&mut r, "mpc", "fz", 0.8, 0.3, 1.1);
         set(&mut r, "cwf", "fz", 1.0, 0.3, 0.3);
-        let v = verdict(&r.summary, "fz");
-        assert_eq!(v.best(), Best::One("mpc"));
+        let v = verdict(&r.summary, Channel::Fz);
+        assert_eq!(v.best(), Best::One(MPC));
         assert_eq!(v.worse_than_cwf(), vec![]);
         assert_eq!(
             v.losses(),
@@ -230,10 +231,10 @@ mod tests {
         );
         // 1.3 s: beyond it, and the MPCs are worse than the CWF.
         set(&mut r, "mpc", "fz", 0.8, 0.3, 1.3);
-        let v = verdict(&r.summary, "fz");
-        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::FalseCues)]);
+        let v = verdict(&r.summary, Channel::Fz);
+        assert_eq!(v.worse_than_cwf(), vec![(MPC, Criterion::FalseCues)]);
         // Out on false cues, the MPC's lower error does not count against the S-MPC.
-        assert_eq!(v.best(), Best::One("smpc"));
+        assert_eq!(v.best(), Best::One(SMPC));
     }
 
     #[test]
@@ -245,15 +246,15 @@ mod tests {
         set(&mut r, "smpc", "fz", 0.9, 0.3, 0.0);
         set(&mut r, "mpc", "fz", 0.4, 0.3, 1.0);
         set(&mut r, "cwf", "fz", 0.5, 0.3, 0.5);
-        let v = verdict(&r.summary, "fz");
-        assert_eq!(v.best(), Best::One("cwf"));
-        assert_eq!(v.worse_than_cwf(), vec![("smpc", Criterion::Felt)]);
+        let v = verdict(&r.summary, Channel::Fz);
+        assert_eq!(v.best(), Best::One(CWF));
+        assert_eq!(v.worse_than_cwf(), vec![(SMPC, Criterion::Felt)]);
         // The CWF out on false cues against the S-MPC: the best MPC is not called worse than
         // it for a lower error the CWF bought with them.
         set(&mut r, "mpc", "fz", 0.8, 0.3, 0.5);
         set(&mut r, "cwf", "fz", 0.5, 0.3, 1.0);
-        let v = verdict(&r.summary, "fz");
-        assert_eq!(v.best(), Best::One("mpc"));
+        let v = verdict(&r.summary, Channel::Fz);
+        assert_eq!(v.best(), Best::One(MPC));
         assert_eq!(v.worse_than_cwf(), vec![]);
         assert!(v
             .losses()
@@ -266,21 +267,21 @@ mod tests {
         set(&mut r, "smpc", "fy", 0.50, 0.90, 0.0);
         set(&mut r, "mpc", "fy", 0.53, 0.88, 0.0);
         set(&mut r, "cwf", "fy", 0.90, 0.70, 0.0);
-        let v = verdict(&r.summary, "fy");
+        let v = verdict(&r.summary, Channel::Fy);
         // 0.53 is within 0.50 × 1.05 + 0.01: level.
-        assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc"]));
+        assert_eq!(v.best(), Best::Tie(vec![SMPC, MPC]));
         assert_eq!(v.best_label(), "S-MPC = MPC");
         assert_eq!(v.pilot_cell(), "**S-MPC** = **MPC** 0.0 s");
         // A far lower PC with a level error: still level (PC is shown, not judged).
         set(&mut r, "mpc", "fy", 0.53, 0.10, 0.0);
         assert_eq!(
-            verdict(&r.summary, "fy").best(),
-            Best::Tie(vec!["smpc", "mpc"])
+            verdict(&r.summary, Channel::Fy).best(),
+            Best::Tie(vec![SMPC, MPC])
         );
         // Just beyond the tolerance the MPC loses.
         set(&mut r, "mpc", "fy", 0.54, 0.88, 0.0);
-        let v = verdict(&r.summary, "fy");
-        assert_eq!(v.best(), Best::One("smpc"));
+        let v = verdict(&r.summary, Channel::Fy);
+        assert_eq!(v.best(), Best::One(SMPC));
         assert!(v
             .losses()
             .contains(&"MPC loses to S-MPC: felt error 0.540 against 0.500".to_string()));
@@ -288,13 +289,13 @@ mod tests {
         set(&mut r, "smpc", "wz", 0.000, 0.9, 0.0);
         set(&mut r, "mpc", "wz", 0.004, 0.9, 0.0);
         set(&mut r, "cwf", "wz", 0.002, 0.9, 0.0);
-        let v = verdict(&r.summary, "wz");
+        let v = verdict(&r.summary, Channel::Wz);
         assert_eq!(v.worse_than_cwf(), vec![]);
-        assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc", "cwf"]));
+        assert_eq!(v.best(), Best::Tie(vec![SMPC, MPC, CWF]));
         // An MPC beyond the CWF's felt error × 1.05 + 0.01 is worse than it.
         set(&mut r, "mpc", "wz", 0.030, 0.9, 0.0);
-        let v = verdict(&r.summary, "wz");
-        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Felt)]);
+        let v = verdict(&r.summary, Channel::Wz);
+        assert_eq!(v.worse_than_cwf(), vec![(MPC, Criterion::Felt)]);
     }
 
     fn with_bound(r: &mut TraceResult, felt_floor: f64, possible: bool, binding: &[&str]) {
@@ -326,11 +327,11 @@ mod tests {
         set(&mut r, "smpc", "wz", 0.95, 0.9, 0.0);
         set(&mut r, "mpc", "wz", 1.00, 0.9, 0.0);
         set(&mut r, "cwf", "wz", 0.95, 0.9, 0.0);
-        assert_eq!(verdict(&r.summary, "wz").worse_than_cwf(), vec![]);
+        assert_eq!(verdict(&r.summary, Channel::Wz).worse_than_cwf(), vec![]);
         with_bound(&mut r, 0.9, true, &["wz"]);
-        let v = verdict(&r.summary, "wz");
+        let v = verdict(&r.summary, Channel::Wz);
         // Dominance possible: a binding cap excuses nothing.
-        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Felt)]);
+        assert_eq!(v.worse_than_cwf(), vec![(MPC, Criterion::Felt)]);
         assert!(
             v.worse_than_cwf_sentences().contains(
                 &"MPC is worse than the CWF (cueable felt error 0.100 against 0.050)".to_string()
@@ -340,12 +341,12 @@ mod tests {
         );
         // Dominance impossible with wz binding: the loss is a trade every better motion makes.
         with_bound(&mut r, 0.9, false, &["wz"]);
-        assert_eq!(verdict(&r.summary, "wz").worse_than_cwf(), vec![]);
+        assert_eq!(verdict(&r.summary, Channel::Wz).worse_than_cwf(), vec![]);
         // ... but only on the binding channel.
         with_bound(&mut r, 0.9, false, &["fx"]);
         assert_eq!(
-            verdict(&r.summary, "wz").worse_than_cwf(),
-            vec![("mpc", Criterion::Felt)]
+            verdict(&r.summary, Channel::Wz).worse_than_cwf(),
+            vec![(MPC, Criterion::Felt)]
         );
     }
 
@@ -358,13 +359,13 @@ mod tests {
         set(&mut r, "smpc", "fz", 0.05, 0.9, 0.0);
         set(&mut r, "mpc", "fz", 0.09, 0.9, 0.0);
         set(&mut r, "cwf", "fz", 0.03, 0.9, 0.0);
-        for k in ["smpc", "mpc", "cwf"] {
-            let a = r.summary.algorithms.get_mut(k).unwrap();
+        for k in [SMPC, MPC, CWF] {
+            let a = r.summary.algorithms.get_mut(&k).unwrap();
             a.score_terms.felt.insert("fz".into(), 0.0);
         }
-        let v = verdict(&r.summary, "fz");
+        let v = verdict(&r.summary, Channel::Fz);
         assert_eq!(v.worse_than_cwf(), vec![]);
-        assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc", "cwf"]));
+        assert_eq!(v.best(), Best::Tie(vec![SMPC, MPC, CWF]));
         // The old error stays in the report for comparison.
         let copy = TraceResult {
             summary: r.summary.clone(),
@@ -376,13 +377,13 @@ mod tests {
         // A felt difference beyond one threshold over 1 % of the flight decides.
         r.summary
             .algorithms
-            .get_mut("mpc")
+            .get_mut(&MPC)
             .unwrap()
             .score_terms
             .felt
             .insert("fz".into(), 0.011);
-        let v = verdict(&r.summary, "fz");
-        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Felt)]);
+        let v = verdict(&r.summary, Channel::Fz);
+        assert_eq!(v.worse_than_cwf(), vec![(MPC, Criterion::Felt)]);
     }
 
     #[test]
@@ -395,10 +396,10 @@ mod tests {
             let m = r
                 .summary
                 .algorithms
-                .get_mut(k)
+                .get_mut(&run(k))
                 .unwrap()
                 .metrics
-                .get_mut("fx")
+                .get_mut(&Channel::Fx)
                 .unwrap();
             m.jolts.count = count;
             m.jolts.charged = charged;
@@ -408,9 +409,9 @@ mod tests {
         jolts(&mut r, "cwf", 2, 0);
         jolts(&mut r, "smpc", 2, 0);
         jolts(&mut r, "mpc", 3, 1);
-        let v = verdict(&r.summary, "fx");
-        assert_eq!(v.worse_than_cwf(), vec![("mpc", Criterion::Jolts)]);
-        assert_eq!(v.best(), Best::One("smpc"));
+        let v = verdict(&r.summary, Channel::Fx);
+        assert_eq!(v.worse_than_cwf(), vec![(MPC, Criterion::Jolts)]);
+        assert_eq!(v.best(), Best::One(SMPC));
         assert!(v
             .worse_than_cwf_sentences()
             .contains(&"MPC is worse than the CWF (1 jolt against 0)".to_string()));
@@ -430,8 +431,8 @@ mod tests {
         set(&mut r, "smpc", "wz", 1.00, 0.2, 0.0);
         set(&mut r, "mpc", "wz", 1.04, 0.5, 0.0);
         set(&mut r, "cwf", "wz", 1.08, 0.9, 0.0);
-        let v = verdict(&r.summary, "wz");
-        assert_eq!(v.best(), Best::Tie(vec!["smpc", "mpc"]));
+        let v = verdict(&r.summary, Channel::Wz);
+        assert_eq!(v.best(), Best::Tie(vec![SMPC, MPC]));
         assert_eq!(
             v.losses(),
             vec!["CWF loses to S-MPC: felt error 1.080 against 1.000"]
@@ -444,8 +445,8 @@ mod tests {
         set(&mut r, "smpc", "wy", 1.2, -0.2, 0.0);
         set(&mut r, "mpc", "wy", 1.5, 0.1, 0.0);
         set(&mut r, "cwf", "wy", 1.6, 0.2, 0.0);
-        let v = verdict(&r.summary, "wy");
-        assert_eq!(v.best(), Best::One("smpc"));
+        let v = verdict(&r.summary, Channel::Wy);
+        assert_eq!(v.best(), Best::One(SMPC));
         assert_eq!(
             v.caveats(),
             vec![
@@ -488,7 +489,7 @@ mod tests {
             md.contains("| MPC | 0.0 | 0.0 | 4.2 | 0.0 | 0.0 | 0.0 |"),
             "{md}"
         );
-        for ch in Channel::ALL.map(Channel::key) {
+        for ch in Channel::ALL {
             let name = channel_name(ch);
             assert!(md.contains(&format!("| {name} | **")), "{name}: {md}");
             assert!(md.contains(&format!("- **{name}**: best")), "{name}: {md}");

@@ -5,9 +5,10 @@
 
 use std::fmt::Write;
 
-use super::common::{label, metric, ordered};
+use super::common::{label, metric, ordered, CWF};
 use hexcue_core::metrics::ChannelMetrics;
-use hexcue_core::summary::Summary;
+use hexcue_core::summary::{AlgorithmRun, Summary};
+use hexcue_core::vocab::{AlgorithmId, Channel};
 
 /// An algorithm whose false-cue time exceeds another's by more than this share of the flight
 /// loses to it on that channel, whatever its RAE: the margin of DESIGN §9 and issue 11 (no MPC
@@ -95,9 +96,9 @@ pub(super) fn judge(a: &Judged, b: &Judged, margin_s: f64) -> Outcome {
 }
 
 /// The verdict on one channel of one trace.
-pub(super) struct Verdict<'a> {
+pub(super) struct Verdict {
     /// Each algorithm that ran, in the report's order, with its metrics on this channel.
-    pub(super) algorithms: Vec<(&'a str, Judged)>,
+    pub(super) algorithms: Vec<(AlgorithmRun, Judged)>,
     /// 1 % of the flight (s).
     pub(super) margin_s: f64,
     /// Each algorithm's rank (0: the top); equal ranks are level, or undecided when each of
@@ -115,9 +116,9 @@ pub(super) struct Verdict<'a> {
 
 /// How the best of a channel is named.
 #[derive(Debug, PartialEq, Eq)]
-pub(super) enum Best<'a> {
-    One(&'a str),
-    Tie(Vec<&'a str>),
+pub(super) enum Best {
+    One(AlgorithmRun),
+    Tie(Vec<AlgorithmRun>),
     Unclear,
 }
 
@@ -132,7 +133,7 @@ pub(super) fn flight_s(summary: &Summary) -> f64 {
 /// The algorithms whose false-cue time is within the margin of the fewest: the others are out
 /// of the running whatever their RAE.
 pub(super) fn within_false_cue_margin(
-    algorithms: &[(&str, Judged)],
+    algorithms: &[(AlgorithmRun, Judged)],
     among: &[usize],
     margin_s: f64,
 ) -> Vec<usize> {
@@ -154,16 +155,22 @@ pub(super) fn within_false_cue_margin(
 /// Ranks the algorithms on one channel: of those still unranked, the ones whose false cues
 /// are within the margin of the fewest compete, and those none of them beats (on jolts, then
 /// the felt error) take the next rank; when each competitor loses to another, they all take it.
-pub(super) fn verdict<'a>(summary: &'a Summary, ch: &str) -> Verdict<'a> {
-    let algorithms: Vec<(&str, Judged)> = ordered(summary)
+pub(super) fn verdict(summary: &Summary, ch: Channel) -> Verdict {
+    let algorithms: Vec<(AlgorithmRun, Judged)> = ordered(summary)
         .into_iter()
         .filter_map(|(k, a)| {
-            a.metrics.get(ch).map(|m| {
+            a.metrics.get(&ch).map(|m| {
                 // With a bound, the felt error above the bound's own felt optimum for the
                 // channel (what no motion can cue is no one's loss): the tolerance's relative
                 // part then applies to what an algorithm can change.
                 let floor = felt_floor(summary, ch);
-                let felt = a.score_terms.felt.get(ch).copied().unwrap_or(f64::NAN) - floor;
+                let felt = a
+                    .score_terms
+                    .felt
+                    .get(ch.key())
+                    .copied()
+                    .unwrap_or(f64::NAN)
+                    - floor;
                 (k, Judged { metrics: *m, felt })
             })
         })
@@ -206,11 +213,11 @@ pub(super) fn verdict<'a>(summary: &'a Summary, ch: &str) -> Verdict<'a> {
 }
 
 /// The bound's own optimum of the felt error on a channel (0 without a bound).
-pub(super) fn felt_floor(summary: &Summary, ch: &str) -> f64 {
+pub(super) fn felt_floor(summary: &Summary, ch: Channel) -> f64 {
     summary
         .bound
         .as_ref()
-        .and_then(|b| b.lower.felt.get(ch).copied())
+        .and_then(|b| b.lower.felt.get(ch.key()).copied())
         .unwrap_or(0.0)
 }
 
@@ -219,10 +226,10 @@ pub(super) fn felt_floor(summary: &Summary, ch: &str) -> f64 {
 /// better in total, and the channel's cap binds in the dominance programme (or no cap is named,
 /// when the capped programme has no solution at all). Where dominance is possible, nothing is
 /// excused: a binding cap then only shapes the capped optimum.
-pub(super) fn forced_against_cwf(summary: &Summary, ch: &str) -> bool {
+pub(super) fn forced_against_cwf(summary: &Summary, ch: Channel) -> bool {
     summary.bound.as_ref().is_some_and(|b| {
         !b.dominance.possible
-            && (b.dominance.binding.is_empty() || b.dominance.binding.iter().any(|c| c == ch))
+            && (b.dominance.binding.is_empty() || b.dominance.binding.iter().any(|c| c == ch.key()))
     })
 }
 
@@ -245,7 +252,7 @@ pub(super) fn loss_detail(c: Criterion, a: &Judged, b: &Judged) -> String {
 }
 
 /// [`loss_detail`], naming the felt error cueable when the verdict judges it above the bound.
-pub(super) fn loss_detail_in(v: &Verdict<'_>, c: Criterion, a: &Judged, b: &Judged) -> String {
+pub(super) fn loss_detail_in(v: &Verdict, c: Criterion, a: &Judged, b: &Judged) -> String {
     match (c, v.cueable) {
         (Criterion::Felt, true) => {
             format!("cueable felt error {:.3} against {:.3}", a.felt, b.felt)
@@ -259,8 +266,8 @@ pub(super) fn signed(v: f64) -> String {
     format!("{v:+.2}").replace('-', "−")
 }
 
-impl<'a> Verdict<'a> {
-    pub(super) fn best(&self) -> Best<'a> {
+impl Verdict {
+    pub(super) fn best(&self) -> Best {
         match self.unbeaten.as_slice() {
             [] => Best::Unclear,
             [i] => Best::One(self.algorithms[*i].0),
@@ -268,7 +275,7 @@ impl<'a> Verdict<'a> {
         }
     }
 
-    pub(super) fn get(&self, key: &str) -> Option<&Judged> {
+    pub(super) fn get(&self, key: AlgorithmRun) -> Option<&Judged> {
         self.algorithms
             .iter()
             .find(|(k, _)| *k == key)
@@ -280,8 +287,8 @@ impl<'a> Verdict<'a> {
     /// intransitive: an MPC can rank below the CWF only through a third algorithm's fewer
     /// false cues, or lose to a CWF that is itself out on false cues; neither is the MPC
     /// being worse than the CWF.
-    pub(super) fn worse_than_cwf(&self) -> Vec<(&'a str, Criterion)> {
-        let Some(c) = self.algorithms.iter().position(|(k, _)| *k == "cwf") else {
+    pub(super) fn worse_than_cwf(&self) -> Vec<(AlgorithmRun, Criterion)> {
+        let Some(c) = self.algorithms.iter().position(|(k, _)| *k == CWF) else {
             return Vec::new();
         };
         if self.forced {
@@ -291,7 +298,7 @@ impl<'a> Verdict<'a> {
         self.algorithms
             .iter()
             .enumerate()
-            .filter(|(i, (k, _))| *k != "cwf" && self.rank[*i] > self.rank[c])
+            .filter(|(i, (k, _))| *k != CWF && self.rank[*i] > self.rank[c])
             .filter_map(|(_, (k, m))| match judge(m, cwf, self.margin_s) {
                 Outcome::Worse(c) => Some((*k, c)),
                 _ => None,
@@ -301,7 +308,7 @@ impl<'a> Verdict<'a> {
 
     /// "MPC is worse than the CWF (12.5 s of false cues against 0.3 s)" for each such MPC.
     pub(super) fn worse_than_cwf_sentences(&self) -> Vec<String> {
-        let Some(cwf) = self.get("cwf") else {
+        let Some(cwf) = self.get(CWF) else {
             return Vec::new();
         };
         self.worse_than_cwf()
@@ -404,7 +411,8 @@ impl<'a> Verdict<'a> {
             .iter()
             .map(|(_, m)| m.false_cue_s)
             .fold(f64::INFINITY, f64::min);
-        let seconds = |(k, m): &(&str, Judged)| format!("{} {:.1} s", label(k), m.false_cue_s);
+        let seconds =
+            |(k, m): &(AlgorithmRun, Judged)| format!("{} {:.1} s", label(k), m.false_cue_s);
         if self.unbeaten.is_empty() {
             let all: Vec<String> = self.algorithms.iter().map(seconds).collect();
             return format!("no clear best ({})", all.join(", "));
@@ -449,10 +457,14 @@ impl<'a> Verdict<'a> {
 /// of 0.5 % on the ≤, so that equal numbers count as equal).
 pub(super) fn ordering_holds(
     summary: &Summary,
-    ch: &str,
+    ch: Channel,
     f: fn(&hexcue_core::metrics::ChannelMetrics) -> f64,
 ) -> Option<bool> {
-    let get = |k: &str| summary.algorithms.get(k).map(|a| metric(a, ch, f));
-    let (s, m, c) = (get("smpc")?, get("mpc")?, get("cwf")?);
+    let get = |id: AlgorithmId| summary.algorithm(id).map(|a| metric(a, ch, f));
+    let (s, m, c) = (
+        get(AlgorithmId::Smpc)?,
+        get(AlgorithmId::Mpc)?,
+        get(AlgorithmId::Cwf)?,
+    );
     Some(s <= m * 1.005 && m < c)
 }

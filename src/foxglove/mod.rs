@@ -10,5 +10,4 @@ pub mod parameters;
 pub mod server;
 
 pub use crate::channels::scene;
-pub use scene::SceneBuilder;
-pub use server::{FoxgloveServer, ServerError, DEFAULT_ADDR};
+pub use server::{FoxgloveServer, DEFAULT_ADDR};

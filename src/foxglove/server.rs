@@ -79,18 +79,9 @@ pub struct FoxgloveServer {
 
 impl FoxgloveServer {
     /// Starts serving on `addr` (port 0: any free port; see [`FoxgloveServer::addr`]) the
-    /// channels of a session of `algorithms` on `profile`'s rig.
+    /// channels of a session of `algorithms` on `profile`'s rig, offering the Parameters
+    /// capability on `tuning` when given (a live session's parameters: [`super::parameters`]).
     pub fn start(
-        addr: SocketAddr,
-        profile: &Profile,
-        algorithms: &[AlgorithmId],
-    ) -> Result<Self, ServerError> {
-        Self::start_tuned(addr, profile, algorithms, None)
-    }
-
-    /// [`FoxgloveServer::start`], offering the Parameters capability on `tuning` when given
-    /// (a live session's parameters: [`super::parameters`]).
-    pub fn start_tuned(
         addr: SocketAddr,
         profile: &Profile,
         algorithms: &[AlgorithmId],
@@ -147,11 +138,6 @@ impl FoxgloveServer {
     /// Where the server listens (the port chosen when asked for port 0).
     pub fn addr(&self) -> SocketAddr {
         self.addr
-    }
-
-    /// Clients connected now.
-    pub fn clients(&self) -> usize {
-        self.handle.as_ref().map_or(0, |h| h.client_count())
     }
 
     fn channel(&mut self, channel: Channel) -> Result<Arc<RawChannel>, ServerError> {

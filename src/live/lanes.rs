@@ -23,6 +23,7 @@ use std::time::Instant;
 
 use nalgebra::Vector6;
 
+use super::moving::LanesEnd;
 use super::{lane_share, LiveSession, StepReport};
 use hexcue_core::engine::{Engine, Frame, Retune};
 use hexcue_core::mca::AlgorithmId;
@@ -43,16 +44,20 @@ pub struct Comparison {
     blend_s: f64,
     resets: u64,
     gains: Vector6<f64>,
+    /// Lanes asked for by the stepping thread (a drive switch) and sent back by it.
+    moving: LanesEnd,
 }
 
 impl Comparison {
     /// Lanes stepped by `engine` (a held source, as the driving lane's), their metrics in
-    /// `summary`, their retunes from `retunes`, blended in over `blend_s`.
+    /// `summary`, their retunes from `retunes`, blended in over `blend_s`, moved to and from
+    /// the stepping thread through `moving`.
     pub fn new(
         engine: Engine,
         summary: SummaryBuilder,
         retunes: Receiver<(usize, Box<Retune>)>,
         blend_s: f64,
+        moving: LanesEnd,
     ) -> Self {
         Comparison {
             engine,
@@ -62,6 +67,7 @@ impl Comparison {
             blend_s,
             resets: 0,
             gains: Vector6::repeat(1.0),
+            moving,
         }
     }
 
@@ -85,12 +91,16 @@ impl Comparison {
         self.engine.push_sample(report.frame.aircraft);
         let mut last = None;
         while self.engine.position() <= report.frame.k {
+            self.moving
+                .take_back(&mut self.engine, &mut self.summary, self.resets);
             self.apply_retunes();
             // The comparison lanes are bound to no platform's clock: each step gets the
             // profile's `time_limit_ms` from its own start (`step`), not the driving step's
             // deadline, which a lagging thread has passed and which would fail every solve.
             let frame = self.engine.step()?;
             self.summary.push(&frame);
+            self.moving
+                .serve(&mut self.engine, &mut self.summary, self.resets);
             last = Some(frame);
         }
         last
@@ -160,8 +170,12 @@ impl Lanes {
             self.add_lanes(&mut report);
             self.count(&mut report);
             if tx.send(report).is_err() {
-                return;
+                break;
             }
+        }
+        // Lanes sent back and not yet stepped here: into the engine, for the summary.
+        if let Some(c) = self.comparison.as_mut() {
+            c.moving.drain(&mut c.engine, &mut c.summary, c.resets);
         }
     }
 
@@ -178,17 +192,19 @@ impl Lanes {
             let late_s = now.duration_since(report.deadline).as_secs_f64();
             self.lag_max_s = self.lag_max_s.max(late_s);
         }
+        // Each lane from the thread that stepped it: the drive and any lane blending in or
+        // out from the stepping thread, the others from here (a lane on its way between
+        // them, a step or so when the drive switches, from neither).
         let taken = std::mem::take(&mut report.frame.lanes);
-        let mut drive = taken.iter().cloned();
         report.frame.lanes = self
             .order
             .iter()
             .filter_map(|id| {
-                if *id == self.drive {
-                    drive.next()
-                } else {
-                    theirs.lane(*id).cloned()
-                }
+                taken
+                    .iter()
+                    .find(|l| l.id == *id)
+                    .or_else(|| theirs.lane(*id))
+                    .cloned()
             })
             .collect();
     }

@@ -21,6 +21,7 @@
 pub mod handoff;
 pub mod input_watch;
 pub mod lanes;
+pub mod moving;
 pub mod realtime;
 mod stats;
 
@@ -169,6 +170,9 @@ pub struct LiveSession {
     retune_blend_s: f64,
     /// The driving algorithm, switched live through a blend (the `drive` parameter).
     drives: DriveSwitch,
+    /// Lanes asked for from the comparison lanes' thread when the drive switches to one,
+    /// and sent back once no longer heard ([`moving`]).
+    moving: moving::SteppingEnd,
 }
 
 impl LiveSession {
@@ -190,6 +194,7 @@ impl LiveSession {
         engine.set_parallel(false);
         let others: Vec<AlgorithmId> = algorithms.iter().copied().filter(|a| *a != drive).collect();
         let (retunes, retunes_rx) = mpsc::channel();
+        let (moving, lanes_end) = moving::ends();
         let comparison = if others.is_empty() {
             None
         } else {
@@ -201,6 +206,7 @@ impl LiveSession {
                 SummaryBuilder::new(profile, input.url()),
                 retunes_rx,
                 profile.safety.fade_in_s,
+                lanes_end,
             ))
         };
         let mut stats = LiveStats::default();
@@ -217,6 +223,7 @@ impl LiveSession {
             tuning: Shared::handle(tuner),
             retune_blend_s: profile.safety.fade_in_s,
             drives: DriveSwitch::new(drive),
+            moving,
             engine,
             comparison,
             order: algorithms.to_vec(),
@@ -286,6 +293,12 @@ impl LiveSession {
 
     pub fn algorithms(&self) -> Vec<AlgorithmId> {
         self.order.clone()
+    }
+
+    /// Whether the stepping thread steps algorithm `id` now: the drive, and a lane blending
+    /// in or out (no allocation).
+    pub fn steps_lane(&self, id: AlgorithmId) -> bool {
+        self.engine.has_lane(id)
     }
 
     /// The parameters changed live: the console and the Foxglove server hold this.
@@ -427,7 +440,8 @@ impl LiveSession {
         // a change held up by another side's lock is applied a step later.
         if let Some(mut shared) = self.tuning.try_lock_pending() {
             let k = self.engine.position();
-            let (gains_target, retunes) = (&mut self.gains_target, &self.retunes);
+            let (gains_target, retunes, moving) =
+                (&mut self.gains_target, &self.retunes, &mut self.moving);
             let texts = crate::tuning::apply_pending(
                 &mut shared,
                 &mut self.engine,
@@ -437,19 +451,42 @@ impl LiveSession {
                 |applied| match applied {
                     crate::tuning::Applied::Gains(g) => *gains_target = g,
                     // The comparison lanes' thread applies it at the same step; gone with
-                    // that thread (a sink failed), it has nothing left to retune.
+                    // that thread (a sink failed), it has nothing left to retune. One for a
+                    // lane on its way here waits for it.
                     crate::tuning::Applied::Retune(r) => {
-                        let _ = retunes.send((k, r));
+                        if let Some(r) = moving.route(r) {
+                            let _ = retunes.send((k, r));
+                        }
                     }
+                    crate::tuning::Applied::Drive { to, here } => moving.drive(to, here, k),
                 },
             );
-            self.drive = self.drives.drive();
             self.events.extend(texts.into_iter().map(|text| Event {
                 t_s,
                 level: EventLevel::Info,
                 text,
             }));
         }
+        // A lane asked for arrives: its blend in starts from its command as it is now.
+        let (events, from) = (&mut self.events, self.drives.drive());
+        let blend_s = self.retune_blend_s;
+        self.moving.receive(
+            &mut self.engine,
+            &mut self.summary,
+            &mut self.drives,
+            self.resets,
+            blend_s,
+            |a| {
+                if a.drives {
+                    events.push(Event {
+                        t_s,
+                        level: EventLevel::Info,
+                        text: a.text(from, blend_s),
+                    });
+                }
+            },
+        );
+        self.drive = self.drives.drive();
         if let Some((sample, _)) = latest {
             self.engine.push_sample(sample);
         }
@@ -527,6 +564,14 @@ impl LiveSession {
         self.stats.samples_in = self.input.samples_in;
         self.stats.malformed = self.input.malformed;
         self.summary.push(&frame);
+        // A lane blended out goes back to the comparison lanes' thread (after its frame is
+        // counted here: its metrics go with it).
+        self.moving.release(
+            &mut self.engine,
+            &mut self.summary,
+            &self.drives,
+            self.resets,
+        );
         if input_ok {
             self.check_units(&frame);
         }
@@ -585,83 +630,6 @@ impl LiveSession {
         self.platform = first;
         self.safety.platform(readiness);
         self.reach_events(t_s);
-    }
-
-    /// An output whose address has nothing listening, and one that listens again: a warning
-    /// and its end, for the operator (the platform may be started later, so not a fault).
-    fn reach_events(&mut self, t_s: f64) {
-        for (i, out) in self.outputs.iter().enumerate() {
-            let bit = 1u32 << i.min(31);
-            let now = out.unreachable();
-            let was = self.unreachable_outputs & bit != 0;
-            if now == was {
-                continue;
-            }
-            self.unreachable_outputs ^= bit;
-            let output = out.describe();
-            let (level, text) = if now {
-                self.stats.unreachable.push((output.clone(), t_s, None));
-                (
-                    EventLevel::Warning,
-                    format!(
-                        "{output}: nothing listening there (ICMP port unreachable): its \
-                         commands are lost until something listens"
-                    ),
-                )
-            } else {
-                let since = self
-                    .stats
-                    .unreachable
-                    .iter_mut()
-                    .rev()
-                    .find(|(o, _, to)| *o == output && to.is_none());
-                let after = since.map_or(0.0, |span| {
-                    span.2 = Some(t_s);
-                    t_s - span.1
-                });
-                (
-                    EventLevel::Info,
-                    format!(
-                        "{output}: listening again (no port unreachable for {} s) after \
-                         {after:.2} s",
-                        crate::sinks::reach::QUIET_S
-                    ),
-                )
-            };
-            self.events.push(Event { t_s, level, text });
-        }
-    }
-
-    /// A pose the actuators cannot give (cranks past their limits): counted every step, told
-    /// when it starts and when it ends.
-    fn actuator_events(&mut self, t_s: f64, p: &hexcue_core::actuators::ActuatorPositions) {
-        let limited = p.limited != 0;
-        if limited {
-            self.stats.actuators_limited_steps += 1;
-        }
-        if limited == std::mem::replace(&mut self.actuators_were_limited, limited) {
-            return;
-        }
-        let (level, text) = if limited {
-            let which: Vec<String> = (0..6)
-                .filter(|n| p.limited & (1 << n) != 0)
-                .map(|n| (n + 1).to_string())
-                .collect();
-            (
-                EventLevel::Warning,
-                format!(
-                    "actuators {}: the pose is beyond their reach (crank limits): the nearest \
-                     position they can give is sent",
-                    which.join(", ")
-                ),
-            )
-        } else {
-            (
-                EventLevel::Info,
-                "actuators: every pose within their reach again".to_string(),
-            )
-        };
-        self.events.push(Event { t_s, level, text });
     }
 
     /// Counts the way back to neutral planned at this step, and tells the operator of every
@@ -865,7 +833,7 @@ impl LiveSession {
                 sink.event(event)?;
             }
             if let Some(fault) = &self.stats.platform_fault {
-                sink.annotate("platform_fault", fault);
+                sink.annotate(crate::formats::recording::meta_key::PLATFORM_FAULT, fault);
             }
             lines.push(sink.finish()?);
         }
@@ -944,6 +912,10 @@ pub fn run(
             .join()
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
         lanes.finish(session);
+        // A lane sent over at the last step is still on its way: its metrics are kept.
+        session
+            .moving
+            .drain(&mut session.engine, &mut session.summary, session.resets);
         let fed = feeder
             .join()
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
@@ -1277,8 +1249,139 @@ mod tests {
         let live = summary.live.unwrap();
         assert_eq!(
             live.deadline_share.keys().collect::<Vec<_>>(),
-            ["cwf", "mpc"]
+            [&AlgorithmId::Mpc, &AlgorithmId::Cwf]
         );
+    }
+
+    /// The drive switched live to a comparison lane and back (issue 36): the MPC drives,
+    /// the CWF steps on the comparison lanes' thread; at step 100 the drive goes to the CWF,
+    /// at step 500 the change is undone. Each lane moves to the stepping thread when asked
+    /// for and back once blended out, and goes on as if it had never moved: every frame has
+    /// both lanes, and the CWF's commands (which no deadline cuts short, unlike the MPC's on
+    /// the stepping thread) and its summary metrics are bit for bit those of an engine that
+    /// stepped it alone on the same samples. The stream says which drives, the switch and
+    /// the blend's start are events, and the summary logs both changes. The test waits for
+    /// the comparison lanes' thread to have served a request before the next step, so that
+    /// the lane arrives at once, as it does when that thread keeps up.
+    #[test]
+    fn the_drive_switches_to_a_comparison_lane_and_back_which_go_on_unchanged() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        let profile = full_flight();
+        let order = [AlgorithmId::Mpc, AlgorithmId::Cwf];
+        let (mut s, addr) = session_of(&order, AlgorithmId::Mpc);
+        let sender = std::thread::spawn(move || {
+            let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+            for k in 0..1000 {
+                let t = k as f64 * 0.01;
+                let line = format!("{t},{},0,-40.0,0,0.05,0.1,0.2,0,0\n", 6.0 * (2.0 * t).sin());
+                if tx.send_to(line.as_bytes(), addr).is_err() {
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        });
+        let tuning = s.tuning();
+        let seen_k = std::sync::Arc::new(AtomicUsize::new(usize::MAX));
+        let seen_by_sinks = seen_k.clone();
+        let mut seen = Vec::new();
+        let mut events = Vec::new();
+        let mut k = 0;
+        run(
+            &mut s,
+            |_| {
+                match k {
+                    100 => tuning
+                        .lock()
+                        .unwrap()
+                        .set(crate::tuning::DRIVE, 0.0)
+                        .unwrap(),
+                    500 => assert!(tuning.lock().unwrap().undo().unwrap()),
+                    101 | 501 => {
+                        let until = Instant::now() + Duration::from_secs(60);
+                        while seen_k.load(Ordering::Acquire).wrapping_add(1) < k {
+                            assert!(Instant::now() < until, "the lanes never caught up");
+                            std::thread::yield_now();
+                        }
+                    }
+                    _ => {}
+                }
+                k += 1;
+                if k > 850 {
+                    Control::Stop
+                } else {
+                    Control::Continue
+                }
+            },
+            |r| {
+                let ids: Vec<AlgorithmId> = r.frame.lanes.iter().map(|l| l.id).collect();
+                assert_eq!(ids, order, "step {}", r.frame.k);
+                let cwf = r.frame.lane(AlgorithmId::Cwf).unwrap().command;
+                seen.push((r.frame.aircraft, r.lanes, cwf, r.output.algorithm));
+                events.extend(r.events.iter().map(|e| (r.frame.k, e.text.clone())));
+                seen_by_sinks.store(r.frame.k, Ordering::Release);
+            },
+        )
+        .unwrap();
+        sender.join().unwrap();
+        assert_eq!(s.stats().frames_dropped, 0);
+        assert_eq!(seen.len() as u64, s.stats().commands_out);
+        let mut alone = Engine::with_source(
+            &profile,
+            Box::new(HeldSample::new("alone", profile.rate_hz)),
+            &[AlgorithmId::Cwf],
+        )
+        .unwrap();
+        let mut alone_summary = SummaryBuilder::new(&profile, "alone");
+        let (mut resets, mut moved) = (0, false);
+        for (k, (aircraft, orders, cwf, driving)) in seen.iter().enumerate() {
+            if orders.resets != resets {
+                alone.reset_lanes();
+                resets = orders.resets;
+            }
+            alone.set_cue_gain(orders.cue_gain);
+            alone.push_sample(*aircraft);
+            let frame = alone.step().unwrap();
+            alone_summary.push(&frame);
+            assert_eq!(frame.lanes[0].command, *cwf, "step {k}");
+            moved |= cwf.pose.amax() > 1e-4;
+            let expected = if (101..=500).contains(&k) {
+                AlgorithmId::Cwf
+            } else {
+                AlgorithmId::Mpc
+            };
+            assert_eq!(*driving, expected, "step {k}");
+        }
+        assert!(moved, "the CWF never moved: nothing was compared");
+        let texts: Vec<&(usize, String)> = events
+            .iter()
+            .filter(|(_, t)| t.starts_with("parameter drive") || t.starts_with("drive:"))
+            .collect();
+        let at = |k: usize, start: &str| texts.iter().any(|(j, t)| *j == k && t.starts_with(start));
+        assert!(
+            at(100, "parameter drive set: 1 → 0 (mpc → cwf)"),
+            "{texts:?}"
+        );
+        assert!(
+            at(101, "drive: cwf's lane came over from the comparison lanes' thread; the command blends from mpc's to cwf's within 3.00 s"),
+            "{texts:?}"
+        );
+        assert!(
+            at(500, "parameter drive undone: 0 → 1 (cwf → mpc)"),
+            "{texts:?}"
+        );
+        assert!(at(501, "drive: mpc's lane came over"), "{texts:?}");
+        assert_eq!(texts.len(), 4, "{texts:?}");
+        let summary = s.summary();
+        let ours = &summary.algorithms[&AlgorithmId::Cwf.into()];
+        let theirs = &alone_summary.finish().algorithms[&AlgorithmId::Cwf.into()];
+        assert_eq!(ours.metrics, theirs.metrics);
+        assert_eq!(ours.score, theirs.score);
+        assert!(summary.algorithms[&AlgorithmId::Mpc.into()]
+            .score
+            .is_finite());
+        let changes = summary.tuning.unwrap().changes;
+        assert_eq!(changes.len(), 2, "{changes:?}");
+        assert!(changes[1].undo);
     }
 
     /// The fade-in on engage: a steady turn's cue (1.5 g, a yaw rate, banked) arrives at once

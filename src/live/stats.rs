@@ -89,7 +89,7 @@ impl LiveStats {
                         p99: h.quantile(0.99) / 1e6,
                         max: h.summary().max / 1e6,
                     };
-                    (id.key().to_string(), share)
+                    (*id, share)
                 })
                 .collect(),
             comparison_late_steps: self.comparison_late_steps,
@@ -177,4 +177,88 @@ pub struct LaneOrders {
     pub resets: u64,
     /// The live gains' target (issue 36), all ones unless changed.
     pub gains: nalgebra::Vector6<f64>,
+}
+
+/// The events of the outputs' reach and the actuators' limits.
+impl LiveSession {
+    /// An output whose address has nothing listening, and one that listens again: a warning
+    /// and its end, for the operator (the platform may be started later, so not a fault).
+    pub(super) fn reach_events(&mut self, t_s: f64) {
+        for (i, out) in self.outputs.iter().enumerate() {
+            let bit = 1u32 << i.min(31);
+            let now = out.unreachable();
+            let was = self.unreachable_outputs & bit != 0;
+            if now == was {
+                continue;
+            }
+            self.unreachable_outputs ^= bit;
+            let output = out.describe();
+            let (level, text) = if now {
+                self.stats.unreachable.push((output.clone(), t_s, None));
+                (
+                    EventLevel::Warning,
+                    format!(
+                        "{output}: nothing listening there (ICMP port unreachable): its \
+                         commands are lost until something listens"
+                    ),
+                )
+            } else {
+                let since = self
+                    .stats
+                    .unreachable
+                    .iter_mut()
+                    .rev()
+                    .find(|(o, _, to)| *o == output && to.is_none());
+                let after = since.map_or(0.0, |span| {
+                    span.2 = Some(t_s);
+                    t_s - span.1
+                });
+                (
+                    EventLevel::Info,
+                    format!(
+                        "{output}: listening again (no port unreachable for {} s) after \
+                         {after:.2} s",
+                        crate::sinks::reach::QUIET_S
+                    ),
+                )
+            };
+            self.events.push(Event { t_s, level, text });
+        }
+    }
+
+    /// A pose the actuators cannot give (cranks past their limits): counted every step, told
+    /// when it starts and when it ends.
+    pub(super) fn actuator_events(
+        &mut self,
+        t_s: f64,
+        p: &hexcue_core::actuators::ActuatorPositions,
+    ) {
+        let limited = p.limited != 0;
+        if limited {
+            self.stats.actuators_limited_steps += 1;
+        }
+        if limited == std::mem::replace(&mut self.actuators_were_limited, limited) {
+            return;
+        }
+        let (level, text) = if limited {
+            let which: Vec<String> = (0..6)
+                .filter(|n| p.limited & (1 << n) != 0)
+                .map(|n| (n + 1).to_string())
+                .collect();
+            (
+                EventLevel::Warning,
+                format!(
+                    "actuators {}: the pose is beyond their reach (crank limits): the nearest \
+                     position they can give is sent",
+                    which.join(", ")
+                ),
+            )
+        } else {
+            (
+                EventLevel::Info,
+                "actuators: every pose within their reach again".to_string(),
+            )
+        };
+        self.events.push(Event { t_s, level, text });
+    }
 }

@@ -3,6 +3,8 @@
 //! step used) to a file beside the recording, attached compressed (`trace.csv.zst`) at the
 //! end and then removed. `review` opens the result as it opens a playback's. A sink among the others
 //! (the playback's [`super::recorder::McapSink`], Foxglove), fed by the live clock loop.
+//! With `--foxglove` too, the server is fed from the recorder ([`LiveRecording::serve`]):
+//! each message is encoded once, for the file and the WebSocket.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -10,8 +12,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use crate::formats::recording::{Recorder, RecordingMeta};
+use crate::channels::MessageTap;
+use crate::formats::recording::{meta_key, Recorder, RecordingMeta};
 use crate::formats::trace::NATIVE_HEADER;
+use crate::foxglove::FoxgloveServer;
 use crate::session::FrameSink;
 use hexcue_core::engine::Frame;
 use hexcue_core::mca::AlgorithmId;
@@ -22,6 +26,8 @@ pub struct LiveRecording {
     input_log: BufWriter<File>,
     input_log_path: PathBuf,
     extra: Vec<(&'static str, String)>,
+    /// The live Foxglove server, sent the recorder's bytes (`--foxglove`).
+    server: Option<FoxgloveServer>,
 }
 
 impl LiveRecording {
@@ -61,16 +67,29 @@ impl LiveRecording {
             input_log,
             input_log_path,
             extra: vec![
-                ("input", input_url.to_string()),
-                ("drive", drive.key().to_string()),
+                (meta_key::INPUT, input_url.to_string()),
+                (meta_key::DRIVE, drive.key().to_string()),
             ],
+            server: None,
         })
+    }
+
+    /// Serves the session on `server` from the recorder: every message the recording
+    /// encodes (and the 3D topics at every step while a client shows them) goes to the
+    /// clients subscribed, as the same bytes at the same log times, instead of the server
+    /// encoding each frame again as a sink of its own.
+    pub fn serve(&mut self, server: FoxgloveServer) {
+        self.server = Some(server);
     }
 }
 
 impl FrameSink for LiveRecording {
     fn record(&mut self, frame: &Frame) -> Result<()> {
-        self.recorder.record(frame)?;
+        let tap = self
+            .server
+            .as_mut()
+            .map(|s| s as &mut (dyn MessageTap + 'static));
+        self.recorder.record_with(frame, tap)?;
         let a = &frame.aircraft;
         let (f, w, att) = (
             a.specific_force_mps2,
@@ -89,11 +108,16 @@ impl FrameSink for LiveRecording {
     fn event(&mut self, event: &hexcue_core::events::Event) -> Result<()> {
         // On `/events` as `foxglove.Log`, beside the S-MPC's and the limiter's, as Foxglove
         // shows them live.
-        Ok(self.recorder.event(
+        let tap = self
+            .server
+            .as_mut()
+            .map(|s| s as &mut (dyn MessageTap + 'static));
+        Ok(self.recorder.event_with(
             event.t_s,
             event.level,
             crate::foxglove::scene::SESSION_SOURCE,
             &event.text,
+            tap,
         )?)
     }
 
@@ -108,7 +132,13 @@ impl FrameSink for LiveRecording {
             mut input_log,
             input_log_path,
             extra,
+            server,
         } = *self;
+        let served = server.map(|server| {
+            let addr = server.addr();
+            server.stop();
+            format!("; foxglove: stopped serving ws://{addr}")
+        });
         input_log
             .flush()
             .with_context(|| format!("{}: cannot write", input_log_path.display()))?;
@@ -120,8 +150,10 @@ impl FrameSink for LiveRecording {
         std::fs::remove_file(&input_log_path)
             .with_context(|| format!("{}: cannot remove", input_log_path.display()))?;
         Ok(format!(
-            "recorded {path}: {} steps, {} messages",
-            stats.steps, stats.messages
+            "recorded {path}: {} steps, {} messages{}",
+            stats.steps,
+            stats.messages,
+            served.unwrap_or_default()
         ))
     }
 }

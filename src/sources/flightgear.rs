@@ -21,6 +21,7 @@ pub struct FlightGear;
 /// One frame as `integrations/flightgear/hexcue.xml` lays it out, from values in
 /// FlightGear's units, for the decoder's unit tests. A hand-made copy of the layout: the
 /// end-to-end test builds its datagrams from the protocol file itself instead.
+#[cfg(test)]
 pub fn encode(
     t_s: f32,
     paused: bool,

@@ -114,6 +114,8 @@ impl Default for Jsbsim {
     }
 }
 
+// Only the tests ask: decoding reads the field itself.
+#[cfg(test)]
 impl Jsbsim {
     /// Whether a labels line has been seen.
     pub fn labelled(&self) -> bool {

@@ -3,13 +3,13 @@
 //! over UDP (JSBSim, FlightGear, X-Plane), each converting its units and signs to hexcue's
 //! at the edge (docs/design.md §1).
 
-pub mod decode;
-pub mod flightgear;
-pub mod jsbsim;
+pub(crate) mod decode;
+pub(crate) mod flightgear;
+pub(crate) mod jsbsim;
 pub mod live;
-pub mod recording;
-pub mod trace_file;
-pub mod xplane;
+pub(crate) mod recording;
+pub(crate) mod trace_file;
+pub(crate) mod xplane;
 
 use std::net::{SocketAddr, ToSocketAddrs};
 

@@ -29,7 +29,9 @@ pub struct TraceFile {
 
 impl TraceFile {
     /// Checks the whole file (every refusal names its line and column, as for a trace read
-    /// into memory) and opens it at its first sample.
+    /// into memory) and opens it at its first sample. The commands open with
+    /// [`TraceFile::open_copying`]; the tests, without a copy.
+    #[cfg(test)]
     pub fn open(path: &Path, rate_hz: f64) -> Result<Self, TraceError> {
         Self::open_copying(path, rate_hz, None)
     }

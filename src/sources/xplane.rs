@@ -46,6 +46,7 @@ pub fn request(freq: i32, index: i32, dataref: &str) -> Vec<u8> {
 }
 
 /// One RREF reply with these (index, value) pairs, as X-Plane sends it (for tests).
+#[cfg(test)]
 pub fn reply(pairs: &[(i32, f32)]) -> Vec<u8> {
     let mut b = b"RREF,".to_vec();
     for (i, v) in pairs {

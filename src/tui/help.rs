@@ -61,7 +61,7 @@ pub const LEGEND: &[(&str, &str)] = &[
     ("Δfz", "fz's change from 1 g (0 in level flight); m/s², °/s"),
     ("⣀band", "overlaid view (v): ref ± the perception threshold"),
     (
-        "⣿S-MPC ▞MPC •CWF",
+        "⣿S-MPC ▞MPC █CWF",
         "overlaid view: each algorithm's sim, own marker",
     ),
     ("⇄n", "controller switches (S-MPC) since the start"),

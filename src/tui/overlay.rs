@@ -17,14 +17,20 @@ use super::view::{
 };
 use crate::session::player::{Snapshot, WINDOW_S};
 
-/// Each algorithm's marker in the overlaid view, so that the lines tell apart without colour.
-fn algorithm_marker(id: AlgorithmId) -> (Marker, &'static str) {
+/// Each algorithm's marker in the overlaid view, so that the lines tell apart without colour
+/// (`NO_COLOR`): none shares the reference's dot ([`REFERENCE_MARKER`]) or another's glyphs.
+/// The CWF's whole cells are the one family left besides braille, quadrants and the dot.
+pub(crate) fn algorithm_marker(id: AlgorithmId) -> (Marker, &'static str) {
     match id {
         AlgorithmId::Smpc => (Marker::Braille, "⣿"),
         AlgorithmId::Mpc => (Marker::Quadrant, "▞"),
-        AlgorithmId::Cwf => (Marker::Dot, "•"),
+        AlgorithmId::Cwf => (Marker::Block, "█"),
     }
 }
+
+/// The reference's marker: the dot, as in the columns' `•ref`. It was braille, the S-MPC's
+/// marker, and the two lines could not be told apart without colour.
+pub(crate) const REFERENCE_MARKER: (Marker, &str) = (Marker::Dot, "•");
 
 /// The overlaid view (`v`): one chart per channel, the selected one first, with the
 /// reference, the band of ± the perception threshold around it, and every algorithm's
@@ -144,7 +150,7 @@ fn render_overlay_chart(app: &App, f: &mut ratatui::Frame, area: Rect, lanes: &[
     let mut datasets = vec![
         line_of(Marker::Braille, th.band(), &upper),
         line_of(Marker::Braille, th.band(), &lower),
-        line_of(Marker::Braille, th.reference(), &reference),
+        line_of(REFERENCE_MARKER.0, th.reference(), &reference),
     ];
     for (id, data) in sims.iter().rev() {
         datasets.push(line_of(algorithm_marker(*id).0, th.algorithm(*id), data));
@@ -159,7 +165,7 @@ fn render_overlay_chart(app: &App, f: &mut ratatui::Frame, area: Rect, lanes: &[
     }
     cap.push(Span::styled(format!(" {unit} {WINDOW_S:.0} s"), th.dim()));
     let mut legend = vec![
-        Span::styled(" ⣿ref", th.reference()),
+        Span::styled(format!(" {}ref", REFERENCE_MARKER.1), th.reference()),
         Span::styled(" ⣀band", th.band()),
     ];
     for (id, _) in &sims {

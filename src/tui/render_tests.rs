@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use ratatui::backend::TestBackend;
 use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
+use ratatui::symbols::Marker;
 use ratatui::Terminal;
 
 use super::tests::{draw, dressed_snapshot, engine, recording_opts, screen, settle, Counters};
@@ -399,10 +400,16 @@ fn the_columns_show_what_the_verdict_decides_by() {
     // by the score; each column shows those, compactly at 80×24.
     let (mut app, mut s) = dressed_snapshot();
     let mut summary = (**s.summary.as_ref().expect("a running summary")).clone();
-    let cwf = summary.algorithms.get_mut("cwf").unwrap();
+    let cwf = summary
+        .algorithms
+        .get_mut(&AlgorithmId::Cwf.into())
+        .unwrap();
     cwf.score = 3.21;
     cwf.score_terms.felt.insert("fx".into(), 0.123);
-    let fx = cwf.metrics.get_mut("fx").unwrap();
+    let fx = cwf
+        .metrics
+        .get_mut(&hexcue_core::vocab::Channel::Fx)
+        .unwrap();
     fx.false_cue_s = 1.5;
     fx.jolts.charged = 2;
     fx.jolts.count = 5;
@@ -532,12 +539,12 @@ fn v_overlays_the_algorithms_on_one_chart_per_channel() {
     );
     assert!(captions[0].starts_with("fx"), "{captions:?}");
     for cap in &captions {
-        for label in ["⣿ref", "⣿S-MPC", "▞MPC", "•CWF"] {
+        for label in ["•ref", "⣿S-MPC", "▞MPC", "█CWF"] {
             assert!(cap.contains(label), "{label} missing from {cap}");
         }
     }
     // One line per algorithm with what the verdict decides by.
-    for label in ["⣿S-MPC", "▞MPC", "•CWF"] {
+    for label in ["⣿S-MPC", "▞MPC", "█CWF"] {
         assert!(
             lines
                 .iter()
@@ -545,6 +552,35 @@ fn v_overlays_the_algorithms_on_one_chart_per_channel() {
             "{label}'s numbers missing:\n{text}"
         );
     }
+    // Without colour (NO_COLOR) the lines tell apart by their glyphs alone: the reference's
+    // and each algorithm's marker draw with glyphs no other line uses (issue 38).
+    let family = |m: Marker| -> Vec<char> {
+        match m {
+            Marker::Braille => ('\u{2801}'..='\u{28FF}').collect(),
+            // Less the full cell, which the MPC's quadrants draw only where its line fills a
+            // whole cell (a steep stretch): there the CWF's block and it look alike.
+            Marker::Quadrant => "▘▝▖▗▀▄▌▐▚▞▛▜▙▟".chars().collect(),
+            Marker::Dot => vec!['•'],
+            Marker::Block => vec!['█'],
+            other => panic!("a marker this test does not know: {other:?}"),
+        }
+    };
+    let mut markers = vec![overlay::REFERENCE_MARKER.0];
+    markers.extend(
+        AlgorithmId::ALL
+            .iter()
+            .map(|&id| overlay::algorithm_marker(id).0),
+    );
+    for (i, a) in markers.iter().enumerate() {
+        for b in &markers[i + 1..] {
+            let shared: Vec<char> = family(*a)
+                .into_iter()
+                .filter(|c| family(*b).contains(c))
+                .collect();
+            assert!(shared.is_empty(), "{a:?} and {b:?} share {shared:?}");
+        }
+    }
+
     // The band: the chart's range holds the reference ± its threshold.
     for ch in 0..6 {
         let scale = hexcue_core::vocab::Channel::ALL[ch].display_scale();

@@ -136,7 +136,12 @@ impl App {
     }
 
     pub fn channel_name(&self) -> &'static str {
-        Channel::ALL[self.channel % Channel::ALL.len()].key()
+        self.channel().key()
+    }
+
+    /// The channel shown.
+    pub fn channel(&self) -> Channel {
+        Channel::ALL[self.channel % Channel::ALL.len()]
     }
 }
 

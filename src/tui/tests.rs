@@ -425,7 +425,12 @@ fn player_steps_seeks_and_replays_identically() {
     let timeless = |s: &Snapshot| {
         let mut f = s.last.clone().unwrap();
         f.lanes.iter_mut().for_each(|l| l.step_time_us = 0.0);
-        let m = s.summary.as_ref().unwrap().algorithms["cwf"]
+        let m = s
+            .summary
+            .as_ref()
+            .unwrap()
+            .algorithm(AlgorithmId::Cwf)
+            .unwrap()
             .metrics
             .clone();
         (f, m)

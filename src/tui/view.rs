@@ -697,11 +697,16 @@ pub(super) fn lane_metrics(app: &App, lane: usize) -> Option<LaneNumbers> {
     let s = &app.snapshot;
     let id = s.algorithms.get(lane)?;
     let sum = s.summary.as_ref()?;
-    let alg = sum.algorithms.get(id.key())?;
-    let ch = app.channel_name();
-    let m = alg.metrics.get(ch)?;
+    let alg = sum.algorithm(*id)?;
+    let ch = app.channel();
+    let m = alg.metrics.get(&ch)?;
     Some(LaneNumbers {
-        felt: alg.score_terms.felt.get(ch).copied().unwrap_or(f64::NAN),
+        felt: alg
+            .score_terms
+            .felt
+            .get(ch.key())
+            .copied()
+            .unwrap_or(f64::NAN),
         false_cue_s: m.false_cue_s,
         jolts: m.jolts.charged,
         score: alg.score,

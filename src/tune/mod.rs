@@ -297,7 +297,7 @@ impl Evaluator {
         let mut s = summary.finish();
         let a = s
             .algorithms
-            .remove(self.algorithm.key())
+            .remove(&self.algorithm.into())
             .ok_or_else(|| anyhow!("{}: no summary of {}", trace.name, self.algorithm))?;
         Ok(Some(a))
     }
@@ -390,6 +390,13 @@ pub trait Progress: Sync {
     fn generation(&self, _record: &GenerationRecord) {}
 }
 
+/// The smallest CMA-ES generation the search runs (its population, at least 4).
+pub const MIN_GENERATION: usize = 4;
+
+/// The smallest budget that searches at all: the base, then one generation. A smaller one
+/// would score the base alone and write it back as if tuned, so `tune` refuses it.
+pub const MIN_BUDGET: usize = 1 + MIN_GENERATION;
+
 /// The search: the base first, then CMA-ES generations while the budget allows.
 pub fn tune(
     evaluator: &Evaluator,
@@ -433,7 +440,7 @@ pub fn tune(
     let n = keys.len();
     let default_lambda = 4 + (3.0 * (n as f64).ln()).floor() as usize;
     // At least three generations within the budget.
-    let lambda = default_lambda.min((budget.saturating_sub(1) / 3).max(4));
+    let lambda = default_lambda.min((budget.saturating_sub(1) / 3).max(MIN_GENERATION));
     let mean: Vec<f64> = keys
         .iter()
         .zip(&base_values)
@@ -599,6 +606,15 @@ pub fn cross_validated_tune(
     };
     let folds = folds_by_flight(n);
     let per_fold = (budget / folds.len()).max(1);
+    // A fold whose share cannot search would only score the base (`MIN_BUDGET`).
+    if per_fold < MIN_BUDGET {
+        bail!(
+            "--budget {budget}: validated {}-fold by flight, each fold searches with a share of \
+             it; expected at least {} candidates ({MIN_BUDGET} a fold)",
+            folds.len(),
+            MIN_BUDGET * folds.len()
+        );
+    }
     let mut done = Vec::new();
     let (mut evaluations, mut interrupted) = (0, false);
     for (f, held_out) in folds.iter().enumerate() {
@@ -775,7 +791,10 @@ mod tests {
         while let Some(f) = engine.step() {
             s.push(&f);
         }
-        assert_eq!(r.base.mean_score(), s.finish().algorithms["cwf"].score);
+        assert_eq!(
+            r.base.mean_score(),
+            s.finish().algorithm(AlgorithmId::Cwf).unwrap().score
+        );
         let best = r.best.unwrap_or_else(|| panic!("{:?}", r.base.outcomes));
         assert!(best.feasible() && best.mean_score() <= r.base.mean_score());
         assert!(

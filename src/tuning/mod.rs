@@ -272,19 +272,6 @@ impl Tuner {
             .map(|c| c as f64)
     }
 
-    /// Puts the `drive` value back to `drive` without a change to apply or undo (a switch
-    /// the session could not make).
-    pub fn revert_drive(&mut self, drive: AlgorithmId) {
-        if let Some(i) = self.index(DRIVE) {
-            self.values[i] = drive_code(drive);
-            // The switch taken back is the last `drive` change recorded; earlier ones stay
-            // undoable.
-            if let Some(last) = self.undo.iter().rposition(|(index, _)| *index == i) {
-                self.undo.remove(last);
-            }
-        }
-    }
-
     pub fn parameters(&self) -> &[Parameter] {
         &self.parameters
     }
@@ -560,9 +547,10 @@ impl Shared {
 }
 
 /// Applies queued changes to `engine` at session time `t_s`: the gains along their paths,
-/// a retune through a blend of `blend_s`. Returns each change's event text; the changes are
-/// recorded in the tuner for the summary. What is also for lanes `engine` does not step goes
-/// to `elsewhere`: every new gain target, and each rebuilt algorithm not among `engine`'s.
+/// a retune or a drive switch through a blend of `blend_s`. Returns each change's event
+/// text; the changes are recorded in the tuner for the summary. What is also for lanes
+/// `engine` does not step goes to `elsewhere`: every new gain target, each rebuilt algorithm
+/// not among `engine`'s, and every drive switch (to an algorithm `engine` may not step).
 pub fn apply_pending(
     shared: &mut Shared,
     engine: &mut hexcue_core::engine::Engine,
@@ -592,26 +580,17 @@ pub fn apply_pending(
                     }
                 }
             }
-            // The blend reads both lanes' commands on the stepping thread; since the
-            // comparison lanes step on their own thread (issue 37), a lane not stepped here
-            // cannot be blended to yet, and the switch is taken back rather than blending
-            // toward a command this thread does not have.
-            Apply::Drive(to) if !engine.algorithms().contains(&to) => {
-                shared.tuner.revert_drive(drives.drive());
-                text = format!(
-                    "parameter {name} not applied: {} steps on the comparison lanes' thread, and \
-                     the drive switches live only to an algorithm the stepping thread steps; {} \
-                     drives on",
-                    to.key(),
-                    drives.drive().key()
-                );
-            }
+            // A lane `engine` does not step (a live session's comparison lane, on its own
+            // thread) is handed on: the session brings it over, and the blend starts when it
+            // arrives (docs/live.md, *Switching the drive*).
             Apply::Drive(to) => {
                 let from = drives.drive();
-                let cut = drives.switch(to, blend_s);
+                let here = engine.has_lane(to);
+                let cut = here && drives.switch(to, blend_s);
+                elsewhere(Applied::Drive { to, here });
                 text = format!(
                     "parameter {name} {}: {} → {} ({} → {}), the command blends from {}'s to {}'s \
-                     within {blend_s:.2} s{}",
+                     within {blend_s:.2} s{}{}",
                     if change.undo { "undone" } else { "set" },
                     change.from,
                     change.to,
@@ -619,6 +598,11 @@ pub fn apply_pending(
                     to.key(),
                     from.key(),
                     to.key(),
+                    if here {
+                        ""
+                    } else {
+                        " of its lane's arrival from the comparison lanes' thread"
+                    },
                     if cut {
                         "; the oldest blend still under way was cut short"
                     } else {
@@ -633,11 +617,17 @@ pub fn apply_pending(
 }
 
 /// What [`apply_pending`] hands on for the lanes of another engine (a live session's
-/// comparison lanes): the new gains, which every lane's command takes, and the rebuilt
-/// algorithms that engine steps.
+/// comparison lanes): the new gains, which every lane's command takes, the rebuilt
+/// algorithms that engine steps, and each drive switch.
 pub enum Applied {
     Gains(Vector6<f64>),
     Retune(Box<Retune>),
+    /// The drive switched to `to`: already blending in when `here` (the engine steps it),
+    /// else to be brought over, the blend to start on its arrival.
+    Drive {
+        to: AlgorithmId,
+        here: bool,
+    },
 }
 
 /// The text of a change's event: what changed, and how long the command takes to follow.

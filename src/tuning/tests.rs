@@ -306,7 +306,8 @@ fn the_drive_switches_between_the_sessions_algorithms_and_back() {
     assert_eq!(s.tuner.summary().final_parameter_values[DRIVE], 2.0);
 
     // An engine that does not step the new drive (a live session's stepping thread, whose
-    // comparison lanes step elsewhere) takes the switch back, and says why.
+    // comparison lanes step elsewhere) hands the switch on, for the lane to be brought over;
+    // the drive stays until it comes, and the change stands, to be undone as any other.
     let mut driving_only = hexcue_core::engine::Engine::new(
         &profile,
         std::sync::Arc::new(hexcue_core::testing::manoeuvre()),
@@ -314,16 +315,21 @@ fn the_drive_switches_between_the_sessions_algorithms_and_back() {
     )
     .unwrap();
     s.set(DRIVE, 0.0).unwrap();
-    let texts = apply_pending(&mut s, &mut driving_only, &mut drives, 7.0, 3.0, |_| {});
+    let mut handed = Vec::new();
+    let texts = apply_pending(&mut s, &mut driving_only, &mut drives, 7.0, 3.0, |a| {
+        if let Applied::Drive { to, here } = a {
+            handed.push((to, here));
+        }
+    });
+    assert_eq!(handed, [(AlgorithmId::Cwf, false)]);
     assert_eq!(drives.drive(), AlgorithmId::Smpc);
     assert!(
-        texts[0].starts_with("parameter drive not applied: cwf steps on the comparison"),
+        texts[0].starts_with("parameter drive set: 2 → 0 (smpc → cwf), the command blends")
+            && texts[0].contains("within 3.00 s of its lane's arrival"),
         "{}",
         texts[0]
     );
+    assert_eq!(s.tuner.get(DRIVE), Some(0.0));
+    assert!(s.undo().unwrap());
     assert_eq!(s.tuner.get(DRIVE), Some(2.0));
-    assert!(
-        !s.undo().unwrap(),
-        "nothing to undo: the switch was taken back"
-    );
 }

@@ -9,6 +9,7 @@
 //! - dominance: the joint programme with each channel's error held at or below a given
 //!   algorithm's (the CWF's).
 
+pub mod acceptance;
 pub mod envelope;
 pub mod programme;
 
@@ -18,7 +19,9 @@ use nalgebra::{Vector3, Vector6};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-pub use programme::{channel_dofs, input_coefficients, HeadRows, LegRows, Programme, Solution};
+pub use programme::{
+    channel_dofs, input_coefficients, HeadRows, LegRows, NodeRow, Programme, Solution,
+};
 
 use crate::engine::perceive_command;
 use crate::mca::limiter::WorkspaceLimiter;
@@ -36,6 +39,12 @@ use clarabel::solver::SolverStatus;
 /// sequence of re-linearisations per inset: the limiter's braking look-ahead runs beyond a
 /// path that grazes the legs, and which inset the limiter cuts least varies by flight.
 pub const LEG_INSETS_M: [f64; 2] = [0.005, 0.02];
+
+/// The braking-path rows of the achieved programme (`Lookahead::Path`) keep the limiter's
+/// look-ahead this far inside its leg margin (m): each row is the leg linearised at the worst
+/// point of a path that moves with the plan, and at 5 or 15 mm the next pass still missed
+/// the margin by a millimetre on the steep turn's first 20 s (`examples/gap_probe.rs`).
+pub const PATH_INSET_M: f64 = 0.03;
 
 /// Re-linearisations of the legs in the achieved programme.
 pub const LEG_ITERATIONS: usize = 4;
@@ -357,6 +366,7 @@ impl Setup {
             caps,
             legs: None,
             head: None,
+            node_rows: None,
             pose_cost: 0.0,
             residual: self.residual,
         }
@@ -683,9 +693,9 @@ pub const ACHIEVED_GRID: usize = 5;
 
 /// A motion the platform can make near the relaxed optimum: the joint programme over all six
 /// DoFs (the legs couple them) on a grid `ACHIEVED_GRID` samples apart, with the legs
-/// linearised about neutral and then about the previous answer's poses, `LEG_ITERATIONS`
-/// times, each leg kept one of `LEG_INSETS_M` inside the limiter's margin. Every answer is replayed
-/// at the full rate; returns them all (label, replay, programme).
+/// linearised about neutral and then about the previous answer's poses, one sequence of
+/// passes per entry of `ACHIEVED_SEQUENCES`. Every answer is replayed at the full rate;
+/// returns them all (label, replay, programme).
 pub fn achieved_with_legs(
     profile: &Profile,
     trace: &Trace,
@@ -693,44 +703,100 @@ pub fn achieved_with_legs(
 ) -> Vec<(String, Replayed, Solution)> {
     ACHIEVED_SEQUENCES
         .par_iter()
-        .flat_map_iter(|&(inset, head, braking)| {
-            legs_sequence(profile, trace, setup, inset, head, braking)
-        })
+        .flat_map_iter(|seq| legs_sequence(profile, trace, setup, seq))
         .collect()
 }
 
-/// The sequences of the achieved programme: (leg inset, whether the head's inputs are
-/// re-linearised about the previous answer too, the sequential programme of docs/bound.md,
-/// whether the legs are held in the stroke at the braking stop point too).
-pub const ACHIEVED_SEQUENCES: [(f64, bool, bool); 3] = [
-    (LEG_INSETS_M[0], true, false),
-    (LEG_INSETS_M[1], true, false),
-    (LEG_INSETS_M[0], true, true),
+/// How a sequence of the achieved programme keeps its motion where the workspace limiter's
+/// braking look-ahead accepts it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Lookahead {
+    /// Legs at the planned poses only.
+    None,
+    /// The legs also in the stroke at the point where braking every DoF would stop
+    /// (`LegRows::stop_gain`).
+    StopPoint,
+    /// Rows for the limiter's own braking path wherever a pass came near the legs' margin on
+    /// it (`acceptance::PathRows`).
+    Path,
+}
+
+/// One sequence of passes of the achieved programme.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sequence {
+    /// Leg rows this far inside the limiter's margin (m).
+    pub inset_m: f64,
+    /// Whether passes after the first re-linearise the head's inputs about the previous
+    /// answer too (the sequential programme of docs/bound.md).
+    pub relinearise_head: bool,
+    /// What keeps the motion inside the limiter's look-ahead.
+    pub lookahead: Lookahead,
+    /// Passes (the first about neutral).
+    pub passes: usize,
+}
+
+/// The sequences of the achieved programme (docs/bound.md, "`achieved`").
+pub const ACHIEVED_SEQUENCES: [Sequence; 4] = [
+    Sequence {
+        inset_m: LEG_INSETS_M[0],
+        relinearise_head: true,
+        lookahead: Lookahead::None,
+        passes: LEG_ITERATIONS,
+    },
+    Sequence {
+        inset_m: LEG_INSETS_M[1],
+        relinearise_head: true,
+        lookahead: Lookahead::None,
+        passes: LEG_ITERATIONS,
+    },
+    Sequence {
+        inset_m: LEG_INSETS_M[0],
+        relinearise_head: true,
+        lookahead: Lookahead::StopPoint,
+        passes: LEG_ITERATIONS,
+    },
+    Sequence {
+        inset_m: LEG_INSETS_M[0],
+        relinearise_head: true,
+        lookahead: Lookahead::Path,
+        passes: 6,
+    },
 ];
 
 fn legs_sequence(
     profile: &Profile,
     trace: &Trace,
     setup: &Setup,
-    inset_m: f64,
-    relinearise_head: bool,
-    braking: bool,
+    seq: &Sequence,
 ) -> Vec<(String, Replayed, Solution)> {
     let g = &profile.geometry;
+    let inset_m = seq.inset_m;
     let margin = profile.limiter.leg_margin_m + inset_m;
     let (lo, hi) = (g.leg_min_m + margin, g.leg_max_m - margin);
     let all: Vec<usize> = (0..6).collect();
     let coarse = setup.coarse(profile, ACHIEVED_GRID);
-    let nc = coarse.reference[0].len();
-    let mut poses: Vec<Vector6<f64>> = vec![Vector6::zeros(); nc];
+    let stewart = profile.stewart();
+    let limiter = WorkspaceLimiter::new(
+        stewart.clone(),
+        profile.limits.si(),
+        profile.limiter.leg_margin_m,
+        setup.dt_s,
+    );
+    let mut path_rows = acceptance::PathRows::new();
+    let mut node_rows: Vec<NodeRow> = Vec::new();
+    let mut poses: Vec<Vector6<f64>> = vec![Vector6::zeros(); coarse.reference[0].len()];
     let mut velocities: Option<Vec<Vector6<f64>>> = None;
     let mut head: Option<Vec<HeadRows>> = None;
     let mut out = Vec::new();
     let label = |i: usize| {
+        let look = match seq.lookahead {
+            Lookahead::StopPoint if i > 1 => " (braking)",
+            Lookahead::Path if i > 1 => " (braking path)",
+            _ => "",
+        };
         format!(
-            "legs{}{} linearised {i}× at {:.0} mm inset",
-            if braking && i > 1 { " (braking)" } else { "" },
-            if relinearise_head && i > 1 {
+            "legs{look}{} linearised {i}× at {:.0} mm inset",
+            if seq.relinearise_head && i > 1 {
                 " and head"
             } else {
                 ""
@@ -738,11 +804,17 @@ fn legs_sequence(
             inset_m * 1000.0
         )
     };
-    for iteration in 1..=LEG_ITERATIONS {
+    let path_margin = profile.limiter.leg_margin_m + PATH_INSET_M;
+    let path_stroke = (g.leg_min_m + path_margin, g.leg_max_m - path_margin);
+    for iteration in 1..=seq.passes {
         let rows = leg_rows(
             profile,
             &poses,
-            if braking { velocities.as_deref() } else { None },
+            if seq.lookahead == Lookahead::StopPoint {
+                velocities.as_deref()
+            } else {
+                None
+            },
             &coarse.limits,
         );
         let mut prog = coarse.programme(&all, &all, &all, None);
@@ -750,6 +822,7 @@ fn legs_sequence(
         prog.box_scale = 1.0 - 1e-6;
         prog.legs = Some((&rows, lo, hi));
         prog.head = head.as_deref();
+        prog.node_rows = Some(&node_rows);
         let sol = prog.solve();
         if !matches!(
             sol.status,
@@ -763,23 +836,32 @@ fn legs_sequence(
         let r = replay(profile, trace, &cmds);
         poses = sol.pose.clone();
         velocities = Some(sol.velocity.clone());
-        if relinearise_head {
-            head = Some(
-                (0..nc)
-                    .map(|k| {
-                        HeadRows::about(
-                            &sol.pose[k],
-                            &sol.velocity[k],
-                            &sol.acceleration[k],
-                            &setup.eye_m,
-                        )
-                    })
-                    .collect(),
+        if seq.lookahead == Lookahead::Path {
+            (node_rows, _) = path_rows.update(
+                &limiter,
+                &stewart,
+                profile.limiter.leg_margin_m,
+                PATH_INSET_M,
+                path_stroke,
+                &sol,
+                ACHIEVED_GRID,
+                trace.len(),
+                setup.dt_s,
             );
+        }
+        if seq.relinearise_head {
+            head = Some(head_rows(&sol, &setup.eye_m));
         }
         out.push((label(iteration), r, sol));
     }
     out
+}
+
+/// The head's inputs linearised about every grid step of an answer.
+fn head_rows(sol: &Solution, eye_m: &Vector3<f64>) -> Vec<HeadRows> {
+    (0..sol.pose.len())
+        .map(|k| HeadRows::about(&sol.pose[k], &sol.velocity[k], &sol.acceleration[k], eye_m))
+        .collect()
 }
 
 /// [`GapParts`] of an achieved motion, given the relaxed optimum's commands.

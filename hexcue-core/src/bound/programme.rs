@@ -148,6 +148,22 @@ impl HeadRows {
     }
 }
 
+/// One more linear row over a single grid step's variables:
+/// lo ≤ Σ_d (pose_d·p_d + velocity_d·v_d + acceleration_d·a_d) ≤ hi at step `node`. The
+/// achieved programme keeps with them the limiter's braking look-ahead inside the legs
+/// (`bound::acceptance`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeRow {
+    /// The grid step whose variables the row weighs.
+    pub node: usize,
+    /// Coefficients on the pose, velocity and acceleration of every DoF, in that order.
+    pub coef: [Vector6<f64>; 3],
+    /// Lower end of the row.
+    pub lo: f64,
+    /// Upper end of the row.
+    pub hi: f64,
+}
+
 /// What one programme models and minimises.
 pub struct Programme<'a> {
     /// Step of the decision grid (s).
@@ -182,6 +198,8 @@ pub struct Programme<'a> {
     /// Optional head inputs linearised per grid step about a motion (`None`: about neutral,
     /// `input_coefficients`).
     pub head: Option<&'a [HeadRows]>,
+    /// Optional rows over single grid steps (`NodeRow`).
+    pub node_rows: Option<&'a [NodeRow]>,
     /// Cost of the mean excursion Σ_d |p_d|/P_d (0: none). A small one picks, among the
     /// motions of (nearly) equal error, one near neutral, which the legs can make.
     pub pose_cost: f64,
@@ -400,6 +418,17 @@ impl Programme<'_> {
                     }
                 }
             }
+        }
+        for row in self.node_rows.unwrap_or(&[]) {
+            entries.clear();
+            for (j, &d) in self.dofs.iter().enumerate() {
+                for (what, coef) in row.coef.iter().enumerate() {
+                    entries.push((dof_col(row.node, j, what), coef[d]));
+                }
+            }
+            ineq.row(&entries, row.hi);
+            let neg: Vec<(usize, f64)> = entries.iter().map(|&(j, v)| (j, -v)).collect();
+            ineq.row(&neg, -row.lo);
         }
         let mut cap_rows = Vec::new();
         if let Some(caps) = self.caps {

@@ -153,18 +153,24 @@ impl WorkspaceLimiter {
     /// two poses that fit can leave the stroke. With the same arithmetic, a state that passes
     /// is one whose braking step passes again, so braking never needs the last resort.
     fn can_stop(&self, pose: &Vector6<f64>, rate: &Vector6<f64>) -> bool {
-        let (mut p, mut v) = (*pose, *rate);
-        for _ in 0..MAX_BRAKING_STEPS {
-            if v.iter().all(|x| *x == 0.0) {
-                return true;
-            }
-            (p, v) = self.brake(&p, &v);
-            if !self.within_excursion(&p) || !self.stewart.fits(&p, self.leg_margin_m) {
-                return false;
-            }
+        // Limits so low that stopping takes longer than the look-ahead: at least the points
+        // reached must fit.
+        self.braking_path(pose, rate)
+            .all(|(p, _)| self.within_excursion(&p) && self.stewart.fits(&p, self.leg_margin_m))
+    }
+
+    /// The poses and rates that the braking look-ahead checks from `pose` moving at `rate`
+    /// (the rate implied by the issued poses): every DoF decelerating at its limit, one item
+    /// per step until rest (at most `MAX_BRAKING_STEPS`), the starting point excluded. A
+    /// command is accepted only if every pose of this path is inside the excursions and the
+    /// legs' margin; the yardstick's achieved programme keeps its motion so (`bound`).
+    pub fn braking_path(&self, pose: &Vector6<f64>, rate: &Vector6<f64>) -> BrakingPath<'_> {
+        BrakingPath {
+            limiter: self,
+            pose: *pose,
+            rate: *rate,
+            steps: 0,
         }
-        // Limits so low that stopping takes longer: at least the point reached must fit.
-        true
     }
 
     /// One step of braking from `pose` at `rate`: every DoF decelerates toward rest at its
@@ -288,6 +294,28 @@ impl WorkspaceLimiter {
             command: out,
             acted: true,
         }
+    }
+}
+
+/// The braking look-ahead's path ([`WorkspaceLimiter::braking_path`]): (pose, rate) after
+/// each step of braking.
+pub struct BrakingPath<'a> {
+    limiter: &'a WorkspaceLimiter,
+    pose: Vector6<f64>,
+    rate: Vector6<f64>,
+    steps: usize,
+}
+
+impl Iterator for BrakingPath<'_> {
+    type Item = (Vector6<f64>, Vector6<f64>);
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.steps >= MAX_BRAKING_STEPS || self.rate.iter().all(|x| *x == 0.0) {
+            return None;
+        }
+        self.steps += 1;
+        (self.pose, self.rate) = self.limiter.brake(&self.pose, &self.rate);
+        Some((self.pose, self.rate))
     }
 }
 

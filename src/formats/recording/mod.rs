@@ -10,6 +10,7 @@
 //! skipped, reading going on at the next intact one (`source.rs`).
 
 mod damage;
+pub mod meta_key;
 mod reader;
 mod recover;
 mod source;
@@ -22,7 +23,7 @@ use mcap::McapError;
 use sha2::{Digest, Sha256};
 
 use crate::channels::json;
-use crate::channels::{Kind, REFERENCE_TOPIC};
+use crate::channels::REFERENCE_TOPIC;
 use hexcue_core::engine::Frame;
 use hexcue_core::mca::AlgorithmId;
 use hexcue_core::profile::Profile;
@@ -165,18 +166,6 @@ pub struct RecordingStats {
     pub duration_s: f64,
     /// Wall time from `create` to `finish` (s).
     pub wall_s: f64,
-}
-
-/// The JSON schemas of hexcue's own topics, by schema name: what the live Foxglove server
-/// advertises for the same channels.
-pub fn json_schemas() -> Vec<(&'static str, Vec<u8>)> {
-    Kind::JSON_SCHEMAS
-        .into_iter()
-        .map(|k| {
-            let s = k.schema();
-            (s.name, s.data)
-        })
-        .collect()
 }
 
 /// A frame's messages on hexcue's own topics, in the recorder's order and with the recorder's
@@ -412,6 +401,8 @@ mod tests {
         let (trace, _, bytes, _) = recorded();
         let dir = tempfile::tempdir().unwrap();
         let rec = Recording::open(&write_temp(&dir, "r.mcap", bytes)).unwrap();
+        // The keys as docs/recordings.md spells them, not `meta_key`'s constants: a constant
+        // changed by mistake would change the format and still pass.
         let m = &rec.metadata;
         assert_eq!(m["tool_version"], env!("CARGO_PKG_VERSION"));
         assert_eq!(rec.tool_version, env!("CARGO_PKG_VERSION"));

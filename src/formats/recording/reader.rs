@@ -11,7 +11,7 @@ use serde::Deserialize;
 
 use super::source::{Item, RecordSource, Skip, SourceError};
 use super::{
-    sha256_hex, shown, RecordingError, RecordingMeta, METADATA_NAME, PROFILE_ATTACHMENT,
+    meta_key, sha256_hex, shown, RecordingError, RecordingMeta, METADATA_NAME, PROFILE_ATTACHMENT,
     SIDECAR_ATTACHMENT, TRACE_ATTACHMENT, TRACE_ZSTD_ATTACHMENT,
 };
 use crate::channels::json::{ActuatorsMsg, AircraftMsg, ControllerMsg, PerceivedMsg, PlatformMsg};
@@ -329,14 +329,15 @@ impl Recording {
                 })
                 .transpose()
         };
-        let rate_hz = number("rate_hz")?.ok_or_else(|| missing("metadata `rate_hz`"))?;
-        let start_unix_ns = match metadata.get("start_unix_ns") {
+        let rate_hz = number(meta_key::RATE_HZ)?
+            .ok_or_else(|| missing(&format!("metadata `{}`", meta_key::RATE_HZ)))?;
+        let start_unix_ns = match metadata.get(meta_key::START_UNIX_NS) {
             Some(v) => v.parse::<u64>().map_err(|_| RecordingError::Invalid {
                 path: p.clone(),
-                what: format!("metadata `start_unix_ns` is `{v}`"),
+                what: format!("metadata `{}` is `{v}`", meta_key::START_UNIX_NS),
                 expected: "an integer (ns)".into(),
             })?,
-            None => return Err(missing("metadata `start_unix_ns`")),
+            None => return Err(missing(&format!("metadata `{}`", meta_key::START_UNIX_NS))),
         };
 
         let mut notices = Vec::new();
@@ -373,7 +374,7 @@ impl Recording {
         if !topics.values().any(|t| t == AIRCRAFT_TOPIC) {
             return Err(missing(&format!("topic `{AIRCRAFT_TOPIC}`")));
         }
-        if let Some(sha) = metadata.get("trace_sha256") {
+        if let Some(sha) = metadata.get(meta_key::TRACE_SHA256) {
             if *sha != sha256_hex(&trace_csv) {
                 notices.push(
                     "the attached trace does not match the SHA-256 in the metadata".to_string(),
@@ -485,9 +486,9 @@ impl Recording {
             last_log_time.map_or(0.0, |t: u64| t.saturating_sub(start_unix_ns) as f64 * 1e-9);
         Ok(Recording {
             path: path.to_path_buf(),
-            tool_version: field("tool_version"),
-            profile_name: field("profile_name"),
-            trace_name: field("trace_name"),
+            tool_version: field(meta_key::TOOL_VERSION),
+            profile_name: field(meta_key::PROFILE_NAME),
+            trace_name: field(meta_key::TRACE_NAME),
             metadata,
             profile_toml,
             profile,

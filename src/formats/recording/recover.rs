@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use super::{shown, Recorder, Recording, RecordingError, RecordingStats};
+use super::{meta_key, shown, Recorder, Recording, RecordingError, RecordingStats};
 
 /// What [`recover`] wrote.
 #[derive(Clone, Debug, PartialEq)]
@@ -34,13 +34,13 @@ pub fn recover(input: &Path, output: &Path) -> Result<RecoverStats, RecordingErr
     let recording = Recording::open(input)?;
     let mut metadata = recording.metadata.clone();
     let keys: Vec<&str> = recording.algorithms.iter().map(|a| a.key()).collect();
-    metadata.insert("algorithms".into(), keys.join(","));
+    metadata.insert(meta_key::ALGORITHMS.into(), keys.join(","));
     metadata.insert(
-        "recovered_by_version".into(),
+        meta_key::RECOVERED_BY_VERSION.into(),
         env!("CARGO_PKG_VERSION").to_string(),
     );
     metadata.insert(
-        "recovered_from".into(),
+        meta_key::RECOVERED_FROM.into(),
         input
             .file_name()
             .map_or_else(|| shown(input), |n| n.to_string_lossy().into_owned()),

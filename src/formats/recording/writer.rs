@@ -13,7 +13,7 @@ use sha2::{Digest, Sha256};
 
 use super::source::READ_SIZE;
 use super::{
-    sha256_hex, shown, RecordingError, RecordingMeta, RecordingStats, FORMAT_VERSION,
+    meta_key, sha256_hex, shown, RecordingError, RecordingMeta, RecordingStats, FORMAT_VERSION,
     METADATA_NAME, PROFILE_ATTACHMENT, SIDECAR_ATTACHMENT, TRACE_ZSTD_ATTACHMENT,
 };
 use crate::channels::json::{self, Message};
@@ -219,7 +219,7 @@ impl Recorder {
             .duration_since(UNIX_EPOCH)
             .map_or(1, |d| d.as_nanos().min(u128::from(u64::MAX / 2)) as u64);
         let mut metadata = session_metadata(meta, start_ns);
-        metadata.insert("trace_sha256".into(), trace.sha256.clone());
+        metadata.insert(meta_key::TRACE_SHA256.into(), trace.sha256.clone());
         Self::create_from(path, meta, start_ns, metadata, Some(&trace.path))
     }
 
@@ -556,6 +556,19 @@ impl Recorder {
         source: &str,
         text: &str,
     ) -> Result<(), RecordingError> {
+        self.event_with(t_s, level, source, text, None)
+    }
+
+    /// [`Recorder::event`], handing the encoded `foxglove.Log` to `tap` when it wants it (a
+    /// live viewer fed by [`Recorder::record_with`]).
+    pub fn event_with(
+        &mut self,
+        t_s: f64,
+        level: EventLevel,
+        source: &str,
+        text: &str,
+        tap: Option<&mut (dyn MessageTap + 'static)>,
+    ) -> Result<(), RecordingError> {
         let log_time = self
             .start_ns
             .saturating_add((t_s.max(0.0) * 1e9).round().min(u64::MAX as f64 / 2.0) as u64);
@@ -565,7 +578,7 @@ impl Recorder {
                 [(Channel::EVENTS, SceneMessage::Log(&log))],
                 log_time,
                 true,
-                None,
+                tap,
             )?;
         }
         Ok(())
@@ -650,7 +663,7 @@ impl Recorder {
         self.attach_file(&compressed.path)?;
         let sha = compressed.sha256.clone();
         let mut metadata = self.metadata.clone();
-        metadata.insert("trace_sha256".into(), sha);
+        metadata.insert(meta_key::TRACE_SHA256.into(), sha);
         for (k, v) in extra {
             metadata.insert(k.to_string(), v.clone());
         }
@@ -854,15 +867,18 @@ impl Drop for CompressedTrace {
 fn session_metadata(meta: &RecordingMeta, start_ns: u64) -> BTreeMap<String, String> {
     let algorithms: Vec<&str> = meta.algorithms.iter().map(|a| a.key()).collect();
     [
-        ("tool", "hexcue".to_string()),
-        ("tool_version", env!("CARGO_PKG_VERSION").to_string()),
-        ("format_version", FORMAT_VERSION.to_string()),
-        ("profile_name", meta.profile_name.clone()),
-        ("trace_name", meta.trace_name.clone()),
-        ("trace_sha256", sha256_hex(&meta.trace_csv)),
-        ("rate_hz", meta.rate_hz.to_string()),
-        ("algorithms", algorithms.join(",")),
-        ("start_unix_ns", start_ns.to_string()),
+        (meta_key::TOOL, "hexcue".to_string()),
+        (
+            meta_key::TOOL_VERSION,
+            env!("CARGO_PKG_VERSION").to_string(),
+        ),
+        (meta_key::FORMAT_VERSION, FORMAT_VERSION.to_string()),
+        (meta_key::PROFILE_NAME, meta.profile_name.clone()),
+        (meta_key::TRACE_NAME, meta.trace_name.clone()),
+        (meta_key::TRACE_SHA256, sha256_hex(&meta.trace_csv)),
+        (meta_key::RATE_HZ, meta.rate_hz.to_string()),
+        (meta_key::ALGORITHMS, algorithms.join(",")),
+        (meta_key::START_UNIX_NS, start_ns.to_string()),
     ]
     .into_iter()
     .map(|(k, v)| (k.to_string(), v))

@@ -31,6 +31,12 @@ pub(super) struct StepData<'a> {
     /// (`stop_reach_s`), as `leg_offset`/`leg_jacobian` are.
     pub(super) next_leg: (Vector6<f64>, Matrix6<f64>),
     pub(super) stop_leg: (Vector6<f64>, Matrix6<f64>),
+    /// The next command's head signal linearised in the first input, s(u₀) ≈ `onset_const` +
+    /// `onset_gain` u₀ less the head's signal a window before; and the band its onset may
+    /// take unpriced (`None` before a window of commands has been applied).
+    pub(super) onset_const: Vector6<f64>,
+    pub(super) onset_gain: Matrix6x8,
+    pub(super) onset_band: Option<([f64; 6], [f64; 6])>,
 }
 
 /// Pose rows of the one-trace-step model: 6 × NU.
@@ -45,6 +51,15 @@ const DEAD_ZONE_CURVATURE: f64 = 1e-3;
 /// lands a rounding error beyond it as often as not (measured: 17 of 30 limiter actions on the
 /// F-16 roll doublet with weights from the tuner's ranges were surge poses at 1.7000–1.7002 m).
 const EXCURSION_PLAN_ALLOWANCE: f64 = 1e-6;
+
+/// The share of the onset threshold the next command's onset may go beyond the aircraft's
+/// unpriced. The measure charges beyond the threshold itself; the rest covers the onset's
+/// linearisation (quadratic in the rate change, under 1e-4 m/s² a step), the slack's
+/// quadratic price (which lets it open a little before it costs) and the S-MPC's blend.
+pub(super) const ONSET_BAND_SHARE: f64 = 0.8;
+
+/// The band's bound where no band applies yet (m/s², rad/s): never reached.
+const ONSET_UNBOUNDED: f64 = 1e3;
 
 /// Per DoF, the time c such that braking from a rate r at the acceleration limit a comes to
 /// rest within c·|r| (s): the chord v_max/(2a) of the stopping distance r²/(2a) over
@@ -198,6 +213,17 @@ impl Mpc {
         h[(state::PITCH, state::PITCH)] += p.tilt_follow_weight[1];
     }
 
+    /// Whether the QP carries the next command's rows (docs/mpc.md, "The lock at the
+    /// workspace's corner"): the free MPC always; COTC when the onset rows are on. COTC's
+    /// terminal set brings it to rest at neutral, but with the first move's onset bounded it
+    /// can no longer stop at a bound within a step, as it did, and the limiter then acted on
+    /// 1.56 % of the S-MPC's steps on the rough taxi (0.30 % with these rows; docs/mpc.md,
+    /// "Jolts: the onset priced in the QP"). The braking rows at the grid points stay the free
+    /// MPC's: on COTC with them Clarabel failed at the shipped tolerance.
+    pub(super) fn lock_rows(&self) -> bool {
+        self.terminal == Terminal::Free || !self.onset_channels.is_empty()
+    }
+
     pub(super) fn n_intervals(&self) -> usize {
         self.grid.len()
     }
@@ -205,6 +231,15 @@ impl Mpc {
     pub(super) fn n_vars(&self) -> usize {
         self.n_intervals()
             * (NU + NX + self.false_cue_channels.len() + self.dead_zone_channels.len())
+            + self.onset_channels.len()
+    }
+
+    /// Column of the onset slack of the `j`-th onset channel (the next command's only); these
+    /// come last.
+    pub(super) fn onset_col(&self, j: usize) -> usize {
+        self.n_intervals()
+            * (NU + NX + self.false_cue_channels.len() + self.dead_zone_channels.len())
+            + j
     }
 
     /// Column of the dead-zone slack of the `j`-th dead-zone channel at the end of interval
@@ -290,6 +325,11 @@ impl Mpc {
                 let col = self.dead_zone_col(i, j);
                 t.push(col, col, 2.0 * w * weight);
             }
+        }
+        // The onset slack in thresholds, priced w·σ² (one per channel, the next command's).
+        for (j, &c) in self.onset_channels.iter().enumerate() {
+            let col = self.onset_col(j);
+            t.push(col, col, 2.0 * self.params.onset_weight[c]);
         }
         self.p_trip = t;
         self.scratch = sc;
@@ -537,7 +577,7 @@ impl Mpc {
         // point bounds it: its pose plus its braking reach within the excursion, and the legs
         // both there and where the braking ends. Each row is relaxed to what braking from
         // the present state gives (u_b), so that it never makes the QP infeasible on its own.
-        let next_rows = self.terminal == Terminal::Free;
+        let next_rows = self.lock_rows();
         let u0c = Self::u_col(0);
         let mut u_b = [0.0; NU];
         for k in 0..3 {
@@ -709,6 +749,31 @@ impl Mpc {
                 row += 1;
             }
         }
+        // Jolts: the next command's onset at the head, s(u₀) − s_{k−N}, within the band the
+        // jolt measure excuses (the aircraft's recent onsets, widened by a share of the onset
+        // threshold θ), but for a slack σθ: s(u₀) − s_{k−N} − σθ ≤ hi, −(…) − σθ ≤ −lo, σ ≥ 0.
+        // Each row is scaled to a largest input coefficient of 1 (the rate's is r/dt, 120).
+        for (j, &c) in self.onset_channels.iter().enumerate() {
+            let col = self.onset_col(j);
+            let th = self.run.onset.thresholds()[c];
+            let gain = d.onset_gain.row(c);
+            let scale = 1.0 / gain.amax().max(1e-9);
+            let (lo, hi) = match d.onset_band {
+                Some((lo, hi)) => (lo[c], hi[c]),
+                None => (-ONSET_UNBOUNDED, ONSET_UNBOUNDED),
+            };
+            for (sign, bound) in [(1.0, hi), (-1.0, -lo)] {
+                for k in 0..NU {
+                    t.push(row, u0c + k, sign * scale * gain[k]);
+                }
+                t.push(row, col, -scale * th);
+                b.push(scale * (bound - sign * d.onset_const[c]));
+                row += 1;
+            }
+            t.push(row, col, -1.0);
+            b.push(0.0);
+            row += 1;
+        }
         self.a_trip = t;
         self.b = b;
         self.false_cue_ahead = ahead;
@@ -776,7 +841,27 @@ impl Mpc {
             let j = self.stewart.jacobian(p);
             (self.stewart.leg_lengths(p) - j * p, j)
         };
+        // The next command's head signal, linearised at the present input, less the head's
+        // signal a window before it.
+        let u_lin: [f64; NU] = std::array::from_fn(|k| u_prev[k]);
+        let velocity =
+            nalgebra::Vector3::new(x0[state::VEL], x0[state::VEL + 1], x0[state::VEL + 2]);
+        let prev_rates = total_rates(u_prev.as_slice());
+        let (s0, onset_gain) = super::onset::linearise(
+            |u| super::onset::command_of(&pose0, &velocity, &prev_rates, u, dt),
+            &u_lin,
+            self.run.onset.eye_m(),
+        );
+        let u_lin_v = nalgebra::SVector::<f64, NU>::from_column_slice(&u_lin);
+        let mut onset_const = Vector6::from_column_slice(&s0) - onset_gain * u_lin_v;
+        let onset_band = self.run.onset.band(ONSET_BAND_SHARE).map(|band| {
+            onset_const -= Vector6::from_column_slice(&band.past);
+            (band.lo, band.hi)
+        });
         StepData {
+            onset_const,
+            onset_gain,
+            onset_band,
             x0,
             u_prev,
             leg_offset,

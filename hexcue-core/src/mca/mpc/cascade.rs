@@ -103,7 +103,8 @@ impl Mpc {
             vars.extend((0..NX).map(|k| Var::State(i * NX + k)));
         }
         // The false-cue slacks are decision variables like the inputs: nothing eliminates them.
-        let n_slack = n * (self.false_cue_channels.len() + self.dead_zone_channels.len());
+        let n_slack = n * (self.false_cue_channels.len() + self.dead_zone_channels.len())
+            + self.onset_channels.len();
         vars.extend((0..n_slack).map(|k| Var::Input(n * NU + k)));
         let gain = self.washout_gain;
         let p_at = |mpc: &mut Self, g: f64| {

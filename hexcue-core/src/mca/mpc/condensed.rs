@@ -415,8 +415,7 @@ impl CondensedQp {
             }
             for i in 0..n_x {
                 let row = &self.gamma[i * n_u..(i + 1) * n_u];
-                self.z[self.x_cols[i]] =
-                    self.x_bar[i] + row.iter().zip(u).map(|(g, u)| g * u).sum::<f64>();
+                self.z[self.x_cols[i]] = self.x_bar[i] + crate::qp::dot(row, u);
             }
         }
         status

@@ -17,6 +17,7 @@ mod cascade;
 pub mod condensed;
 mod follow;
 pub mod model;
+mod onset;
 pub mod params;
 mod plan;
 pub mod qp;
@@ -173,6 +174,8 @@ pub struct Mpc {
     /// Channels whose error beyond the threshold carries a linearly priced slack at every
     /// grid point (`dead_zone_weight` > 0).
     dead_zone_channels: Vec<usize>,
+    /// Channels whose next-command onset at the head carries a slack (`onset_weight` > 0).
+    onset_channels: Vec<usize>,
     /// The aircraft's roll and pitch rate over each interval as the reference predicts it
     /// (rad/s): the rotation the platform may follow above the canals' threshold.
     ref_rate_radps: Vec<[f64; 2]>,
@@ -295,6 +298,7 @@ impl Mpc {
             dead_zone_channels: (0..6)
                 .filter(|&c| params.dead_zone_weight[c] > 0.0)
                 .collect(),
+            onset_channels: (0..6).filter(|&c| params.onset_weight[c] > 0.0).collect(),
             false_cue_ahead: Vec::new(),
             ref_rate_radps: vec![[0.0; 2]; grid.len()],
             leg_lo_m: setting.platform.stewart.leg_min_m + margin + LEG_PLAN_ALLOWANCE_M,
@@ -309,6 +313,7 @@ impl Mpc {
                 heave_ref_x: DVector::zeros(15),
                 heave_low_mps2: [0.0; 2],
                 follow: Follow::new(params, [limits.excursion[3], limits.excursion[4]], dt_s),
+                onset: onset::OnsetGuard::new(setting),
                 started: false,
                 sustained_df_mps2: Vector3::zeros(),
                 terminal_tilt_rad: [0.0; 2],
@@ -650,6 +655,7 @@ impl Mpc {
         };
         let deadline = self.step_deadline(std::time::Instant::now(), input.deadline);
         self.sync_and_advance(input.applied, dt_s);
+        self.run.onset.push(input.applied, &input.sample);
         let s = &mut self.scratch;
         s.y_ref_now
             .gemv(1.0, &self.cache.ref_discrete[0].c, &self.run.ref_x, 0.0);
@@ -748,6 +754,7 @@ impl Mpc {
         self.run.ref_x.copy_from(&leader.run.ref_x);
         self.run.heave_ref_x.copy_from(&leader.run.heave_ref_x);
         self.run.heave_low_mps2 = leader.run.heave_low_mps2;
+        self.run.onset.copy_from(&leader.run.onset);
         self.run.started = leader.run.started;
         self.run.sustained_df_mps2 = leader.run.sustained_df_mps2;
         self.run.terminal_tilt_rad = leader.run.terminal_tilt_rad;
@@ -772,6 +779,7 @@ impl Mpc {
         self.run.heave_ref_x.fill(0.0);
         self.run.heave_low_mps2 = [0.0; 2];
         self.run.follow.reset();
+        self.run.onset.clear();
         self.run.started = false;
         self.run.last_command = PlatformCommand::default();
         self.run.plan = Plan::default();
@@ -821,6 +829,8 @@ struct Running {
     heave_low_mps2: [f64; 2],
     /// The roll and pitch the plan follows with `tilt_follow_weight`.
     follow: Follow,
+    /// The applied commands and the aircraft over the jolt measure's windows.
+    onset: onset::OnsetGuard,
     started: bool,
     /// Low-passed aircraft Δf whose tilt is COTC's terminal condition (m/s²).
     sustained_df_mps2: Vector3<f64>,

@@ -93,6 +93,13 @@ pub struct MpcParams {
     /// at w·σ/τ. 0 (the default) leaves the channel without one.
     #[serde(default)]
     pub dead_zone_weight: [f64; 6],
+    /// Price of the next command's onset at the head beyond what the jolt measure excuses,
+    /// per channel (fx, fy, fz, wx, wy, wz), per squared onset threshold (`crate::jolts`):
+    /// a slack σ ≥ 0 on lo − m·θ − σθ ≤ s(u₀) − s_{k−N} ≤ hi + m·θ + σθ, with [lo, hi] the
+    /// aircraft's own recent onsets and m = `ONSET_BAND_SHARE`, priced w·σ². 0 (the default)
+    /// leaves the channel without one (docs/mpc.md, "Jolts: the onset priced in the QP").
+    #[serde(default)]
+    pub onset_weight: [f64; 6],
     /// The trace's future over the horizon when the input has one (recorded and scripted
     /// flights), in place of `reference`; a live simulator, which has no future, falls back to
     /// `reference`. The summary says which ran (docs/mpc.md, "Preview").
@@ -322,6 +329,7 @@ impl MpcParams {
             non_negative("threshold_error_weight", w)?;
         }
         non_negative("dead_zone_weight", &self.dead_zone_weight)?;
+        non_negative("onset_weight", &self.onset_weight)?;
         non_negative("acceleration_weight", &self.acceleration_weight)?;
         non_negative("tilt_rate_weight", &self.tilt_rate_weight)?;
         non_negative("rotation_rate_weight", &self.rotation_rate_weight)?;

@@ -785,7 +785,7 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
     let mut mpc = Mpc::new(&params, &p.setting(), terminal).unwrap();
     let mut awr = AdaptiveWeightRegulator::new(&p.smpc);
     let mut applied = PlatformCommand::default();
-    let (mut solved, mut infeasible, mut fallback, mut flat) = (0, 0, 0, 0);
+    let (mut solved, mut infeasible, mut fallback, mut flat, mut short) = (0, 0, 0, 0, 0);
     let (mut worst_f, mut worst_u) = (0.0f64, 0.0f64);
     let mut gains = std::collections::BTreeSet::new();
     for (k, s) in samples.iter().enumerate() {
@@ -809,6 +809,16 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
         let (cs, zc, fc) = clarabel_reference(&mut mpc);
         let at = format!("{name} {terminal:?} step {k}");
         match status.as_str() {
+            "solved" if cs == SolverStatus::InsufficientProgress => {
+                // The reference stopped short at 1e-11 (seen on COTC with the onset and
+                // braking rows): the active set's point must then be feasible in the sparse
+                // QP and no worse than where Clarabel stopped.
+                let f = condensed::sparse_objective(&mpc.p_trip, &mpc.q, &z_as);
+                assert!(sparse_violation(&mpc, &z_as) <= 1e-8, "{at}: infeasible");
+                assert!(f <= fc + 1e-6 * fc.abs().max(1.0), "{at}: {f} vs {fc}");
+                short += 1;
+                solved += 1;
+            }
             "solved" => {
                 assert!(
                     matches!(cs, SolverStatus::Solved | SolverStatus::AlmostSolved),
@@ -858,7 +868,8 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
     let summary = format!(
         "{name} {terminal:?}: {solved} solved, {infeasible} infeasible, {fallback} to \
          Clarabel, {} washout gains; worst objective {worst_f:.1e}, worst u0 {worst_u:.1e} \
-         (first moves apart on {flat} flat optima, the active set's objective the lower)",
+         (first moves apart on {flat} flat optima, the active set's objective the lower; \
+         Clarabel short of the tolerance on {short})",
         gains.len()
     );
     assert!(solved > samples.len() / 2, "{summary}");
@@ -1121,5 +1132,151 @@ fn the_braking_reach_bounds_the_limiter_s_stopping_distance() {
             }
             assert!(travelled <= reach[dof] * v0 + 1e-12, "dof {dof} v {v0}");
         }
+    }
+}
+
+fn with_onset_weight(weight: f64) -> Profile {
+    let mut p = full_flight();
+    p.mpc.onset_weight = [weight; 6];
+    p
+}
+
+/// A roll rate that jumps between ±0.15 rad/s every 0.6 s: tracked at the angular-acceleration
+/// limit, each change is a lateral force of α·1.2 m at the head that the aircraft's own Δf
+/// does not have.
+fn roll_square(t: f64) -> CueSample {
+    let w = if (t / 0.6).floor() as i64 % 2 == 0 {
+        0.15
+    } else {
+        -0.15
+    };
+    sample([0.0, 0.0, 0.0], [w, 0.0, 0.0])
+}
+
+/// The jolt measure's charged excess (thresholds × steps, summed over channels) of a closed
+/// loop run of the MPC, with the slacks of every solved step beside it.
+fn charged_excess(p: &Profile, terminal: Terminal, n: usize) -> (f64, [f64; 6]) {
+    use crate::jolts::{self, AircraftOnsets, JoltAccumulator};
+    let s = p.setting();
+    let th = jolts::onset_thresholds(&s.vestibular, jolts::JOLT_WINDOW_S);
+    let window = jolts::window_steps(1.0 / s.dt_s);
+    let mut aircraft = AircraftOnsets::new(th, window);
+    let mut acc = JoltAccumulator::new(th, window);
+    let mut mpc = Mpc::new(&p.mpc, &s, terminal).unwrap();
+    let mut applied = PlatformCommand::default();
+    for k in 0..n {
+        let smp = roll_square(k as f64 * 0.01);
+        let out = step(&mut mpc, k, smp, &applied);
+        let ac = [
+            smp.delta_f_mps2.x,
+            smp.delta_f_mps2.y,
+            smp.delta_f_mps2.z,
+            smp.angular_velocity_radps.x,
+            smp.angular_velocity_radps.y,
+            smp.angular_velocity_radps.z,
+        ];
+        let allowance = aircraft.push(&ac);
+        acc.push(
+            &onset::head_signal(&out.command, &s.eye_point_m),
+            &allowance,
+        );
+        applied = out.command;
+    }
+    let e = acc.excess_sum();
+    (e.iter().sum(), e)
+}
+
+#[test]
+fn the_onset_weight_keeps_the_next_command_within_the_jolt_measure_s_band() {
+    // Without the price the platform jolts at every reversal, beyond the aircraft's own onset,
+    // and the measure charges it; with it, nothing is charged (the band is 0.8 θ wide).
+    for terminal in [Terminal::Free, Terminal::Cotc] {
+        let (without, per_channel) = charged_excess(&with_onset_weight(0.0), terminal, 400);
+        assert!(
+            without > 1.0,
+            "{terminal:?}: the test must provoke jolts: {per_channel:?}"
+        );
+        let (with, per_channel) = charged_excess(&with_onset_weight(100.0), terminal, 400);
+        assert!(
+            with < 1e-3 * without,
+            "{terminal:?}: {with} against {without} without the price ({per_channel:?})"
+        );
+    }
+}
+
+/// The slack must be the next command's onset beyond the band, in thresholds, recomputed from
+/// the command the MPC issued: a check of the rows' signs, scale and right-hand sides.
+#[test]
+fn the_onset_slack_is_the_issued_command_s_onset_beyond_the_band() {
+    // A low price, so that the slack opens.
+    let p = with_onset_weight(1e-3);
+    let s = p.setting();
+    let mut mpc = Mpc::new(&p.mpc, &s, Terminal::Free).unwrap();
+    assert_eq!(mpc.qp_size().0, 6 * (NU + NX + 6) + 6);
+    let mut applied = PlatformCommand::default();
+    let mut opened = 0;
+    for k in 0..200 {
+        let smp = roll_square(k as f64 * 0.01);
+        // The band and the past head signal the step will use, taken as the step takes them.
+        let mut guard = mpc.run.onset.clone();
+        guard.push(&applied, &smp);
+        let band = guard.band(super::assembly::ONSET_BAND_SHARE);
+        let out = step(&mut mpc, k, smp, &applied);
+        assert!(out.feasible);
+        if let Some(band) = band {
+            let head = onset::head_signal(&out.command, &s.eye_point_m);
+            let z = last_solution(&mpc);
+            let th = guard.thresholds();
+            for (j, &c) in mpc.onset_channels.iter().enumerate() {
+                let o = head[c] - band.past[c];
+                let want = ((o - band.hi[c]).max(band.lo[c] - o) / th[c]).max(0.0);
+                let got = z[mpc.onset_col(j)];
+                // The linearisation's error: (rate change)² · 1.2 m, under 2e-3 m/s².
+                assert!(
+                    (got - want).abs() < 2e-3,
+                    "step {k} channel {c}: slack {got}, onset beyond the band {want}"
+                );
+                opened += usize::from(want > 0.01);
+            }
+        }
+        applied = out.command;
+    }
+    assert!(opened > 0, "the test must open a slack");
+}
+
+#[test]
+fn active_set_and_clarabel_agree_with_the_onset_rows() {
+    let mut p = with_onset_weight(100.0);
+    p.mpc.tolerance = 1e-11;
+    p.mpc.max_iterations = 200;
+    let samples: Vec<CueSample> = (0..300).map(|k| roll_square(k as f64 * 0.01)).collect();
+    for terminal in [Terminal::Free, Terminal::Cotc] {
+        eprintln!("{}", agree_on_trace(&p, "onset", &samples, terminal));
+    }
+}
+
+/// With the onset rows COTC also carries the braking and next-command rows, on which
+/// Clarabel at the agreement tests' 1e-11 can stop with insufficient progress; at the shipped
+/// tolerance (and at 1e-8), where it is the active set's fallback, it solves every QP.
+#[test]
+fn clarabel_solves_cotc_with_the_onset_rows_at_the_shipped_tolerance() {
+    for tol in [1e-5, 1e-8] {
+        let mut p = with_onset_weight(100.0);
+        p.mpc.tolerance = tol;
+        let params = p.cotc_params();
+        let mut mpc = Mpc::new(&params, &p.setting(), Terminal::Cotc).unwrap();
+        let mut applied = PlatformCommand::default();
+        let mut counts = std::collections::BTreeMap::<String, usize>::new();
+        for k in 0..300 {
+            let out = step(&mut mpc, k, roll_square(k as f64 * 0.01), &applied);
+            applied = out.command;
+            let (cs, _, _) = clarabel_reference(&mut mpc);
+            *counts.entry(format!("{cs:?}")).or_insert(0) += 1;
+        }
+        assert_eq!(
+            counts.get("Solved"),
+            Some(&300),
+            "tolerance {tol}: {counts:?}"
+        );
     }
 }
