@@ -975,6 +975,26 @@ mod tests {
     }
 
     /// A session listening for JSBSim on a free port, with these algorithms and this drive.
+    /// A simulator at 100 Hz sending `samples` samples of a 6 m/s² surge sine (and a steady
+    /// roll, pitch and yaw rate) to `addr`, paced as a simulator sends them; it stops early
+    /// when the session's socket is gone.
+    fn surge_sine_sender(
+        addr: std::net::SocketAddr,
+        samples: usize,
+    ) -> std::thread::JoinHandle<()> {
+        std::thread::spawn(move || {
+            let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+            for k in 0..samples {
+                let t = k as f64 * 0.01;
+                let line = format!("{t},{},0,-40.0,0,0.05,0.1,0.2,0,0\n", 6.0 * (2.0 * t).sin());
+                if tx.send_to(line.as_bytes(), addr).is_err() {
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        })
+    }
+
     fn session_of(
         algorithms: &[AlgorithmId],
         drive: AlgorithmId,
@@ -1192,15 +1212,7 @@ mod tests {
         let profile = full_flight();
         let order = [AlgorithmId::Mpc, AlgorithmId::Cwf];
         let (mut s, addr) = session_of(&order, AlgorithmId::Cwf);
-        let sender = std::thread::spawn(move || {
-            let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-            for k in 0..300 {
-                let t = k as f64 * 0.01;
-                let line = format!("{t},{},0,-40.0,0,0.05,0.1,0.2,0,0\n", 6.0 * (2.0 * t).sin());
-                tx.send_to(line.as_bytes(), addr).unwrap();
-                std::thread::sleep(Duration::from_millis(10));
-            }
-        });
+        let sender = surge_sine_sender(addr, 300);
         let mut seen = Vec::new();
         let mut asked = 0;
         run(
@@ -1269,17 +1281,7 @@ mod tests {
         let profile = full_flight();
         let order = [AlgorithmId::Mpc, AlgorithmId::Cwf];
         let (mut s, addr) = session_of(&order, AlgorithmId::Mpc);
-        let sender = std::thread::spawn(move || {
-            let tx = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
-            for k in 0..1000 {
-                let t = k as f64 * 0.01;
-                let line = format!("{t},{},0,-40.0,0,0.05,0.1,0.2,0,0\n", 6.0 * (2.0 * t).sin());
-                if tx.send_to(line.as_bytes(), addr).is_err() {
-                    return;
-                }
-                std::thread::sleep(Duration::from_millis(10));
-            }
-        });
+        let sender = surge_sine_sender(addr, 1000);
         let tuning = s.tuning();
         let seen_k = std::sync::Arc::new(AtomicUsize::new(usize::MAX));
         let seen_by_sinks = seen_k.clone();
