@@ -134,19 +134,23 @@ impl FrameSink for LiveRecording {
             extra,
             server,
         } = *self;
-        let served = server.map(|server| {
-            let addr = server.addr();
-            server.stop();
-            format!("; foxglove: stopped serving ws://{addr}")
-        });
         input_log
             .flush()
             .with_context(|| format!("{}: cannot write", input_log_path.display()))?;
         drop(input_log);
         let path = recorder.path().display().to_string();
-        let stats = recorder
-            .finish_with_trace(&input_log_path, &extra)
-            .with_context(|| format!("{path}: cannot finish the recording"))?;
+        let stats = recorder.finish_with_trace(&input_log_path, &extra);
+        // The server stops after the recording is written: stopping it ends its client tasks
+        // at once (foxglove 0.30.3, `WebSocketServer::stop`), and the session's last events,
+        // published just before, are still on their way to the clients. This leaves them the
+        // time the recording's end takes, as the separate server sink had before; the
+        // foxglove crate offers no flush to wait on (issue 37's note).
+        let served = server.map(|server| {
+            let addr = server.addr();
+            server.stop();
+            format!("; foxglove: stopped serving ws://{addr}")
+        });
+        let stats = stats.with_context(|| format!("{path}: cannot finish the recording"))?;
         std::fs::remove_file(&input_log_path)
             .with_context(|| format!("{}: cannot remove", input_log_path.display()))?;
         Ok(format!(
