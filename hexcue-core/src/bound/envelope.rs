@@ -237,15 +237,7 @@ pub fn residual(
     acc: &nalgebra::Vector6<f64>,
     eye_m: &Vector3<f64>,
 ) -> [f64; 6] {
-    let h = crate::model::stewart::head_motion(pose, vel, acc, eye_m);
-    let exact = [
-        h.delta_f_mps2.x,
-        h.delta_f_mps2.y,
-        h.delta_f_mps2.z,
-        h.angular_velocity_radps.x,
-        h.angular_velocity_radps.y,
-        h.angular_velocity_radps.z,
-    ];
+    let exact = crate::model::stewart::head_motion(pose, vel, acc, eye_m).channels();
     std::array::from_fn(|c| {
         let linear: f64 = (0..6)
             .map(|d| {

@@ -101,15 +101,7 @@ impl HeadRows {
         eye_m: &Vector3<f64>,
     ) -> HeadRows {
         let inputs = |p: &Vector6<f64>, v: &Vector6<f64>, a: &Vector6<f64>| -> [f64; 6] {
-            let h = crate::model::stewart::head_motion(p, v, a, eye_m);
-            [
-                h.delta_f_mps2.x,
-                h.delta_f_mps2.y,
-                h.delta_f_mps2.z,
-                h.angular_velocity_radps.x,
-                h.angular_velocity_radps.y,
-                h.angular_velocity_radps.z,
-            ]
+            crate::model::stewart::head_motion(p, v, a, eye_m).channels()
         };
         let at = inputs(pose, vel, acc);
         let mut jac = [[[0.0; 3]; 6]; 6];

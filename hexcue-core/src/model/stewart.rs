@@ -267,6 +267,20 @@ pub struct HeadMotion {
     pub angular_velocity_radps: Vector3<f64>,
 }
 
+impl HeadMotion {
+    /// The six channels in the order fx, fy, fz, wx, wy, wz (m/s², rad/s), as
+    /// `Perceived::channels` orders what is felt of them.
+    pub fn channels(&self) -> [f64; 6] {
+        std::array::from_fn(|i| {
+            if i < 3 {
+                self.delta_f_mps2[i]
+            } else {
+                self.angular_velocity_radps[i - 3]
+            }
+        })
+    }
+}
+
 /// Specific force and angular velocity at `eye_m` (a point fixed in the platform frame) for a
 /// platform pose, velocity and acceleration (Euler-angle rates and their derivatives).
 pub fn head_motion(
