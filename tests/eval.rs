@@ -294,6 +294,21 @@ fn bad_input_is_refused_naming_the_key_or_the_file() {
     assert!(e.contains("no_such_gain"), "{e}");
     let e = with(&["--set", "cwf.specific_force_scale[5]=1"]);
     assert!(e.contains("no element 5"), "{e}");
+    // A value of the wrong shape is the user's --set, not a line of the candidate's text,
+    // which they never see.
+    let e = with(&[
+        "--set",
+        "cwf.tilt_lp_zeta=0.8",
+        "--set",
+        "cwf.specific_force_scale=[1,2]",
+    ]);
+    assert!(
+        e.contains("--set `cwf.specific_force_scale=[1,2]`: `cwf.specific_force_scale`")
+            && e.contains("expected an array of length 3")
+            && !e.contains("tilt_lp_zeta")
+            && !e.contains("with --set:"),
+        "{e}"
+    );
     let e = with(&["--shard", "2/2"]);
     assert!(e.contains("--shard `2/2`"), "{e}");
     let e = failure(&["--algorithm", "lqr", "--traces", &t, "--out", &out]);

@@ -29,7 +29,9 @@ use crate::tune::{
     Evaluator, TraceOutcome, LIMITER_TOLERANCE,
 };
 use hexcue_core::mca::AlgorithmId;
-use hexcue_core::profile::text::{parse_profile, DEFAULT_PROFILE_SOURCE, DEFAULT_PROFILE_TOML};
+use hexcue_core::profile::text::{
+    parse_profile, ProfileLoadError, DEFAULT_PROFILE_SOURCE, DEFAULT_PROFILE_TOML,
+};
 use hexcue_core::profile::Profile;
 use hexcue_core::score::ScoreTerms;
 use hexcue_core::summary::AlgorithmSummary;
@@ -378,6 +380,39 @@ fn offline_profile(text: &str, source: &str) -> Result<Profile> {
     Ok(parse_profile(text, source)?.offline())
 }
 
+/// The candidate (the base with the `--set` values written in) as a profile. A syntax or type
+/// error in it is the user's `--set`, not the line of a text they never see: the message names
+/// the `--set` whose key it is about (or every `--set` when it names none) and drops the
+/// candidate's line and column.
+fn candidate_profile(
+    text: &str,
+    settings: &[Setting],
+    base_source: &str,
+    shown: &str,
+) -> Result<Profile> {
+    match parse_profile(text, shown) {
+        Ok(p) => Ok(p.offline()),
+        Err(ProfileLoadError::Syntax { message, .. }) if !settings.is_empty() => {
+            let named: Vec<&Setting> = settings
+                .iter()
+                .filter(|s| message.contains(&format!("`{}`", s.path)))
+                .collect();
+            let named = if named.is_empty() {
+                settings.iter().collect()
+            } else {
+                named
+            };
+            let given = named
+                .iter()
+                .map(|s| format!("--set `{}`", s.text))
+                .collect::<Vec<_>>()
+                .join(", ");
+            bail!("{given}: {message} (the base is {base_source})")
+        }
+        Err(e) => Err(e.into()),
+    }
+}
+
 pub fn run(args: &EvalArgs) -> Result<()> {
     let started = Instant::now();
     let algorithm = parse_algorithm(&args.algorithm)?;
@@ -404,7 +439,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     } else {
         format!("{source} with --set")
     };
-    let candidate_profile = offline_profile(&text, &shown_candidate)?;
+    let candidate_profile = candidate_profile(&text, &settings, &source, &shown_candidate)?;
     let (keys, absent) = keys::stated_keys(tunable_keys(algorithm), &base_doc);
     keys::check_table(&keys, &base_doc).with_context(|| source.clone())?;
 
