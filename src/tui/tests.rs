@@ -229,7 +229,7 @@ fn renders_at_80x24() {
         "BLEND w=0.42",
         "✗ cotc",
         "✓ free",
-        "▲ACT",
+        "▲",
         "!!",
         "felt",
         "score",
@@ -237,6 +237,15 @@ fn renders_at_80x24() {
     ] {
         assert!(text.contains(want), "missing {want:?} in\n{text}");
     }
+    // Paused, the key line says how to play on; every column keeps its step time, the
+    // limiter's mark included (the words shorten first).
+    assert!(text.contains("spc play"), "{text}");
+    let scores = text.lines().find(|l| l.contains('▲')).unwrap();
+    assert_eq!(
+        scores.matches("µs").count() + scores.matches("ms").count(),
+        3,
+        "{scores}"
+    );
     insta::assert_snapshot!("console_80x24", text);
 }
 

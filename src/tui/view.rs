@@ -343,8 +343,11 @@ pub(super) fn footer_line(app: &App, now: Instant, width: usize) -> Line<'static
         return Line::from(spans);
     }
     // Rank as in the header: at 80 columns the least used keys give way, never help or quit.
+    // Paused, the first key says how to go on: "spc pause" under "‖ PAUSED" read as a hang
+    // to a new user who started with --paused.
+    let space = if app.snapshot.paused { "play" } else { "pause" };
     let mut keys: Vec<(u8, &str, &str)> = vec![
-        (0, "spc", "pause"),
+        (0, "spc", space),
         (1, "←→", "seek"),
         (4, "g", "go to"),
         (3, "+-", "speed"),
@@ -768,8 +771,9 @@ pub(super) fn metric_lines(
                     format!("score {sc:.2} lim {lim}{} step {step}", act(" ▲ACTIVE")),
                     format!("score {sc:.2} lim {lim}{} step {step}", act(" ▲ACT")),
                     format!("score {sc:.2} lim {lim}{} {step}", act(" ▲ACT")),
-                    format!("score {sc:.2} lim {lim}{}", act(" ▲ACT")),
+                    format!("sc {sc:.2} lim {lim}{} {step}", act(" ▲ACT")),
                     format!("sc {sc:.2} lim {lim}{} {step}", act("▲")),
+                    format!("score {sc:.2} lim {lim}{}", act(" ▲ACT")),
                     format!("sc {sc:.2} lim {lim}{}", act("▲")),
                 ],
                 w,
