@@ -534,10 +534,22 @@ fn a_recording_damaged_in_its_middle_keeps_its_intact_chunks() {
     );
     assert_eq!(kept as u64 + lost, full_steps as u64, "{err}");
 
-    // The damaged file itself reads to its end, with a warning that names the loss.
+    // The damaged file itself reads to its end, with a warning that names the loss, and
+    // then exits non-zero (as `recover` does): a script must not take the table, the
+    // export or the figure for the whole flight.
+    let lost_line = |out: &std::process::Output, what: &str| {
+        let err = stderr(out);
+        assert!(!out.status.success(), "{err}");
+        assert!(
+            err.contains(&format!(
+                "steps lost in 1 damaged part; {what} holds every intact one"
+            )),
+            "{err}"
+        );
+    };
     let direct = review(&path);
     let warn = stderr(&direct);
-    assert!(direct.status.success(), "{warn}");
+    lost_line(&direct, "the summary");
     assert_eq!(table_steps(&direct), kept);
     assert!(
         warn.contains("warning") && warn.contains("skipped steps"),
@@ -554,7 +566,7 @@ fn a_recording_damaged_in_its_middle_keeps_its_intact_chunks() {
         "-o".as_ref(),
         csv.as_os_str(),
     ]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    lost_line(&out, "the export");
     assert!(stderr(&out).contains("skipped steps"), "{}", stderr(&out));
     let rows = std::fs::read_to_string(&csv).unwrap().lines().count() - 1;
     assert!(rows * 10 >= full_steps * 9, "exported {rows} rows");
@@ -566,6 +578,7 @@ fn a_recording_damaged_in_its_middle_keeps_its_intact_chunks() {
         "-o".as_ref(),
         svg.as_os_str(),
     ]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    lost_line(&out, "the figure");
     assert!(stderr(&out).contains("skipped steps"), "{}", stderr(&out));
+    assert!(svg.exists(), "the figure of the intact steps is written");
 }

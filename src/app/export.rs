@@ -67,6 +67,9 @@ pub fn run(args: &ExportArgs) -> Result<()> {
             hexcue_core::vocab::plural(w.columns as u64, "column")
         );
     }
+    if let Some(e) = recording.lost_error("the export") {
+        bail!(e);
+    }
     Ok(())
 }
 

@@ -3,7 +3,6 @@
 //! recording as its frame source.
 
 use std::net::SocketAddr;
-use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 use anyhow::{bail, Result};
@@ -28,21 +27,35 @@ pub fn run(args: &ReviewArgs) -> Result<()> {
         let recording = [Input::new(&args.file, "recording")];
         check_output_of(path, args.force, "--summary", &recording)?;
     }
+    // Steps lost to damage make a headless review exit non-zero after its table and summary
+    // are out, as `recover` does: a script must not take them for the whole flight.
+    let lost = std::cell::Cell::new(None);
     headless_or_console(
         args.headless,
         args.summary.as_deref(),
-        || match args.foxglove {
-            Some(addr) => review_served(&args.file, addr, player::pace(args.start.speed)),
-            None => review_summary(&args.file),
+        || {
+            let recording = Recording::open(&args.file)?;
+            lost.set(recording.lost_error("the summary"));
+            match args.foxglove {
+                Some(addr) => review_served(recording, addr, player::pace(args.start.speed)),
+                None => review_summary(recording),
+            }
         },
         || run_console(args),
-    )
+    )?;
+    match lost.take() {
+        Some(e) => bail!(e),
+        None => Ok(()),
+    }
 }
 
 /// `review --headless --foxglove`: sends the recording's frames at `speed` × real time (as
 /// fast as it can with `None`) while computing the summary.
-pub fn review_served(path: &Path, addr: SocketAddr, speed: Option<f64>) -> Result<Summary> {
-    let recording = Recording::open(path)?;
+pub fn review_served(
+    recording: Recording,
+    addr: SocketAddr,
+    speed: Option<f64>,
+) -> Result<Summary> {
     for warning in recording.damage_warnings() {
         eprintln!("{warning}");
     }
@@ -56,8 +69,8 @@ pub fn review_served(path: &Path, addr: SocketAddr, speed: Option<f64>) -> Resul
     summarise(&recording, profile, sinks, speed, &stop)
 }
 
-pub fn review_summary(path: &Path) -> Result<Summary> {
-    let recording = Recording::open(path)?;
+pub fn review_summary(recording: Recording) -> Result<Summary> {
+    let path = recording.path.clone();
     for warning in recording.damage_warnings() {
         eprintln!("{warning}");
     }

@@ -750,7 +750,11 @@ pub fn plot(recording: &Path, request: &PlotRequest, output: &Path) -> Result<()
     let tl = read_timeline(&rec, request)?;
     let size = figure_size(request.width_px, tl.panels.len());
     super::render!(output, size, |root| draw(root, &tl))
-        .with_context(|| format!("plotting {}", recording.display()))
+        .with_context(|| format!("plotting {}", recording.display()))?;
+    if let Some(e) = rec.lost_error("the figure") {
+        anyhow::bail!(e);
+    }
+    Ok(())
 }
 
 #[cfg(test)]

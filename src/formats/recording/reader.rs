@@ -557,6 +557,24 @@ impl Recording {
         Some(lost.iter().map(|l| l.count).sum())
     }
 
+    /// For the commands that read what is left (`review --headless`, `export`, `plot`): after
+    /// their output is written, the error that makes them exit non-zero when steps were lost,
+    /// so that a script does not take the output for the whole flight (as `recover` does).
+    /// `output` says what holds the intact steps ("the summary", "the CSV").
+    pub fn lost_error(&self, output: &str) -> Option<String> {
+        let lost = self.lost_steps()?;
+        let what = match lost {
+            Some(n) => hexcue_core::vocab::plural(n, "step"),
+            None => "the steps after the damage".to_string(),
+        };
+        let parts = self.damage.iter().filter(|d| d.steps.is_some()).count();
+        Some(format!(
+            "{}: damaged: {what} lost in {}; {output} holds every intact one",
+            self.path.display(),
+            hexcue_core::vocab::plural(parts as u64, "damaged part")
+        ))
+    }
+
     /// One warning per damaged part, for the commands that read what is left.
     pub fn damage_warnings(&self) -> impl Iterator<Item = String> + '_ {
         self.damage.iter().map(move |d| {
