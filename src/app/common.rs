@@ -62,6 +62,16 @@ pub fn progress_line(bar: &indicatif::ProgressBar, line: String) {
     }
 }
 
+/// A wall time for the user, never "0.0 s": milliseconds below a tenth of a second (a short
+/// CWF-only flight runs in a few), seconds to a tenth above.
+pub fn wall_time_text(wall_s: f64) -> String {
+    if wall_s < 0.0995 {
+        format!("{:.0} ms", (wall_s * 1e3).max(1.0))
+    } else {
+        format!("{wall_s:.1} s")
+    }
+}
+
 /// The metrics table printed by headless runs: one row per algorithm and channel, then a
 /// workspace line per algorithm.
 pub fn format_table(s: &Summary) -> String {
@@ -427,4 +437,19 @@ pub fn check_folder_outputs(
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_wall_time_is_never_shown_as_zero() {
+        assert_eq!(wall_time_text(0.0), "1 ms");
+        assert_eq!(wall_time_text(0.0004), "1 ms");
+        assert_eq!(wall_time_text(0.0234), "23 ms");
+        assert_eq!(wall_time_text(0.0994), "99 ms");
+        assert_eq!(wall_time_text(0.0996), "0.1 s");
+        assert_eq!(wall_time_text(12.34), "12.3 s");
+    }
 }

@@ -129,10 +129,10 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         progress_line(
             &bar,
             format!(
-                "{}: {:.1} s of flight in {:.1} s ({:.1}× real time)",
+                "{}: {:.1} s of flight in {} ({:.1}× real time)",
                 trace.name,
                 trace.duration_s(),
-                wall,
+                crate::app::common::wall_time_text(wall),
                 trace.duration_s() / wall.max(1e-9)
             ),
         );
