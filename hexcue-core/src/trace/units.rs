@@ -5,8 +5,8 @@
 
 use nalgebra::Vector3;
 
-use hexcue_core::trace::AircraftSample;
-use hexcue_core::G_MPS2;
+use crate::trace::AircraftSample;
+use crate::G_MPS2;
 
 /// Thresholds of the checks.
 mod limits {
@@ -186,8 +186,11 @@ pub struct UnitStats {
 /// Names of the columns a [`UnitStats`] verdict cites, in the order fx, fy, fz, p, q, r, phi,
 /// theta, psi; and what "the whole" is called (`the trace`, `the first 10 s of input`).
 pub struct UnitNames<'a> {
+    /// The columns' headers as the user wrote them.
     pub columns: [String; 9],
+    /// What the statistics cover, in a sentence: `the trace`, `the first 10 s of input`.
     pub whole: &'a str,
+    /// Whether the samples have an attitude to check the rates against.
     pub has_attitude: bool,
 }
 
@@ -207,6 +210,7 @@ impl UnitStats {
     /// Values kept per median (2 × 256 KiB at most).
     pub(crate) const KEPT: usize = 1 << 15;
 
+    /// No sample yet.
     pub fn new() -> Self {
         Self::default()
     }
@@ -216,6 +220,7 @@ impl UnitStats {
         self.rows
     }
 
+    /// Whether no sample was pushed.
     pub fn is_empty(&self) -> bool {
         self.rows == 0
     }
@@ -225,6 +230,7 @@ impl UnitStats {
         self.t0.map_or(0.0, |t0| self.last_t - t0)
     }
 
+    /// One more sample, in SI, in time order.
     pub fn push(&mut self, s: &AircraftSample) {
         let t0 = *self.t0.get_or_insert(s.t_s);
         let norm = s.specific_force_mps2.norm();
