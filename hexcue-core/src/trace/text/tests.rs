@@ -436,7 +436,7 @@ fn a_row_with_the_wrong_number_of_fields_is_refused() {
 }
 
 #[test]
-fn an_enormous_line_is_refused_quickly() {
+fn an_enormous_line_is_refused_before_it_is_split() {
     let mut text = native(3);
     text += &"1,".repeat(10 * MAX_LINE_BYTES);
     let m = refused(&text, TraceErrorKind::LineTooLong, Some(5), None);
