@@ -162,9 +162,9 @@ impl Fit {
 }
 
 /// The statistics the checks decide on: the first second's medians, medians over the whole
-/// ([`Thinned`]), the attitude's derivative against the body rates with the attitude read as
-/// radians and as degrees (running sums), the largest roll and pitch, and the time spent at
-/// fast rates.
+/// (of a uniform subsample when long), the attitude's derivative against the body rates with
+/// the attitude read as radians and as degrees (running sums), the largest roll and pitch,
+/// and the time spent at fast rates.
 #[derive(Clone, Debug, Default)]
 pub struct UnitStats {
     t0: Option<f64>,
