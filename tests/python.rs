@@ -2,9 +2,10 @@
 //! target/ and checked against the CLI by tests/python_module.py on the shipped landing: the
 //! S-MPC stepped from Python gives the Rust engine's commands (to 1e-9) and the recording's (to
 //! its resolution), `run()`'s score is `play --headless --summary`'s (to 1e-12),
-//! `run(preview=True)` gives `play --preview`'s summary, and a bad profile raises with
-//! hexcue's message naming the key. Skipped, saying why, only when the venv cannot be made
-//! (no Python venv module or no PyPI).
+//! `run(preview=True)` gives `play --preview`'s summary, a bad profile raises with hexcue's
+//! message naming the key, and `read_trace` reads the landing as `play` does and says of every
+//! file of the bad-input corpus what `play` says. Skipped, saying why, only when the venv
+//! cannot be made (no Python venv module or no PyPI).
 
 mod common;
 
@@ -153,6 +154,34 @@ fn the_python_module_steps_runs_and_scores_as_the_cli() {
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
 
+    // What the CLI says of every file of the bad-input corpus (tests/bad_input.rs), for
+    // `hexcue.read_trace` to say the same: its error, or its notes on a file it accepts.
+    let corpus_json = dir.path().join("corpus.json");
+    let mut corpus: Vec<_> = std::fs::read_dir(repo().join("tests/corpus/traces"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|f| f.ends_with(".csv"))
+        .collect();
+    corpus.sort();
+    assert!(corpus.len() > 30, "{corpus:?}");
+    corpus.push("no-such-file.csv".into());
+    let said: Vec<_> = corpus
+        .iter()
+        .map(|file| {
+            let path = format!("tests/corpus/traces/{file}");
+            let out = hexcue(&[
+                "play",
+                "--headless",
+                "--algorithms",
+                "cwf",
+                "--trace",
+                &path,
+            ]);
+            serde_json::json!({"path": path, "ok": out.status.success(), "stderr": stderr(&out)})
+        })
+        .collect();
+    std::fs::write(&corpus_json, serde_json::to_string(&said).unwrap()).unwrap();
+
     let started = Instant::now();
     let out = Command::new(&python)
         .arg(repo().join("tests/python_module.py"))
@@ -163,6 +192,7 @@ fn the_python_module_steps_runs_and_scores_as_the_cli() {
         .arg(&profile)
         .arg(&slice)
         .arg(&preview_summary)
+        .arg(&corpus_json)
         .current_dir(repo())
         .stdin(Stdio::null())
         .output()

@@ -3,8 +3,9 @@
 Arguments: the trace CSV, the CLI's `--summary` JSON, the CSV `hexcue export` wrote of the
 recorded S-MPC commands, the JSON of the Rust engine's S-MPC commands at full precision, the
 profile all three ran with (the default without the MPC's wall-clock limit), the trace's
-first 20 s as a file of its own, and the summary of `play --headless --preview` of the MPC
-on that file.
+first 20 s as a file of its own, the summary of `play --headless --preview` of the MPC
+on that file, and what `play --headless` wrote on stderr for each file of the bad-input
+corpus (tests/corpus/traces).
 Prints one line per check; any failure raises (exit status 1).
 """
 
@@ -36,7 +37,7 @@ def same(ours, theirs, path="summary"):
 
 
 (trace_csv, summary_json, recorded_csv, engine_json, profile_toml, slice_csv,
- preview_json) = sys.argv[1:8]
+ preview_json, corpus_json) = sys.argv[1:9]
 
 # hexcue's own trace format (docs/formats.md): t, fx, fy, fz (m/s²), p, q, r (rad/s), ...
 data = np.loadtxt(trace_csv, delimiter=",", skiprows=1)
@@ -101,6 +102,32 @@ assert run_pose.shape == (len(f), 6)
 assert float(np.max(np.abs(run_pose - stepped["pose"]))) <= 1e-9
 assert result.algorithms["smpc"]["mode"] == [s["state"]["mode"] for s in steps]
 print(f"run: score {score!r}, the CLI's {cli_score!r}; the whole summary the same to 1e-12")
+
+# read_trace reads the file as `play --trace` does: the same numbers as NumPy reads from the
+# CSV, on the grid from 0, with the sidecar; run() of the trace is the CLI's run.
+trace = hexcue.read_trace(trace_csv, profile=profile)
+assert (trace.name, len(trace), trace.rate_hz) == ("landing", len(f), 100.0), trace
+assert np.array_equal(trace.specific_force_mps2, f)
+assert np.array_equal(trace.angular_velocity_radps, w)
+assert np.array_equal(trace.attitude_rad, data[:, 7:10])
+assert np.array_equal(trace.t_s, np.arange(len(f)) / 100.0)
+assert trace.notices == [], trace.notices
+with open(trace_csv[:-len(".csv")] + ".json") as fh:
+    sidecar = json.load(fh)
+for key in ("name", "aircraft", "scenario", "source", "sample_rate_hz", "duration_s"):
+    assert trace.info[key] == sidecar.get(key), (key, trace.info[key], sidecar.get(key))
+assert [(e["t"], e["event"]) for e in trace.info["events"]] == \
+    [(e["t"], e["event"]) for e in sidecar["events"]], trace.info["events"]
+from_file = hexcue.run(trace, profile=profile, algorithms=["smpc"])
+same(from_file.summary, cli)
+assert from_file.score("smpc") == score
+try:
+    hexcue.run(trace, w, profile=profile)
+except ValueError as e:
+    assert "hexcue.Trace" in str(e), str(e)
+else:
+    raise AssertionError("a trace was run with another angular velocity")
+print(f"read_trace: {trace!r}, {len(trace.info['events'])} events; run() of it is the CLI's")
 
 # The vestibular model of the aircraft's signal is the run's reference.
 perceived = hexcue.perceive(f, w, profile=profile)
@@ -174,4 +201,28 @@ except ValueError as e:
     assert "rows" in str(e), str(e)
 else:
     raise AssertionError("signals of different lengths were run")
+
+# (5) read_trace says of each file of the bad-input corpus what `play --trace` says: the same
+# refusal, word for word (a hexcue.TraceError, a ValueError; an OSError for a missing file),
+# or the same notes on a file it accepts.
+with open(corpus_json) as fh:
+    corpus = json.load(fh)
+refused = 0
+for case in corpus:
+    said = case["stderr"].splitlines()
+    try:
+        read = hexcue.read_trace(case["path"])
+    except (hexcue.TraceError, OSError) as e:
+        assert not case["ok"], (case["path"], str(e))
+        assert isinstance(e, (ValueError, FileNotFoundError)), (case["path"], e)
+        assert f"hexcue: error: {e}" in said, (case["path"], str(e), said)
+        refused += 1
+        example = str(e)
+    else:
+        assert case["ok"], (case["path"], read.notices, said)
+        notes = [line for line in said if line.startswith(f"note: {read.name}: ")]
+        assert notes == [f"note: {read.name}: {n}" for n in read.notices], (notes, read.notices)
+assert refused >= 25, refused
+print(f"read_trace: the CLI's words on {len(corpus)} files of the corpus, {refused} refused; "
+      f"e.g. {example}")
 print("ok")

@@ -5,6 +5,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::G_MPS2;
 
+pub mod text;
+pub mod units;
+
 /// One sample of aircraft motion at the pilot's head, head frame (x forward, y right, z down).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct AircraftSample {
@@ -249,34 +252,15 @@ pub(crate) fn lerp3(a: &Vector3<f64>, b: &Vector3<f64>, w: f64, angles: bool) ->
 pub(crate) mod tests {
     use super::*;
 
-    /// A shipped trace (`recordings/traces/*.csv`: `t,fx,fy,fz,p,q,r,phi,theta,psi` in SI at
-    /// 100 Hz) for the core's tests. The application's reader checks units, gaps and rates;
-    /// these files are known to be clean, so the core's tests need no more than the numbers.
+    /// A shipped trace (`recordings/traces/*.csv`), read by the core's parser at 100 Hz as the
+    /// application reads it (without its sidecar, which the engine does not use).
     pub(crate) fn shipped_trace(path: &std::path::Path) -> Trace {
         let text = std::fs::read_to_string(path).unwrap();
-        let mut lines = text.lines();
-        assert_eq!(lines.next(), Some("t,fx,fy,fz,p,q,r,phi,theta,psi"));
-        let samples: Vec<AircraftSample> = lines
-            .map(|line| {
-                let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
-                AircraftSample {
-                    t_s: v[0],
-                    specific_force_mps2: Vector3::new(v[1], v[2], v[3]),
-                    angular_velocity_radps: Vector3::new(v[4], v[5], v[6]),
-                    attitude_rad: Vector3::new(v[7], v[8], v[9]),
-                }
-            })
-            .collect();
-        assert!(samples
-            .windows(2)
-            .all(|w| (w[1].t_s - w[0].t_s - 0.01).abs() < 1e-9));
-        Trace {
-            name: path.file_stem().unwrap().to_string_lossy().into_owned(),
-            rate_hz: 100.0,
-            samples,
-            info: None,
-            notices: vec![],
-        }
+        let name = path.file_stem().unwrap().to_string_lossy();
+        let trace = text::parse_trace(&text, &path.display().to_string(), &name, 100.0)
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert!(trace.notices.is_empty(), "{:?}", trace.notices);
+        trace
     }
 
     fn sample(t_s: f64, v: f64) -> AircraftSample {

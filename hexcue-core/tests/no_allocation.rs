@@ -19,8 +19,8 @@ use std::sync::Arc;
 use hexcue_core::engine::Engine;
 use hexcue_core::mca::{AlgorithmId, CueInput, MotionCueing, PlatformCommand, SolveStatus};
 use hexcue_core::testing::full_flight;
-use hexcue_core::trace::{AircraftSample, Trace};
-use nalgebra::Vector3;
+use hexcue_core::trace::text::parse_trace;
+use hexcue_core::trace::Trace;
 
 struct Counting;
 
@@ -75,38 +75,13 @@ fn allocations_in<T>(f: impl FnOnce() -> T) -> (u64, T) {
     (COUNT.with(|n| n.get()), out)
 }
 
-/// A shipped trace (`t,fx,fy,fz,p,q,r,phi,theta,psi`, SI, 100 Hz); the application's reader
-/// checks what a user's file may get wrong, these files are known to be clean.
+/// A shipped trace, read by the core's parser at 100 Hz as the application reads it.
 fn shipped(name: &str) -> Trace {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../recordings/traces")
         .join(format!("{name}.csv"));
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("t,fx,fy,fz,p,q,r,phi,theta,psi"));
-    let samples = lines
-        .enumerate()
-        .map(|(i, line)| {
-            let v: Vec<f64> = line
-                .split(',')
-                .map(|x| x.parse().expect("a number"))
-                .collect();
-            assert_eq!(v.len(), 10, "{}: line {}", path.display(), i + 2);
-            AircraftSample {
-                t_s: v[0],
-                specific_force_mps2: Vector3::new(v[1], v[2], v[3]),
-                angular_velocity_radps: Vector3::new(v[4], v[5], v[6]),
-                attitude_rad: Vector3::new(v[7], v[8], v[9]),
-            }
-        })
-        .collect();
-    Trace {
-        name: name.into(),
-        rate_hz: 100.0,
-        samples,
-        info: None,
-        notices: vec![],
-    }
+    parse_trace(&text, &path.display().to_string(), name, 100.0).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// Statuses that say the QP never reached Clarabel.

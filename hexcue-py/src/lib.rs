@@ -25,6 +25,10 @@ use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
+mod trace;
+
+use trace::PyTrace;
+
 pyo3::create_exception!(
     hexcue,
     ProfileError,
@@ -524,25 +528,26 @@ impl PyRun {
 
 /// A whole flight through the algorithms, as `hexcue play --headless` runs it: the core's
 /// engine (with the trace's future offered to the MPCs, as a trace file's is) and its summary.
-/// `specific_force_mps2` and `angular_velocity_radps` are (n, 3) arrays, one row per sample at
-/// the profile's rate from t = 0, unless `t_s` gives their times (then they are resampled to
-/// the profile's rate as a trace file is). `algorithms` defaults to all three. `preview`
+/// The flight is a `hexcue.Trace` (`read_trace`), alone, or `specific_force_mps2` and
+/// `angular_velocity_radps`, (n, 3) arrays, one row per sample at the profile's rate from
+/// t = 0, unless `t_s` gives their times (then they are resampled to the profile's rate as a
+/// trace file is). `name` names the flight in the summary (a trace's own name by default). `algorithms` defaults to all three. `preview`
 /// (True or False) overrides the profile's `[mpc] preview`, as `play --preview` does: the
 /// MPCs then see the flight's true future over their horizon. Offline, as `play` runs by
 /// default: the MPCs' wall-clock limit is lifted so that the same input gives the same result
 /// on any machine; `realtime_budget = True` keeps the profile's `time_limit_ms`, as
 /// `play --realtime-budget` does.
 #[pyfunction]
-#[pyo3(signature = (specific_force_mps2, angular_velocity_radps, profile = None, algorithms = None, t_s = None, name = DEFAULT_RUN_NAME, preview = None, realtime_budget = false))]
+#[pyo3(signature = (specific_force_mps2, angular_velocity_radps = None, profile = None, algorithms = None, t_s = None, name = None, preview = None, realtime_budget = false))]
 #[allow(clippy::too_many_arguments)] // Python's keyword arguments, each optional
 fn run(
     py: Python<'_>,
-    specific_force_mps2: PyArrayLike2<'_, f64, AllowTypeChange>,
-    angular_velocity_radps: PyArrayLike2<'_, f64, AllowTypeChange>,
+    specific_force_mps2: &Bound<'_, PyAny>,
+    angular_velocity_radps: Option<PyArrayLike2<'_, f64, AllowTypeChange>>,
     profile: Option<PyRef<'_, PyProfile>>,
     algorithms: Option<Vec<String>>,
     t_s: Option<PyArrayLike1<'_, f64, AllowTypeChange>>,
-    name: &str,
+    name: Option<&str>,
     preview: Option<bool>,
     realtime_budget: bool,
 ) -> PyResult<PyRun> {
@@ -567,20 +572,50 @@ fn run(
     if ids.is_empty() {
         return Err(value_error("algorithms: expected at least one"));
     }
-    let times = t_s.as_ref().map(|t| t.as_array().to_vec());
-    let samples = samples(
-        &specific_force_mps2.as_array(),
-        &angular_velocity_radps.as_array(),
-        times.as_deref(),
-        profile.rate_hz,
-    )?;
-    let trace = Arc::new(Trace {
-        name: name.to_string(),
-        rate_hz: profile.rate_hz,
-        samples,
-        info: None,
-        notices: Vec::new(),
-    });
+    let trace = match specific_force_mps2.extract::<PyRef<'_, PyTrace>>() {
+        Ok(file) => {
+            if angular_velocity_radps.is_some() || t_s.is_some() {
+                return Err(value_error(
+                    "a hexcue.Trace holds its own angular velocity and times: expected no \
+                     angular_velocity_radps or t_s with it",
+                ));
+            }
+            if file.inner.rate_hz != profile.rate_hz {
+                return Err(value_error(format!(
+                    "the trace `{}` was read at {} Hz and the profile `{}` runs at {} Hz: \
+                     expected hexcue.read_trace(path, profile=profile)",
+                    file.inner.name, file.inner.rate_hz, profile.name, profile.rate_hz
+                )));
+            }
+            Trace {
+                name: name.unwrap_or(&file.inner.name).to_string(),
+                ..Trace::clone(&file.inner)
+            }
+        }
+        Err(_) => {
+            let f: PyArrayLike2<'_, f64, AllowTypeChange> = specific_force_mps2.extract()?;
+            let w = angular_velocity_radps.ok_or_else(|| {
+                value_error(
+                    "angular_velocity_radps: expected an (n, 3) array beside \
+                     specific_force_mps2, or a hexcue.Trace alone",
+                )
+            })?;
+            let times = t_s.as_ref().map(|t| t.as_array().to_vec());
+            Trace {
+                name: name.unwrap_or(DEFAULT_RUN_NAME).to_string(),
+                rate_hz: profile.rate_hz,
+                samples: samples(
+                    &f.as_array(),
+                    &w.as_array(),
+                    times.as_deref(),
+                    profile.rate_hz,
+                )?,
+                info: None,
+                notices: Vec::new(),
+            }
+        }
+    };
+    let trace = Arc::new(trace);
     let mut engine = Engine::new(&profile, trace.clone(), &ids).map_err(value_error)?;
     let (t, reference, lanes, summary) = py.detach(|| {
         let mut summary = SummaryBuilder::new(&profile, &trace.name);
@@ -669,6 +704,8 @@ fn perceive<'py>(
 /// vestibular model and the cueing score (docs/python.md).
 #[pymodule(name = "hexcue")]
 mod hexcue_module {
+    #[pymodule_export]
+    use super::trace::{read_trace, PyTrace, TraceError};
     #[pymodule_export]
     use super::{perceive, run, ProfileError, PyAlgorithm, PyProfile, PyRun};
 

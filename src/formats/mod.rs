@@ -6,4 +6,3 @@ pub mod omct;
 pub mod profile;
 pub mod recording;
 pub mod trace;
-pub mod units;

@@ -45,10 +45,7 @@ pub fn embedded_traces(
         .map(|(name, csv, json)| {
             let source = format!("{folder}/{name}.csv (embedded)");
             let (mut trace, measured) = parse_measured(csv, &source, name, target_rate_hz)?;
-            match parse_sidecar(json, &source) {
-                Ok(info) => attach_info(&mut trace, info, measured),
-                Err(e) => trace.notices.push(format!("sidecar ignored: {e}")),
-            }
+            attach_sidecar(&mut trace, json, &source, measured);
             Ok(trace)
         })
         .collect()
@@ -85,10 +82,12 @@ pub fn default_trace(target_rate_hz: f64) -> LoadedTrace {
             trace
         }
     };
-    match parse_sidecar(DEFAULT_TRACE_SIDECAR, DEFAULT_TRACE_SOURCE) {
-        Ok(info) => attach_info(&mut trace, info, DEFAULT_TRACE_RATE_HZ),
-        Err(e) => trace.notices.push(format!("sidecar ignored: {e}")),
-    }
+    attach_sidecar(
+        &mut trace,
+        DEFAULT_TRACE_SIDECAR,
+        DEFAULT_TRACE_SOURCE,
+        DEFAULT_TRACE_RATE_HZ,
+    );
     LoadedTrace {
         trace,
         text: DEFAULT_TRACE_CSV.to_string(),

@@ -1,8 +1,8 @@
 //! A trace's rows: read line by line, checked, converted to SI and put on the engine's grid,
 //! whole or streamed.
 
+use super::columns::*;
 use super::*;
-use std::io::{Seek, SeekFrom, Write};
 
 /// Parses a trace (native or JSBSim CSV) and puts it on the uniform grid of `target_rate_hz`.
 /// `source_name` names the file in every error; `name` is the trace's name for the user.
@@ -15,17 +15,31 @@ pub fn parse_trace(
     parse_measured(text, source_name, name, target_rate_hz).map(|(trace, _)| trace)
 }
 
-/// `parse_trace`, also returning the rate the CSV was written at (1 / median step), which
-/// the sidecar is checked against and resampling has replaced. The text goes through the
-/// same streaming reader as a trace file (`scan`, then [`GridSamples`]).
-pub(super) fn parse_measured(
+/// [`parse_trace`], also returning the rate the CSV was written at (1 / median step), which
+/// the sidecar is checked against ([`attach_info`]) and resampling has replaced. The text goes
+/// through the same streaming reader as a trace file ([`read_trace`]).
+pub fn parse_measured(
     text: &str,
     source_name: &str,
     name: &str,
     target_rate_hz: f64,
 ) -> Result<(Trace, f64), TraceError> {
-    let open = || Ok(text.as_bytes());
-    let plan = scan(&open, source_name, name, target_rate_hz, MAX_TRACE_SAMPLES)?;
+    read_trace(&|| Ok(text.as_bytes()), source_name, name, target_rate_hz)
+}
+
+/// A trace read whole into memory from a source `open` gives from its start each time it is
+/// called (a file opened again, bytes already in memory): a first pass ([`scan`]) checks every
+/// row, a second puts the samples on the grid of `target_rate_hz` ([`GridSamples`]). At most
+/// [`MAX_TRACE_SAMPLES`] samples. Also returns the rate the CSV was written at, as
+/// [`parse_measured`] does; `name` is the trace's name for the user, `source_name` names the
+/// source in every error.
+pub fn read_trace<R: BufRead>(
+    open: &dyn Fn() -> Result<R, TraceError>,
+    source_name: &str,
+    name: &str,
+    target_rate_hz: f64,
+) -> Result<(Trace, f64), TraceError> {
+    let plan = scan(open, source_name, name, target_rate_hz, MAX_TRACE_SAMPLES)?;
     let mut grid = GridSamples::new(open()?, &plan)?;
     let mut samples = Vec::with_capacity(plan.len);
     while let Some(s) = grid.next_sample()? {
@@ -218,8 +232,11 @@ impl<R: BufRead> TraceRows<R> {
 /// second time, holding two rows at a time.
 #[derive(Clone, Debug)]
 pub struct TracePlan {
+    /// The trace's name for the user.
     pub name: String,
+    /// The source, as errors name it.
     pub source_name: String,
+    /// The grid's rate (Hz).
     pub rate_hz: f64,
     /// Samples on the grid.
     pub len: usize,
@@ -231,6 +248,7 @@ pub struct TracePlan {
     pub(super) on_grid: bool,
     /// 1 / the median step of the rows (Hz).
     pub measured_rate_hz: f64,
+    /// What was done to the input on the way in, as [`Trace::notices`].
     pub notices: Vec<String>,
     /// The sidecar, when one was found and read.
     pub info: Option<TraceInfo>,
@@ -239,9 +257,13 @@ pub struct TracePlan {
     pub(super) max_samples: usize,
 }
 
-/// First pass: every row checked, and the statistics the grid needs. Memory is a map of the
-/// distinct time steps (a handful for a trace written at a fixed rate), not the rows.
-pub(super) fn scan<R: BufRead>(
+/// First pass: every row checked, and the statistics the grid needs ([`TracePlan`]). Memory is
+/// a map of the distinct time steps (a handful for a trace written at a fixed rate), not the
+/// rows. `open` gives the source from its start; it is called a second time only to find the
+/// line of a gap in a refused trace. `max_samples` bounds the rows and the grid:
+/// [`MAX_TRACE_SAMPLES`] for a trace held in memory, `usize::MAX` for one streamed (a grid
+/// of more than 1000 samples a row is refused even then).
+pub fn scan<R: BufRead>(
     open: &dyn Fn() -> Result<R, TraceError>,
     source_name: &str,
     name: &str,
@@ -391,7 +413,7 @@ pub(super) fn scan<R: BufRead>(
 }
 
 /// Second pass: the samples on the uniform grid t_k = k / rate, two rows in memory. Values
-/// are those of [`resample_uniform`], bit for bit: a trace on the grid keeps its values and
+/// are those of [`resample_uniform`](crate::trace::resample_uniform), bit for bit: a trace on the grid keeps its values and
 /// only its timestamps are snapped; another is linearly interpolated.
 pub struct GridSamples<R> {
     pub(super) rows: TraceRows<R>,
@@ -408,6 +430,7 @@ pub struct GridSamples<R> {
 }
 
 impl<R: BufRead> GridSamples<R> {
+    /// The samples of `plan`'s trace from `reader`, the source [`scan`] read, from its start.
     pub fn new(reader: R, plan: &TracePlan) -> Result<Self, TraceError> {
         Ok(GridSamples {
             rows: TraceRows {
@@ -461,6 +484,8 @@ impl<R: BufRead> GridSamples<R> {
         }
     }
 
+    /// The next sample on the grid; `None` after the last. A source that changed since it
+    /// was scanned may give an error still.
     pub fn next_sample(&mut self) -> Result<Option<AircraftSample>, TraceError> {
         if self.k >= self.len {
             return Ok(None);
@@ -534,72 +559,6 @@ impl<R: BufRead + std::io::Seek> GridSamples<R> {
 /// Most grid samples a row of a streamed trace may become once the grid is beyond the
 /// in-memory limit ([`MAX_TRACE_SAMPLES`]): a 1 Hz log resampled to 100 Hz is 100.
 const MAX_UPSAMPLING: f64 = 1000.0;
-
-/// Checks a trace file row by row without holding it, and reads its sidecar: the plan to
-/// stream it with [`open_grid`]. Memory does not grow with the file's length.
-pub fn scan_trace_file(path: &Path, target_rate_hz: f64) -> Result<TracePlan, TraceError> {
-    scan_trace_file_copying(path, target_rate_hz, None)
-}
-
-/// [`scan_trace_file`], handing every byte of the file, as this pass reads it, to `copy`: a
-/// recording's hash and compressed attachment made in the same read as the checks
-/// (`formats::recording::TraceCopy`). On success `copy` has had the whole file.
-pub fn scan_trace_file_copying(
-    path: &Path,
-    target_rate_hz: f64,
-    copy: Option<&mut dyn Write>,
-) -> Result<TracePlan, TraceError> {
-    let source_name = path.display().to_string();
-    let name = path
-        .file_stem()
-        .map_or_else(|| "trace".to_string(), |s| s.to_string_lossy().into_owned());
-    let io = |error| TraceError::Io {
-        source_name: source_name.clone(),
-        error,
-    };
-    let copied = std::cell::Cell::new(0u64);
-    // Only the first opening (the scan) copies; a second is for a refusal's line numbers.
-    let copy = std::cell::RefCell::new(copy);
-    // No cap on the file's size or length: nothing here grows with it (docs/design.md §9).
-    // A file that is not a trace is refused by its first lines.
-    let open = || {
-        let file = File::open(path).map_err(io)?;
-        Ok(BufReader::with_capacity(
-            64 * 1024,
-            Copying {
-                file,
-                copy: copy.borrow_mut().take(),
-                copied: &copied,
-            },
-        ))
-    };
-    let mut plan = scan(&open, &source_name, &name, target_rate_hz, usize::MAX)?;
-    if let Some(copy) = copy.into_inner() {
-        // The scan reads to the end of the file; had it stopped short, the copy completes it.
-        let mut rest = File::open(path).map_err(io)?;
-        rest.seek(SeekFrom::Start(copied.get())).map_err(io)?;
-        std::io::copy(&mut rest, copy).map_err(io)?;
-    }
-    let mut trace = Trace {
-        name: name.clone(),
-        rate_hz: target_rate_hz,
-        samples: Vec::new(),
-        info: None,
-        notices: std::mem::take(&mut plan.notices),
-    };
-    read_sidecar(path, &mut trace, plan.measured_rate_hz);
-    plan.notices = trace.notices;
-    plan.info = trace.info;
-    Ok(plan)
-}
-
-/// Streams the samples of a scanned trace file from its start.
-pub fn open_grid(
-    path: &Path,
-    plan: &TracePlan,
-) -> Result<GridSamples<BufReader<File>>, TraceError> {
-    GridSamples::new(open_file(path, &plan.source_name)?, plan)
-}
 
 /// Refuses a trace whose [`UnitStats`] show a unit or sign mistake, naming its columns; says
 /// what could not be checked (returned as a notice naming the file).
@@ -731,24 +690,6 @@ fn seconds(s: f64) -> String {
         text.trim_end_matches('0').trim_end_matches('.').to_string()
     } else {
         text
-    }
-}
-
-/// A file read that hands what it reads to `copy` (when there is one) and counts it.
-struct Copying<'c, 'w> {
-    file: File,
-    copy: Option<&'w mut dyn Write>,
-    copied: &'c std::cell::Cell<u64>,
-}
-
-impl Read for Copying<'_, '_> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let n = self.file.read(buf)?;
-        if let Some(copy) = self.copy.as_deref_mut() {
-            copy.write_all(&buf[..n])?;
-            self.copied.set(self.copied.get() + n as u64);
-        }
-        Ok(n)
     }
 }
 

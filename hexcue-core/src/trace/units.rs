@@ -5,8 +5,8 @@
 
 use nalgebra::Vector3;
 
-use hexcue_core::trace::AircraftSample;
-use hexcue_core::G_MPS2;
+use crate::trace::AircraftSample;
+use crate::G_MPS2;
 
 /// Thresholds of the checks.
 mod limits {
@@ -162,9 +162,9 @@ impl Fit {
 }
 
 /// The statistics the checks decide on: the first second's medians, medians over the whole
-/// ([`Thinned`]), the attitude's derivative against the body rates with the attitude read as
-/// radians and as degrees (running sums), the largest roll and pitch, and the time spent at
-/// fast rates.
+/// (of a uniform subsample when long), the attitude's derivative against the body rates with
+/// the attitude read as radians and as degrees (running sums), the largest roll and pitch,
+/// and the time spent at fast rates.
 #[derive(Clone, Debug, Default)]
 pub struct UnitStats {
     t0: Option<f64>,
@@ -186,8 +186,11 @@ pub struct UnitStats {
 /// Names of the columns a [`UnitStats`] verdict cites, in the order fx, fy, fz, p, q, r, phi,
 /// theta, psi; and what "the whole" is called (`the trace`, `the first 10 s of input`).
 pub struct UnitNames<'a> {
+    /// The columns' headers as the user wrote them.
     pub columns: [String; 9],
+    /// What the statistics cover, in a sentence: `the trace`, `the first 10 s of input`.
     pub whole: &'a str,
+    /// Whether the samples have an attitude to check the rates against.
     pub has_attitude: bool,
 }
 
@@ -207,6 +210,7 @@ impl UnitStats {
     /// Values kept per median (2 × 256 KiB at most).
     pub(crate) const KEPT: usize = 1 << 15;
 
+    /// No sample yet.
     pub fn new() -> Self {
         Self::default()
     }
@@ -216,6 +220,7 @@ impl UnitStats {
         self.rows
     }
 
+    /// Whether no sample was pushed.
     pub fn is_empty(&self) -> bool {
         self.rows == 0
     }
@@ -225,6 +230,7 @@ impl UnitStats {
         self.t0.map_or(0.0, |t0| self.last_t - t0)
     }
 
+    /// One more sample, in SI, in time order.
     pub fn push(&mut self, s: &AircraftSample) {
         let t0 = *self.t0.get_or_insert(s.t_s);
         let norm = s.specific_force_mps2.norm();
