@@ -786,6 +786,18 @@ impl Engine {
             self.window.exhausted = true;
             self.source_error = Some(e);
         }
+        // Back to the start's phase at once, as `set_ground` started it: no blend from the
+        // phase the flight was in when it was rewound.
+        let start = self.ground.as_ref().map(|g| g.schedule.on_ground(0.0));
+        if let Some(start) = start.filter(|s| Some(*s) != self.ground.as_ref().map(|g| g.on_ground))
+        {
+            self.switch_ground(start);
+            for lane in &mut self.lanes {
+                lane.fade = None;
+            }
+            let gains = self.ground_gains();
+            self.gains = self.gains.clone().settled_at(gains);
+        }
     }
 
     /// Every algorithm and its limiter back to rest at neutral, without touching the source:

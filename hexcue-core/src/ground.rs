@@ -269,6 +269,47 @@ mod tests {
         assert!(reason.contains("expected a gain from 0"), "{reason}");
     }
 
+    /// A flight that starts on the ground starts on the ground tuning, unblended, and so
+    /// does it again after a rewind from the air: its first frames are those of an engine
+    /// built with the ground tuning alone.
+    #[test]
+    fn a_rewound_flight_starts_on_the_ground_tuning_again_unblended() {
+        use crate::engine::Engine;
+        use crate::mca::AlgorithmId;
+        use std::sync::Arc;
+        let air = with_ground("motion_gain = 0.4\ncwf.tilt_limit_deg = 3.0").unwrap();
+        let trace = Arc::new(crate::testing::manoeuvre());
+        let schedule = || GroundSchedule {
+            start_on_ground: true,
+            changes: vec![(1.0, false)],
+        };
+        let mut switched = Engine::new(&air, trace.clone(), &[AlgorithmId::Cwf]).unwrap();
+        assert!(switched.set_ground(schedule(), 3.0).unwrap());
+        assert!(switched.on_ground());
+        let mut alone = Engine::new(&air.on_ground().unwrap(), trace, &[AlgorithmId::Cwf]).unwrap();
+        let first: Vec<_> = (0..300)
+            .map(|_| switched.step().unwrap().lanes[0].command)
+            .collect();
+        assert!(!switched.on_ground(), "lifted off at 1 s");
+        let ground: Vec<_> = (0..100)
+            .map(|_| alone.step().unwrap().lanes[0].command)
+            .collect();
+        assert_eq!(
+            first[..100],
+            ground[..],
+            "on the ground tuning until lift-off"
+        );
+        switched.reset();
+        assert!(switched.on_ground());
+        let again: Vec<_> = (0..100)
+            .map(|_| switched.step().unwrap().lanes[0].command)
+            .collect();
+        assert_eq!(
+            again, ground,
+            "the rewound start is the ground tuning's, unblended"
+        );
+    }
+
     #[test]
     fn the_schedule_follows_lift_off_and_touchdown() {
         // The shipped take-off's and landing's sidecar events.
