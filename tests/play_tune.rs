@@ -25,8 +25,13 @@ const AXIS_MPS2: f64 = 2.0;
 const RESOLUTION: f64 = 1e-6 + 1e-12;
 const ANGLE_DPS2: f64 = 30.0;
 
-/// The CWF's commanded pose at each step of a recording (t, pose), and its events (t, text).
-fn recorded(path: &Path) -> (Vec<(f64, [f64; 6])>, Vec<(f64, String)>) {
+/// The CWF's commanded pose at each step (t, pose).
+type Poses = Vec<(f64, [f64; 6])>;
+/// A recording's events (t, text).
+type Events = Vec<(f64, String)>;
+
+/// The CWF's commanded poses of a recording, and its events.
+fn recorded(path: &Path) -> (Poses, Events) {
     let rec = Recording::open(path).unwrap();
     let poses = rec
         .frames()

@@ -369,9 +369,10 @@ mod tests {
         assert_eq!(loaded, text);
     }
 
-    /// In `play` the panel is the console's (`App::params`): `p` opens it, its keys (← and
-    /// - here) change the parameter instead of seeking or slowing down, Esc closes it rather
-    /// than quitting, `x` is the pose panel, `q` quits whatever is open.
+    /// In `play` the panel is the console's (`App::params`): `p` opens it, its keys (the
+    /// left arrow and the minus key here) change the parameter instead of seeking or slowing
+    /// down, Esc closes it rather than quitting, `x` is the pose panel, `q` quits whatever
+    /// is open.
     #[test]
     fn in_play_the_panel_takes_its_keys_and_q_still_quits() {
         use crate::session::player::Command;
