@@ -70,6 +70,22 @@ impl GainStage {
         }
     }
 
+    /// The stage with every gain at rest at `gains` (a profile's `motion_gain` times its
+    /// `[gain]`), from the first step.
+    pub fn settled_at(mut self, gains: Vector6<f64>) -> Self {
+        self.target = gains;
+        self.paths = [DofPath::at_rest(); 6];
+        self.elapsed_s = 0.0;
+        for i in 0..6 {
+            self.now[i] = DofState {
+                p: gains[i],
+                v: 0.0,
+                a: 0.0,
+            };
+        }
+        self
+    }
+
     /// Sends every gain toward `target` from where it is; returns how long the slowest takes
     /// (s).
     pub fn set_target(&mut self, target: Vector6<f64>) -> f64 {

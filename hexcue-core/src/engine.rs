@@ -448,9 +448,23 @@ pub struct Engine {
     parallel: bool,
     /// Whether the algorithms may use rayon's pool ([`Engine::set_parallel`]).
     algorithms_parallel: bool,
-    /// The live gains on every lane's command (all 1 unless changed: issue 36).
+    /// The live gains on every lane's command (the profile's `motion_gain` and `[gain]`
+    /// unless changed: issue 36).
     gains: GainStage,
+    /// The gains last asked for by [`Engine::set_gains`] (the air's when `ground` is on).
+    gains_asked: Vector6<f64>,
+    /// The air and ground tunings of a flight whose ground phases are known.
+    ground: Option<GroundPhases>,
     k: usize,
+}
+
+/// [`Engine::set_ground`]: when the flight is on the ground, and the air tuning to come back
+/// to (the engine's profile is the one in force).
+struct GroundPhases {
+    schedule: crate::ground::GroundSchedule,
+    air: Profile,
+    on_ground: bool,
+    blend_s: f64,
 }
 
 /// Saturates the aircraft motion per axis as the profile's `[input]` asks.
@@ -535,7 +549,10 @@ impl Engine {
                 &transitions.gentle_acceleration,
                 &transitions.gentle_jerk,
                 dt,
-            ),
+            )
+            .settled_at(profile.gains()),
+            gains_asked: profile.gains(),
+            ground: None,
             lanes,
             k: 0,
         })
@@ -596,7 +613,96 @@ impl Engine {
     /// Sends the gains on every lane's command (per DoF, 0 to 1) toward `target` along
     /// their jerk-limited paths ([`GainStage`]); returns how long the slowest takes (s).
     pub fn set_gains(&mut self, target: Vector6<f64>) -> f64 {
-        self.gains.set_target(target)
+        self.gains_asked = target;
+        match &self.ground {
+            // On the ground with gains of its own: those stay; these come with the air.
+            Some(g) if g.on_ground && g.air.ground_sets_gains() => 0.0,
+            _ => self.gains.set_target(target),
+        }
+    }
+
+    /// Blends to the profile's `[ground]` tuning while `schedule` says the flight is on the
+    /// ground, and back to the air tuning when it is not, over `blend_s` each way, as a live
+    /// retune does (the gains along their paths, the algorithms through [`Blend`]). Starts
+    /// on the ground tuning, unblended, when the schedule starts there. Without `[ground]`
+    /// (or a schedule that never touches the ground) nothing changes: `Ok(false)`.
+    pub fn set_ground(
+        &mut self,
+        schedule: crate::ground::GroundSchedule,
+        blend_s: f64,
+    ) -> Result<bool, BuildError> {
+        if self.profile.ground.is_none() || !schedule.touches_ground() {
+            return Ok(false);
+        }
+        let air = self.profile.clone();
+        let ground = air.on_ground().map_err(|e| BuildError::Setup {
+            algorithm: self
+                .algorithms()
+                .first()
+                .copied()
+                .unwrap_or(AlgorithmId::Cwf),
+            reason: e.to_string(),
+        })?;
+        // Built once here, so that a tuning the algorithms refuse is said before the run.
+        let ids = self.algorithms();
+        let built = Retune::build(&air, &ground, &ids)?;
+        let start = schedule.on_ground(0.0);
+        self.ground = Some(GroundPhases {
+            schedule,
+            air,
+            on_ground: false,
+            blend_s,
+        });
+        if start {
+            for mut new in built.algorithms {
+                if let Some(lane) = self.lanes.iter_mut().find(|l| l.algorithm.id() == new.id()) {
+                    new.set_parallel(self.algorithms_parallel);
+                    lane.algorithm = new;
+                }
+            }
+            self.profile = ground;
+            if let Some(g) = &mut self.ground {
+                g.on_ground = true;
+            }
+            let gains = self.ground_gains();
+            self.gains = self.gains.clone().settled_at(gains);
+        }
+        Ok(true)
+    }
+
+    /// Whether the ground tuning is in force (false without [`Engine::set_ground`]).
+    pub fn on_ground(&self) -> bool {
+        self.ground.as_ref().is_some_and(|g| g.on_ground)
+    }
+
+    /// The gains the phase in force asks for: the ground's where `[ground]` states gains and
+    /// the flight is on the ground, else the last asked for.
+    fn ground_gains(&self) -> Vector6<f64> {
+        match &self.ground {
+            Some(g) if g.on_ground && g.air.ground_sets_gains() => self.profile.gains(),
+            _ => self.gains_asked,
+        }
+    }
+
+    /// From the air tuning to the ground's, or back, through a blend.
+    fn switch_ground(&mut self, on_ground: bool) {
+        let Some(g) = &mut self.ground else {
+            return;
+        };
+        let target = if on_ground {
+            // Checked by `set_ground` and by every retune's profile (`Profile::validate`).
+            g.air.on_ground().unwrap_or_else(|_| g.air.clone())
+        } else {
+            g.air.clone()
+        };
+        g.on_ground = on_ground;
+        let blend_s = g.blend_s;
+        let ids = self.algorithms();
+        if let Ok(retune) = Retune::build(&self.profile, &target, &ids) {
+            self.retune_lanes(retune, blend_s);
+        }
+        let gains = self.ground_gains();
+        self.gains.set_target(gains);
     }
 
     /// The gains on the command at the current step.
@@ -609,6 +715,27 @@ impl Engine {
     /// smootherstep ([`Blend`]). A retune during a blend replaces the blend's new side and
     /// lets the blend run on, so that the command never jumps.
     pub fn retune(&mut self, retune: Retune, blend_s: f64) {
+        let retune = match &mut self.ground {
+            // The air tuning changed while on the ground: the ground's, over it, is in force.
+            Some(g) if g.on_ground => {
+                g.air = retune.profile;
+                let target = g.air.on_ground().unwrap_or_else(|_| g.air.clone());
+                let ids: Vec<AlgorithmId> = self.lanes.iter().map(|l| l.algorithm.id()).collect();
+                match Retune::build(&self.profile, &target, &ids) {
+                    Ok(r) => r,
+                    Err(_) => return,
+                }
+            }
+            Some(g) => {
+                g.air = retune.profile.clone();
+                retune
+            }
+            None => retune,
+        };
+        self.retune_lanes(retune, blend_s);
+    }
+
+    fn retune_lanes(&mut self, retune: Retune, blend_s: f64) {
         for mut new in retune.algorithms {
             let Some(lane) = self.lanes.iter_mut().find(|l| l.algorithm.id() == new.id()) else {
                 continue;
@@ -658,6 +785,18 @@ impl Engine {
         if let Err(e) = self.source.rewind() {
             self.window.exhausted = true;
             self.source_error = Some(e);
+        }
+        // Back to the start's phase at once, as `set_ground` started it: no blend from the
+        // phase the flight was in when it was rewound.
+        let start = self.ground.as_ref().map(|g| g.schedule.on_ground(0.0));
+        if let Some(start) = start.filter(|s| Some(*s) != self.ground.as_ref().map(|g| g.on_ground))
+        {
+            self.switch_ground(start);
+            for lane in &mut self.lanes {
+                lane.fade = None;
+            }
+            let gains = self.ground_gains();
+            self.gains = self.gains.clone().settled_at(gains);
         }
     }
 
@@ -800,6 +939,13 @@ impl Engine {
         self.fill_window();
         let k = self.k;
         let aircraft = self.window.aircraft.pop_front()?;
+        // The tuning of the phase the sample is in, before any lane steps on it.
+        if let Some(g) = &self.ground {
+            let on_ground = g.schedule.on_ground(aircraft.t_s);
+            if on_ground != g.on_ground {
+                self.switch_ground(on_ground);
+            }
+        }
         let dt = self.profile.dt_s();
         let w = &mut self.window;
         let (mut sample, mut preview) = (w.cues[w.start], &w.cues[w.start + 1..]);

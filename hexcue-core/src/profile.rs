@@ -59,6 +59,10 @@ pub struct Profile {
     /// Pilot's head relative to the centre of the platform joint plane, platform frame
     /// (x forward, y right, z down) (m).
     pub eye_point_m: [f64; 3],
+    /// The master gain on every DoF's command, 0 (neutral) to 1 (as the algorithm asks): the
+    /// live panel's `motion_gain` (docs/parameters.md). Absent: 1.
+    #[serde(default = "unity")]
+    pub motion_gain: f64,
     /// The hexapod's joints and leg stroke (`[geometry]`).
     pub geometry: Geometry,
     /// Per-DoF excursion, velocity and acceleration limits of the platform (`[limits]`).
@@ -92,6 +96,71 @@ pub struct Profile {
     /// `udp://…?frame=actuators`; docs/live.md, *Actuator streams*). Absent: none possible.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub actuators: Option<ActuatorParams>,
+    /// Each DoF's gain, times [`Profile::motion_gain`] (`[gain]`; absent: every one 1).
+    #[serde(default)]
+    pub gain: DofGains,
+    /// The keys that override the others while the aircraft is on the ground (`[ground]`,
+    /// [`crate::ground`]); absent: one tuning throughout.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ground: Option<toml::Table>,
+}
+
+fn unity() -> f64 {
+    1.0
+}
+
+/// One gain per DoF on the command, 0 to 1 (`[gain]`): the live panel's `gain.surge` …
+/// `gain.yaw`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DofGains {
+    /// Surge's gain.
+    pub surge: f64,
+    /// Sway's gain.
+    pub sway: f64,
+    /// Heave's gain.
+    pub heave: f64,
+    /// Roll's gain.
+    pub roll: f64,
+    /// Pitch's gain.
+    pub pitch: f64,
+    /// Yaw's gain.
+    pub yaw: f64,
+}
+
+impl Default for DofGains {
+    fn default() -> Self {
+        DofGains {
+            surge: 1.0,
+            sway: 1.0,
+            heave: 1.0,
+            roll: 1.0,
+            pitch: 1.0,
+            yaw: 1.0,
+        }
+    }
+}
+
+impl DofGains {
+    /// Surge … yaw.
+    pub fn as_array(&self) -> [f64; 6] {
+        [
+            self.surge, self.sway, self.heave, self.roll, self.pitch, self.yaw,
+        ]
+    }
+
+    /// DoF `i`'s gain (0 surge … 5 yaw), to be set.
+    pub fn get_mut(&mut self, i: usize) -> Option<&mut f64> {
+        Some(match i {
+            0 => &mut self.surge,
+            1 => &mut self.sway,
+            2 => &mut self.heave,
+            3 => &mut self.roll,
+            4 => &mut self.pitch,
+            5 => &mut self.yaw,
+            _ => return None,
+        })
+    }
 }
 
 /// How a live session drives a Moog 6DOF2000E (docs/live.md, *Moog*).
@@ -151,6 +220,23 @@ impl Profile {
     pub fn offline(mut self) -> Self {
         self.mpc.time_limit_ms = f64::INFINITY;
         self
+    }
+
+    /// The gain on each DoF's command (surge … yaw): the master gain times the DoF's.
+    pub fn gains(&self) -> nalgebra::Vector6<f64> {
+        nalgebra::Vector6::from(self.gain.as_array()) * self.motion_gain
+    }
+
+    /// [`Profile::validate`] for a profile that may be [`Profile::offline`]: the MPCs' time
+    /// limit it lifted is the run's choice, not a mistake of the file (a live retune or the
+    /// ground tuning of a `play` session checks its profile so).
+    pub fn validate_offline(&self) -> Result<(), ProfileError> {
+        if self.mpc.time_limit_ms == f64::INFINITY {
+            let mut limited = self.clone();
+            limited.mpc.time_limit_ms = 1.0;
+            return limited.validate();
+        }
+        self.validate()
     }
 
     /// The step of every algorithm: 1 / `rate_hz` (s).
@@ -338,6 +424,20 @@ impl Profile {
                 );
             }
         }
+        let gains = std::iter::once(("motion_gain".to_string(), self.motion_gain)).chain(
+            crate::safety::DOF_NAMES
+                .iter()
+                .zip(self.gain.as_array())
+                .map(|(dof, v)| (format!("gain.{dof}"), v)),
+        );
+        for (key, v) in gains {
+            if !(0.0..=1.0).contains(&v) {
+                return err(
+                    &key,
+                    format!("{v}: expected a gain from 0 (neutral) to 1 (as the algorithm asks)"),
+                );
+            }
+        }
         let g = &self.geometry;
         validate_geometry(g)?;
         for (name, l) in [
@@ -452,6 +552,9 @@ impl Profile {
                     self.dt_s()
                 ),
             );
+        }
+        if self.ground.is_some() {
+            self.on_ground()?;
         }
         Ok(())
     }

@@ -25,7 +25,14 @@ fn run_one(
     done: usize,
     stop: &Arc<std::sync::atomic::AtomicBool>,
 ) -> Result<Summary> {
-    let engine = Engine::new(profile, trace.clone(), algorithms)?;
+    let mut engine = Engine::new(profile, trace.clone(), algorithms)?;
+    // The profile's `[ground]` tuning on the ground, as `play` runs it.
+    engine
+        .set_ground(
+            crate::app::play::ground_schedule(trace.info.as_ref()),
+            profile.safety.fade_in_s,
+        )
+        .with_context(|| format!("{}: the profile's [ground] tuning", trace.name))?;
     let progress: Box<dyn FrameSink> = Box::new(ProgressSink::part(bar.clone(), done));
     let mut runner = Runner::new(
         Box::new(engine),

@@ -14,10 +14,14 @@ use crate::formats::recording::{Recorder, RecordingMeta, TraceCopy};
 use crate::formats::trace::default_trace;
 use crate::foxglove::FoxgloveServer;
 use crate::session::{player, FrameSink, Runner, SinkFailure};
-use crate::sinks::recorder::{McapSink, ProgressSink, Quiet, RecordedAndServed};
+use crate::sinks::recorder::{EventsToStderr, McapSink, ProgressSink, Quiet, RecordedAndServed};
+use crate::tui::params::ProfileFile;
 use crate::tui::terminal::{exit_for_signal, require_terminal};
 use crate::tui::{self, LiveConfig, SessionInfo};
+use crate::tuning::played::TunedEngine;
+use anyhow::Context;
 use hexcue_core::engine::Engine;
+use hexcue_core::ground::GroundSchedule;
 use hexcue_core::mca::AlgorithmId;
 use hexcue_core::profile::text::{default_profile, DEFAULT_PROFILE_TOML};
 use hexcue_core::profile::Profile;
@@ -167,9 +171,16 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
         }
         None => None,
     };
-    let engine = Engine::with_source(&profile, play.source, &algorithms)?;
+    let mut engine = Engine::with_source(&profile, play.source, &algorithms)?;
+    engine
+        .set_ground(
+            ground_schedule(play.info.as_ref()),
+            profile.safety.fade_in_s,
+        )
+        .context("the profile's [ground] tuning")?;
+    let engine = TunedEngine::new(engine, None);
     // In closing order: the bar cleared before the recording's line is printed.
-    let mut sinks: Vec<Box<dyn FrameSink>> = Vec::new();
+    let mut sinks: Vec<Box<dyn FrameSink>> = vec![Box::new(EventsToStderr)];
     let bar = progress_bar(
         len as u64,
         "{spinner} {msg} [{bar:40}] {pos}/{len} steps ({rate} steps/s, {eta} left)",
@@ -258,7 +269,15 @@ pub fn run_console(args: &PlayArgs) -> Result<()> {
     let info = SessionInfo::described(&play.name, play.info.as_ref(), &profile.name);
     let mut meta = recording_meta(&profile, profile_toml, &play, &algorithms);
     let trace_path = args.trace.clone();
+    let ground = ground_schedule(play.info.as_ref());
+    let profile_file = ProfileFile {
+        path: args.profile.clone(),
+        text: meta.profile_toml.clone(),
+        name: profile.name.clone(),
+    };
     let mut cfg = LiveConfig::streaming(profile, play.source, info, algorithms);
+    cfg.ground = ground;
+    cfg.profile_file = Some(profile_file);
     cfg.record = args.record.clone();
     cfg.start_paused = args.start.paused;
     cfg.speed = args.start.speed;
@@ -273,6 +292,15 @@ pub fn run_console(args: &PlayArgs) -> Result<()> {
     });
     let outcome = tui::run_live(cfg, factory)?;
     exit_for_signal(outcome.signal)
+}
+
+/// When a recorded flight is on the ground: from its sidecar's lift-off and touchdown
+/// events (docs/parameters.md, *Air and ground*); in the air throughout without them.
+pub fn ground_schedule(info: Option<&hexcue_core::trace::TraceInfo>) -> GroundSchedule {
+    GroundSchedule::from_events(
+        info.into_iter()
+            .flat_map(|i| i.events.iter().map(|e| (e.t, e.event.as_str()))),
+    )
 }
 
 /// Starts the live Foxglove server and tells the user where it is.

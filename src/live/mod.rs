@@ -228,7 +228,7 @@ impl LiveSession {
             comparison,
             order: algorithms.to_vec(),
             resets: 0,
-            gains_target: nalgebra::Vector6::repeat(1.0),
+            gains_target: profile.gains(),
             retunes,
             used_arrival: None,
             safety: Safety::new(profile.safety.params(&profile.limits.si(), dt))

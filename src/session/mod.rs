@@ -98,6 +98,11 @@ pub trait FrameSource: Send {
     fn take_error(&mut self) -> Option<anyhow::Error> {
         None
     }
+    /// What happened with the last frame (a parameter changed, the ground tuning blending
+    /// in), for the sinks; asked after each frame. No allocation when there is none.
+    fn take_events(&mut self) -> Vec<hexcue_core::events::Event> {
+        Vec::new()
+    }
 }
 
 /// A [`FrameSource`]'s state at one position, opaque to the player.

@@ -546,6 +546,15 @@ impl Player {
         let Ok(Some(frame)) = self.runner.step() else {
             return false;
         };
+        // A change of tuning (the parameter panel, the ground tuning) goes on the recording's
+        // `/events` and is said in the footer.
+        for event in self.runner.take_events() {
+            if let Some(rec) = &mut self.recording {
+                // A recording that cannot take an event fails at its next frame, said there.
+                let _ = rec.sink.event(&event);
+            }
+            self.notify(event.text, now);
+        }
         self.work_since_checkpoint += started.elapsed();
         self.steps_since_checkpoint += 1;
         self.summary_dirty = true;

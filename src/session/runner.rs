@@ -32,6 +32,8 @@ pub struct Runner {
     on_failure: SinkFailure,
     profile: Profile,
     trace_name: String,
+    /// The source's events since [`Runner::take_events`], for a front-end that shows them.
+    events: Vec<hexcue_core::events::Event>,
 }
 
 /// How [`Runner::run`] ended.
@@ -56,7 +58,13 @@ impl Runner {
             on_failure,
             profile: profile.clone(),
             trace_name: trace_name.to_string(),
+            events: Vec::new(),
         }
+    }
+
+    /// The source's events since the last call (the console shows them).
+    pub fn take_events(&mut self) -> Vec<hexcue_core::events::Event> {
+        std::mem::take(&mut self.events)
     }
 
     /// The next frame, into the sinks and the summary; `None` at the end of the source.
@@ -69,6 +77,17 @@ impl Runner {
     }
 
     fn feed(&mut self, frame: &Frame) -> anyhow::Result<()> {
+        for event in self.source.take_events() {
+            match self.on_failure {
+                SinkFailure::Drop => self.sinks.retain_mut(|sink| sink.event(&event).is_ok()),
+                SinkFailure::Stop => {
+                    for sink in &mut self.sinks {
+                        sink.event(&event)?;
+                    }
+                }
+            }
+            self.events.push(event);
+        }
         match self.on_failure {
             SinkFailure::Drop => self.sinks.retain_mut(|sink| sink.record(frame).is_ok()),
             SinkFailure::Stop => {

@@ -42,6 +42,17 @@ impl FrameSink for McapSink {
         Ok(self.recorder.record(frame)?)
     }
 
+    fn event(&mut self, event: &hexcue_core::events::Event) -> Result<()> {
+        // On `/events`, as a live session's recording has them (a change of the console's
+        // parameters, the ground tuning blending in).
+        Ok(self.recorder.event(
+            event.t_s,
+            event.level,
+            crate::channels::scene::SESSION_SOURCE,
+            &event.text,
+        )?)
+    }
+
     fn finish(self: Box<Self>) -> Result<String> {
         let path = self.recorder.path().display().to_string();
         let stats = self
@@ -81,10 +92,38 @@ impl FrameSink for RecordedAndServed {
         }
     }
 
+    fn event(&mut self, event: &hexcue_core::events::Event) -> Result<()> {
+        FrameSink::event(&mut self.server, event)?;
+        self.recording.event(event)
+    }
+
     fn finish(self: Box<Self>) -> Result<String> {
         let RecordedAndServed { recording, server } = *self;
         server.stop();
         Box::new(recording).finish()
+    }
+}
+
+/// A headless run's events on stderr, as `play: t 12.34 s: …`.
+pub struct EventsToStderr;
+
+impl FrameSink for EventsToStderr {
+    fn record(&mut self, _frame: &Frame) -> Result<()> {
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>) -> Result<String> {
+        Ok(String::new())
+    }
+
+    fn event(&mut self, event: &hexcue_core::events::Event) -> Result<()> {
+        eprintln!(
+            "play: t {:.2} s: {}{}",
+            event.t_s,
+            event.level.prefix(),
+            event.text
+        );
+        Ok(())
     }
 }
 

@@ -67,6 +67,13 @@ impl App {
             }
             return None;
         }
+        // The parameter panel takes its keys first (`p`, and while open ↑ ↓ ← → - + u w W
+        // Esc), as in `hexcue live`; the quit keys always quit.
+        if let Some(panel) = &mut self.params {
+            if !matches!(key.code, KeyCode::Char('q' | 'Q')) && panel.on_key(key) {
+                return None;
+            }
+        }
         let paused = self.snapshot.paused;
         match key.code {
             // Esc closes what is open (the help, the prompt) and otherwise ends the session,
@@ -87,7 +94,7 @@ impl App {
             KeyCode::Char('-') | KeyCode::Char('_') => Some(Command::Slower),
             KeyCode::Char('l') | KeyCode::Char('L') => Some(Command::ToggleLoop),
             KeyCode::Char('r') | KeyCode::Char('R') => Some(Command::ToggleRecord),
-            KeyCode::Char('p') | KeyCode::Char('P') => {
+            KeyCode::Char('x') | KeyCode::Char('X') => {
                 self.toggle_pose();
                 None
             }
@@ -117,7 +124,7 @@ impl App {
         }
     }
 
-    /// Shows or hides the pose panel (`p`).
+    /// Shows or hides the pose panel (`x`).
     pub fn toggle_pose(&mut self) {
         self.pose = !self.pose;
     }

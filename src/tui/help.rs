@@ -17,7 +17,11 @@ pub const KEYS: &[(&str, &str)] = &[
     ("+ / -", "speed ×0.25 … ×16, max"),
     ("l", "loop at the end"),
     ("tab 1..6", "channel fx fy Δfz wx wy wz"),
-    ("p", "pose panel on / off (in place of the legs if no room)"),
+    (
+        "p",
+        "parameters: ↑↓ choose, ←→ -+ change, u undo, w W write",
+    ),
+    ("x", "pose panel on / off (in place of the legs if no room)"),
     (
         "v",
         "view: a column per algorithm / a chart per channel, overlaid",

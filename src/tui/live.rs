@@ -87,6 +87,7 @@ pub const HELP: &[(&str, &str)] = &[
     ("tab 1..6", "channel fx fy Δfz wx wy wz"),
     ("r", "recording? live records with --record, from the start"),
     ("p", "parameters: ↑↓ choose, ←→ change, u undo, w W write"),
+    ("x", "pose panel on / off (in place of the legs if no room)"),
     ("d", "drive: the session's next algorithm, through a blend"),
     ("?", "this help; ? or Esc closes it, other keys act"),
 ];
@@ -544,6 +545,10 @@ pub fn on_key(app: &mut App, key: KeyEvent) -> LiveKey {
             LiveKey::Shown
         }
         KeyCode::Char('r' | 'R') => LiveKey::RecordNotice,
+        KeyCode::Char('x' | 'X') => {
+            app.toggle_pose();
+            LiveKey::Shown
+        }
         KeyCode::Tab => {
             app.channel = (app.channel + 1) % Channel::ALL.len();
             LiveKey::Shown

@@ -66,6 +66,11 @@ pub struct LiveConfig {
     pub looping: bool,
     /// Sinks fed every frame for the whole session (`--foxglove`), beside any recording.
     pub sinks: Vec<Box<dyn FrameSink>>,
+    /// When the flight is on the ground, for the profile's `[ground]` tuning.
+    pub ground: hexcue_core::ground::GroundSchedule,
+    /// The loaded profile's file: with it, the parameter panel (`p`) tunes the session and
+    /// writes the values in force there (`w`, `W`).
+    pub profile_file: Option<params::ProfileFile>,
 }
 
 impl LiveConfig {
@@ -93,6 +98,8 @@ impl LiveConfig {
             speed: player::REAL_TIME,
             looping: false,
             sinks: Vec::new(),
+            ground: Default::default(),
+            profile_file: None,
         }
     }
 }
@@ -125,8 +132,22 @@ pub struct Outcome {
 /// Runs the live console on the real terminal until the user quits or a signal arrives. Every
 /// recording is finished on the way out, and the terminal restored, whatever happens.
 pub fn run_live(cfg: LiveConfig, sink_factory: SinkFactory) -> anyhow::Result<Outcome> {
-    let engine = Engine::with_source(&cfg.profile, cfg.source, &cfg.algorithms)
+    let mut engine = Engine::with_source(&cfg.profile, cfg.source, &cfg.algorithms)
         .context("building the algorithms")?;
+    engine
+        .set_ground(cfg.ground, cfg.profile.safety.fade_in_s)
+        .context("the profile's [ground] tuning")?;
+    let (tuning, panel) = match cfg.profile_file {
+        Some(file) => {
+            let tuner = crate::tuning::Tuner::new(&cfg.profile, &cfg.algorithms)
+                .context("the parameters")?;
+            let tuning = crate::tuning::Shared::handle(tuner);
+            let panel = params::ParamPanel::new(tuning.clone(), file);
+            (Some(tuning), Some(panel))
+        }
+        None => (None, None),
+    };
+    let source = crate::tuning::played::TunedEngine::new(engine, tuning.clone());
     let info = cfg.info;
     let recording = player::RecordingSetup {
         factory: sink_factory,
@@ -140,7 +161,14 @@ pub fn run_live(cfg: LiveConfig, sink_factory: SinkFactory) -> anyhow::Result<Ou
         speed: cfg.speed,
         looping: cfg.looping,
     };
-    run_terminal(info, cfg.profile, Box::new(engine), opts)
+    let outcome = run_terminal(info, cfg.profile, Box::new(source), opts, panel);
+    // The values in force at the end, as a live session's summary has them.
+    if let Some(shared) = tuning.as_ref().and_then(|t| t.lock().ok()) {
+        for line in shared.tuner.final_lines() {
+            eprintln!("{line}");
+        }
+    }
+    outcome
 }
 
 /// Runs a review of recorded frames on the real terminal: the live layout, no recording.
@@ -152,7 +180,7 @@ pub fn run_review(cfg: ReviewConfig) -> anyhow::Result<Outcome> {
         speed: cfg.speed,
         looping: cfg.looping,
     };
-    run_terminal(cfg.info, cfg.profile, cfg.source, opts)
+    run_terminal(cfg.info, cfg.profile, cfg.source, opts, None)
 }
 
 fn run_terminal(
@@ -160,6 +188,7 @@ fn run_terminal(
     profile: Profile,
     source: Box<dyn FrameSource>,
     opts: player::PlayerOptions,
+    params: Option<params::ParamPanel>,
 ) -> anyhow::Result<Outcome> {
     // Signals first: one that arrives while the terminal is being set up must still quit
     // cleanly rather than kill the process with a recording open.
@@ -198,6 +227,7 @@ fn run_terminal(
         *slot = Some(session.stopper());
     }
     let mut app = App::new(Arc::new(info), &profile, theme);
+    app.params = params;
     let result = match ratatui::try_init() {
         Ok(mut terminal) => {
             let r = app::run_ui(&mut terminal, &mut events, &session, &mut app);

@@ -279,7 +279,7 @@ impl ParamPanel {
         )));
         f.render_widget(Clear, popup);
         f.render_widget(
-            Paragraph::new(lines).block(Block::bordered().title(" parameters (live) ")),
+            Paragraph::new(lines).block(Block::bordered().title(" parameters ")),
             popup,
         );
     }
@@ -367,6 +367,48 @@ mod tests {
         p.on_key(key(KeyCode::Char('y')));
         let loaded = std::fs::read_to_string(dir.path().join("full-flight.toml")).unwrap();
         assert_eq!(loaded, text);
+    }
+
+    /// In `play` the panel is the console's (`App::params`): `p` opens it, its keys (the
+    /// left arrow and the minus key here) change the parameter instead of seeking or slowing
+    /// down, Esc closes it rather than quitting, `x` is the pose panel, `q` quits whatever
+    /// is open.
+    #[test]
+    fn in_play_the_panel_takes_its_keys_and_q_still_quits() {
+        use crate::session::player::Command;
+        use crate::tui::{App, SessionInfo, Theme};
+        let dir = tempfile::tempdir().unwrap();
+        let profile = full_flight();
+        let info = SessionInfo::described("takeoff", None, &profile.name);
+        let mut app = App::new(std::sync::Arc::new(info), &profile, Theme::ANSI16);
+        app.params = Some(panel(dir.path()));
+        let gain = |app: &App| {
+            let p = app.params.as_ref().unwrap();
+            let g = p.tuning.lock().unwrap().tuner.get(MOTION_GAIN).unwrap();
+            g
+        };
+        assert_eq!(app.on_key(key(KeyCode::Left)), Some(Command::SeekBy(-5.0)));
+        assert_eq!(app.on_key(key(KeyCode::Char('p'))), None);
+        assert!(app.params.as_ref().unwrap().open);
+        assert_eq!(app.on_key(key(KeyCode::Left)), None);
+        assert_eq!(app.on_key(key(KeyCode::Char('-'))), None);
+        assert!((gain(&app) - 0.96).abs() < 1e-12, "{}", gain(&app));
+        // Keys the panel does not take still act on the playback.
+        assert_eq!(
+            app.on_key(key(KeyCode::Char(' '))),
+            Some(Command::TogglePause)
+        );
+        assert_eq!(app.on_key(key(KeyCode::Char('x'))), None);
+        assert!(app.pose);
+        let backend = ratatui::backend::TestBackend::new(80, 24);
+        let mut terminal = ratatui::Terminal::new(backend).unwrap();
+        terminal.draw(|f| app.render(f)).unwrap();
+        insta::assert_snapshot!("play_with_the_panel_80x24", terminal.backend());
+        assert_eq!(app.on_key(key(KeyCode::Esc)), None);
+        assert!(!app.params.as_ref().unwrap().open && !app.should_quit());
+        app.on_key(key(KeyCode::Char('p')));
+        assert_eq!(app.on_key(key(KeyCode::Char('q'))), Some(Command::Quit));
+        assert!(app.should_quit());
     }
 
     #[test]

@@ -238,12 +238,12 @@ fn the_pose_is_shown_in_numbers_with_its_share_of_the_limits() {
     }
     assert!(has("pose"), "{text}");
     assert!(has("legs"), "{text}");
-    // 80×24: in place of the legs, and `p` brings them back.
+    // 80×24: in place of the legs, and `x` brings them back.
     let text = screen(&draw(&app, 80, 24));
     assert!(text.contains("x   +850 mm  50%"), "{text}");
     assert!(!text.contains("legs ±%"), "{text}");
     let mut app = app;
-    app.on_key(KeyEvent::new(KeyCode::Char('p'), KeyModifiers::NONE));
+    app.on_key(KeyEvent::new(KeyCode::Char('x'), KeyModifiers::NONE));
     let text = screen(&draw(&app, 80, 24));
     assert!(
         !text.contains("+850 mm") && text.contains("legs ±%"),

@@ -48,6 +48,9 @@ pub fn render(app: &App, f: &mut ratatui::Frame, now: Instant) {
         render_columns(app, f, body);
     }
     f.render_widget(Paragraph::new(fit(footer_line(app, now, w), w)), footer);
+    if let Some(panel) = &app.params {
+        panel.render(f, area);
+    }
     if app.help {
         render_help(app, f, area);
     }

@@ -90,7 +90,7 @@ pub struct App {
     pub legs: LegScale,
     /// Each DoF's excursion limit (m, rad; x, y, z, roll, pitch, yaw), for the pose panel.
     pub pose_limits: [f64; 6],
-    /// The pose panel is shown (`p`): beside the leg gauges where there is room, in their
+    /// The pose panel is shown (`x`): beside the leg gauges where there is room, in their
     /// place where there is not.
     pub pose: bool,
     /// The overlaid view (`v`): one chart per channel with every algorithm on it, instead of
@@ -101,6 +101,9 @@ pub struct App {
     pub thresholds: [f64; 6],
     /// A live session's header (`hexcue live`); `None` for playback and review.
     pub live: Option<LiveStatus>,
+    /// The parameter panel (`p`) of a `play` console; `None` in review, which has no
+    /// algorithm to tune (the live console holds its own).
+    pub params: Option<super::params::ParamPanel>,
     pub(super) quit: Option<&'static str>,
 }
 
@@ -122,6 +125,7 @@ impl App {
             overlay: false,
             thresholds: hexcue_core::bound::thresholds(profile),
             live: None,
+            params: None,
             quit: None,
         }
     }

@@ -352,9 +352,12 @@ pub(super) fn footer_line(app: &App, now: Instant, width: usize) -> Line<'static
         (4, "g", "go to"),
         (3, "+-", "speed"),
         (2, "tab", "chan"),
-        (3, "p", "pose"),
+        (3, "x", "pose"),
         (4, "v", "view"),
     ];
+    if app.params.is_some() {
+        keys.push((2, "p", "param"));
+    }
     if app.snapshot.can_record {
         keys.push((1, "r", "rec"));
     }

@@ -221,7 +221,8 @@ impl Tuner {
                 keys.extend(TILT_KEYS);
             }
         }
-        let mut values = vec![1.0; parameters.len()];
+        let mut values = vec![profile.motion_gain];
+        values.extend(profile.gain.as_array());
         for k in keys {
             // A key the serialised profile lacks (none: every field is written) is skipped.
             let Ok(v) = k.get(&doc) else {
@@ -336,6 +337,9 @@ impl Tuner {
         let apply = match p.target {
             Target::MotionGain | Target::DofGain(_) => {
                 self.values[index] = value;
+                // The profile in force carries them, so that `w` writes them and a later
+                // retune (or the ground tuning) starts from them.
+                set_gain(&mut self.profile, &mut self.doc, p.target, value);
                 Apply::Gains(self.gains())
             }
             Target::Drive => {
@@ -369,7 +373,9 @@ impl Tuner {
                     .map_err(|e| refused(e.to_string()))?;
                 let profile: Profile =
                     toml::from_str(&doc.to_string()).map_err(|e| refused(e.to_string()))?;
-                profile.validate().map_err(|e| refused(e.to_string()))?;
+                profile
+                    .validate_offline()
+                    .map_err(|e| refused(e.to_string()))?;
                 let retunes = self
                     .algorithms
                     .iter()
@@ -408,6 +414,26 @@ impl Tuner {
         &self.log
     }
 
+    /// What a session without a JSON summary (the `play` console) says at its end: each
+    /// parameter changed, from its first value to the one in force, and how many changes;
+    /// nothing when none was made.
+    pub fn final_lines(&self) -> Vec<String> {
+        if self.log.is_empty() {
+            return Vec::new();
+        }
+        let mut lines = vec![format!(
+            "tuning: {} change(s) during the session; the values in force at its end:",
+            self.log.len()
+        )];
+        for (p, v) in self.parameters.iter().zip(&self.values) {
+            let first = self.log.iter().find(|c| c.name == p.name).map(|c| c.from);
+            if let Some(first) = first.filter(|f| f != v) {
+                lines.push(format!("tuning: {} = {v} (was {first})", p.name));
+            }
+        }
+        lines
+    }
+
     /// For the summary: every parameter's value in force, and the changes.
     pub fn summary(&self) -> TuningSummary {
         TuningSummary {
@@ -422,17 +448,60 @@ impl Tuner {
     }
 
     /// Writes the profile keys in force into `doc` (a profile file's own TOML), keeping its
-    /// comments and layout; the gains are the session's, not the profile's, and are left out.
-    /// A key the file does not state is an error naming it.
+    /// comments and layout: the algorithms' keys, and the gains (`motion_gain`, `[gain]`,
+    /// added where the file does not state them and they are not 1). The drive is the
+    /// session's, not the profile's. A tuned key the file does not state is an error naming
+    /// it.
     pub fn write_into(&self, doc: &mut DocumentMut) -> anyhow::Result<()> {
         for (p, v) in self.parameters.iter().zip(&self.values) {
-            if let Target::Key(key) = p.target {
-                if key.get(doc).ok() != Some(*v) {
-                    key.set(doc, *v)?;
+            match p.target {
+                Target::Key(key) => {
+                    if key.get(doc).ok() != Some(*v) {
+                        key.set(doc, *v)?;
+                    }
                 }
+                Target::MotionGain | Target::DofGain(_) => {
+                    let stated = gain_item(doc, p.target)
+                        .and_then(|i| i.as_float().or(i.as_integer().map(|n| n as f64)));
+                    if stated.unwrap_or(1.0) != *v {
+                        let mut profile = self.profile.clone();
+                        set_gain(&mut profile, doc, p.target, *v);
+                    }
+                }
+                Target::Drive => {}
             }
         }
         Ok(())
+    }
+}
+
+/// The gain `target` set to `value` in `profile` and in its TOML `doc` (`motion_gain` at
+/// the top, `gain.surge` … in `[gain]`, made where missing).
+fn set_gain(profile: &mut Profile, doc: &mut DocumentMut, target: Target, value: f64) {
+    match target {
+        Target::MotionGain => {
+            profile.motion_gain = value;
+            doc[MOTION_GAIN] = toml_edit::value(value);
+        }
+        Target::DofGain(i) => {
+            if let Some(g) = profile.gain.get_mut(i) {
+                *g = value;
+            }
+            if !doc.contains_key("gain") {
+                doc["gain"] = toml_edit::table();
+            }
+            doc["gain"][DOF_NAMES[i]] = toml_edit::value(value);
+        }
+        Target::Drive | Target::Key(_) => {}
+    }
+}
+
+/// The gain `target`'s item in `doc`, if stated.
+fn gain_item(doc: &DocumentMut, target: Target) -> Option<&toml_edit::Item> {
+    match target {
+        Target::MotionGain => doc.get(MOTION_GAIN),
+        Target::DofGain(i) => doc.get("gain")?.get(DOF_NAMES[i]),
+        Target::Drive | Target::Key(_) => None,
     }
 }
 
@@ -638,6 +707,8 @@ pub fn change_text(name: &str, change: &Change, follow_s: f64) -> String {
         change.from, change.to
     )
 }
+
+pub mod played;
 
 #[cfg(test)]
 mod tests;

@@ -3,6 +3,8 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+
+pub mod pty;
 use std::process::{Command, Output};
 
 pub fn repo() -> PathBuf {
