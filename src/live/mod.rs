@@ -28,7 +28,6 @@ mod stats;
 use stats::platform_event;
 pub use stats::{lane_share, LaneOrders, LiveCounters, LiveStats};
 
-use std::collections::BTreeMap;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -51,9 +50,7 @@ use hexcue_core::safety::path::Escalation;
 use hexcue_core::safety::HardBrake;
 use hexcue_core::safety::{PlatformReadiness, Safety, SafetyState, DOF_NAMES};
 use hexcue_core::source::HeldSample;
-use hexcue_core::summary::{
-    LiveSummary, Quantiles, RealtimeSummary, Summary, SummaryBuilder, TransitionSummary,
-};
+use hexcue_core::summary::{Summary, SummaryBuilder};
 use input_watch::{InputCounts, InputWatch};
 
 /// Datagrams read at most per step: ten times what a simulator at 10× the step rate sends.

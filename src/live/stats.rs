@@ -1,7 +1,15 @@
 //! The live session's counters, the statistics kept over a session, the orders the comparison
 //! lanes follow and the platform's status as an event.
 
-use super::*;
+use std::collections::BTreeMap;
+
+use hexcue_core::events::{Event, EventLevel};
+use hexcue_core::mca::AlgorithmId;
+use hexcue_core::metrics::TimeHistogram;
+use hexcue_core::summary::{LiveSummary, Quantiles, RealtimeSummary, TransitionSummary};
+
+use super::LiveSession;
+use crate::sinks::{PlatformPhase, PlatformStatus};
 
 /// The session's counters as of one step, small enough to go with every report.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -12,7 +20,7 @@ pub struct LiveCounters {
     pub malformed: u64,
     /// Reports the sink thread did not get before this one.
     pub frames_dropped: u64,
-    /// Filled in off the stepping thread ([`lanes`]), over the reports that got there.
+    /// Filled in off the stepping thread ([`super::lanes`]), over the reports that got there.
     pub latency_p99_ms: f64,
     pub step_p99_ms: f64,
     /// Each lane's 99th percentile share of its step's deadline used, in the console's
@@ -38,7 +46,7 @@ pub struct LiveStats {
     /// millionths (a [`TimeHistogram`] of ppm).
     pub deadline_share: BTreeMap<AlgorithmId, TimeHistogram>,
     /// Steps whose comparison lanes finished after the step's deadline, and by how much at
-    /// most (s): they lag the driving lane ([`lanes`]).
+    /// most (s): they lag the driving lane ([`super::lanes`]).
     pub comparison_late_steps: u64,
     pub comparison_lag_max_s: f64,
     pub input_lost_steps: u64,

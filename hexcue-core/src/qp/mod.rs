@@ -143,6 +143,22 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
+/// Where a vector's nonzeros lie, widened to [`dot`]'s groups of four: `(lo, hi)` with `lo`
+/// a multiple of 4 at or before the first nonzero, and `hi` a multiple of 4 (or `len`) at or
+/// after the last one; `(0, 0)` for a vector of zeros. A NaN counts as a nonzero.
+///
+/// `dot(&a[lo..hi], &b[lo..hi])` is then `dot(a, b)` to the bit for any finite `b`: the
+/// groups left out add only zeros to `dot`'s four partial sums (each starts at +0, and a sum
+/// of +0 and ±0 is +0), and the groups kept are summed in the same lanes and order.
+#[inline]
+pub(crate) fn nonzero_span(a: &[f64]) -> (usize, usize) {
+    let Some(first) = a.iter().position(|&v| v != 0.0) else {
+        return (0, 0);
+    };
+    let last = a.iter().rposition(|&v| v != 0.0).unwrap_or(first);
+    (first / 4 * 4, (last / 4 * 4 + 4).min(a.len()))
+}
+
 /// The solver: problem data, factors and working storage, all of fixed size after `new`.
 #[derive(Clone, Debug)]
 pub struct ActiveSetQp {
@@ -151,10 +167,16 @@ pub struct ActiveSetQp {
     h: Vec<f64>,
     /// L⁻ᵀ of the Cholesky factor H = L Lᵀ, column-major (upper triangular).
     j0: Vec<f64>,
+    /// Per row of H, the column of its first nonzero (its diagonal when none is before).
+    first_nonzero: Vec<usize>,
     factored: bool,
     g: Vec<f64>,
     /// Rows stored one after the other (row k at k·n).
     rows: Vec<f64>,
+    /// Whether row k was handed out by `row_mut` since its norm and span were computed.
+    row_dirty: Vec<bool>,
+    /// [`nonzero_span`] of each row: the dot products with a row read only that part.
+    span: Vec<(usize, usize)>,
     lo: Vec<f64>,
     hi: Vec<f64>,
     n_eq: usize,
@@ -197,9 +219,12 @@ impl ActiveSetQp {
             n,
             h: vec![0.0; n * n],
             j0: vec![0.0; n * n],
+            first_nonzero: vec![0; n],
             factored: false,
             g: vec![0.0; n],
             rows: Vec::with_capacity(rows_hint * n),
+            row_dirty: Vec::with_capacity(rows_hint),
+            span: Vec::with_capacity(rows_hint),
             lo: Vec::with_capacity(rows_hint),
             hi: Vec::with_capacity(rows_hint),
             n_eq: 0,
@@ -258,22 +283,38 @@ impl ActiveSetQp {
                 self.h[r * n + c] = h[c * n + r];
             }
         }
+        // The envelope: row i of L is zero before the first nonzero of H's row i (the
+        // factorisation fills nothing to its left). The MPC's slacks are such rows: their H
+        // rows hold the diagonal alone, and they were most of the factorisation's work.
+        let first = &mut self.first_nonzero;
+        for (i, f) in first.iter_mut().enumerate() {
+            *f = (0..i).find(|&j| self.h[j * n + i] != 0.0).unwrap_or(i);
+        }
         // Cholesky H = L Lᵀ, L's rows stored one after the other in `r` (free until the
         // next solve, which rebuilds the active set's factors after a new Hessian), so that
-        // each entry's sum is a dot product of two contiguous rows.
+        // each entry's sum is a dot product of two contiguous rows. The products outside the
+        // envelope are products with zero, left out in whole groups of four (`nonzero_span`):
+        // L and J₀ are the same to the bit as with every product summed.
         let lt = &mut self.r;
         lt.fill(0.0);
         for j in 0..n {
             let row_j = j * n;
-            let s = self.h[j * n + j] - dot(&lt[row_j..row_j + j], &lt[row_j..row_j + j]);
+            let f = first[j] / 4 * 4;
+            let s = self.h[j * n + j] - dot(&lt[row_j + f..row_j + j], &lt[row_j + f..row_j + j]);
             if !s.is_finite() || s <= 0.0 {
                 return Err(QpError::NotPositiveDefinite { column: j });
             }
             let ljj = s.sqrt();
             lt[row_j + j] = ljj;
             for i in j + 1..n {
+                if first[i] > j {
+                    // H[i][j] and row i of L left of j are zero: so is L[i][j].
+                    continue;
+                }
                 let row_i = i * n;
-                let s = self.h[j * n + i] - dot(&lt[row_i..row_i + j], &lt[row_j..row_j + j]);
+                let f = first[i].max(first[j]) / 4 * 4;
+                let s =
+                    self.h[j * n + i] - dot(&lt[row_i + f..row_i + j], &lt[row_j + f..row_j + j]);
                 lt[row_i + j] = s / ljj;
             }
         }
@@ -289,6 +330,12 @@ impl ActiveSetQp {
         let j0 = &mut self.j0;
         j0.fill(0.0);
         for c in 0..n {
+            if self.first_nonzero[c] == c {
+                // Row c of L is its diagonal alone: above the diagonal, every sum of column c
+                // is a sum of zeros, and the column is e_c / L[c][c].
+                j0[c * n + c] = 1.0 / l[c * n + c];
+                continue;
+            }
             for i in (0..=c).rev() {
                 let unit = if i == c { 1.0 } else { 0.0 };
                 // (Lᵀ)[i, k] = L[k, i] for k > i: column i of L, contiguous.
@@ -314,9 +361,15 @@ impl ActiveSetQp {
         &mut self.g
     }
 
+    /// The linear term g.
+    pub fn gradient(&self) -> &[f64] {
+        &self.g
+    }
+
     /// Sets the number of rows (equalities first); their values are then written with
     /// [`row_mut`](Self::row_mut) and [`set_bounds`](Self::set_bounds). Grows storage only
-    /// when the count exceeds any before.
+    /// when the count exceeds any before. A row keeps its coefficients (and their norm) until
+    /// it is written again, so a caller whose rows rarely change writes only those that do.
     pub fn set_rows(&mut self, n_eq: usize, n_ineq: usize) {
         let m = n_eq + n_ineq;
         if (n_eq, m) != (self.n_eq, self.m) {
@@ -325,15 +378,20 @@ impl ActiveSetQp {
         self.n_eq = n_eq;
         self.m = m;
         self.rows.resize(m * self.n, 0.0);
+        self.row_dirty.clear();
+        self.row_dirty.resize(m, true);
+        self.span.resize(m, (0, 0));
         self.lo.resize(m, 0.0);
         self.hi.resize(m, 0.0);
         self.is_active.resize(m, false);
         self.row_norm.resize(m, 0.0);
     }
 
-    /// Coefficients a_k of row k (length n).
+    /// Coefficients a_k of row k (length n), to write. The row's norm and nonzero span are
+    /// computed again at the next solve; a row not handed out here keeps its last ones.
     pub fn row_mut(&mut self, k: usize) -> &mut [f64] {
         let n = self.n;
+        self.row_dirty[k] = true;
         &mut self.rows[k * n..(k + 1) * n]
     }
 
@@ -464,7 +522,15 @@ impl ActiveSetQp {
         }
         for k in 0..self.m {
             let a = &self.rows[k * n..(k + 1) * n];
-            let norm = dot(a, a).sqrt();
+            // The norm and span of a row written since the last solve; the others keep theirs
+            // (the row scan, its square roots and the rows' condensation were a third of a step).
+            if self.row_dirty[k] {
+                let (lo, hi) = nonzero_span(a);
+                self.span[k] = (lo, hi);
+                self.row_norm[k] = dot(&a[lo..hi], &a[lo..hi]).sqrt();
+                self.row_dirty[k] = false;
+            }
+            let norm = self.row_norm[k];
             // A NaN or infinite coefficient makes the norm NaN or infinite (so does a
             // finite row whose squares overflow, which the scan then lets through as before).
             if (!norm.is_finite() && a.iter().any(|v| !v.is_finite()))
@@ -473,7 +539,6 @@ impl ActiveSetQp {
             {
                 return QpStatus::NumericalError;
             }
-            self.row_norm[k] = norm;
             self.is_active[k] = false;
             let (lo, hi) = (self.lo[k], self.hi[k]);
             if k < self.n_eq && !lo.is_finite() {
@@ -487,16 +552,19 @@ impl ActiveSetQp {
                 return QpStatus::Infeasible;
             }
         }
-        // Unconstrained minimum: x0 = −H⁻¹g = −J0 J0ᵀ g.
+        // Unconstrained minimum: x0 = −H⁻¹g = −J0 J0ᵀ g. J0's column i is zero below row i
+        // (upper triangular), so both products read its first i + 1 entries, widened to the
+        // dot product's groups of four (`nonzero_span`: the same sums to the bit).
         for i in 0..n {
-            let col = &self.j0[i * n..(i + 1) * n];
-            self.work[i] = dot(col, &self.g);
+            let len = (i / 4 * 4 + 4).min(n);
+            let col = &self.j0[i * n..i * n + len];
+            self.work[i] = dot(col, &self.g[..len]);
         }
         self.x0.fill(0.0);
         for i in 0..n {
             let w = self.work[i];
             if w != 0.0 {
-                let col = &self.j0[i * n..(i + 1) * n];
+                let col = &self.j0[i * n..i * n + i + 1];
                 for (x, c) in self.x0.iter_mut().zip(col) {
                     *x -= w * c;
                 }
@@ -698,10 +766,11 @@ impl ActiveSetQp {
         true
     }
 
-    /// a_kᵀ v.
+    /// a_kᵀ v, over the row's nonzero span (the same sum as over the whole row).
     fn dot_row(&self, k: usize, v: &[f64]) -> f64 {
-        let n = self.n;
-        dot(&self.rows[k * n..(k + 1) * n], v)
+        let (lo, hi) = self.span[k];
+        let row = &self.rows[k * self.n..(k + 1) * self.n];
+        dot(&row[lo..hi], &v[lo..hi])
     }
 
     /// The inactive side with the largest violation per unit norm beyond `tol`.
@@ -732,9 +801,10 @@ impl ActiveSetQp {
     /// d = Jᵀ n⁺ for row k with sign σ.
     fn compute_d(&mut self, k: usize, sign: f64) {
         let n = self.n;
-        let a = &self.rows[k * n..(k + 1) * n];
+        let (lo, hi) = self.span[k];
+        let a = &self.rows[k * n + lo..k * n + hi];
         for i in 0..n {
-            let col = &self.jm[i * n..(i + 1) * n];
+            let col = &self.jm[i * n + lo..i * n + hi];
             self.d[i] = sign * dot(col, a);
         }
     }

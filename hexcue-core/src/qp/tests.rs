@@ -689,3 +689,121 @@ fn a_sequence_of_changing_qps_on_one_solver_matches_cold_solves() {
         }
     }
 }
+
+#[test]
+fn the_nonzero_span_by_hand() {
+    assert_eq!(nonzero_span(&[]), (0, 0));
+    assert_eq!(nonzero_span(&[0.0; 9]), (0, 0));
+    assert_eq!(nonzero_span(&[1.0]), (0, 1));
+    // First nonzero at 5, last at 5: the group of four [4, 8), cut at the length 7.
+    assert_eq!(nonzero_span(&[0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0]), (4, 7));
+    // 3 and 8: from the group starting at 0 to the one ending at 12.
+    let mut a = [0.0; 12];
+    a[3] = -1.0;
+    a[8] = 1.0;
+    assert_eq!(nonzero_span(&a), (0, 12));
+    // −0.0 is a zero; NaN is not.
+    assert_eq!(nonzero_span(&[-0.0, 0.0, 0.0, 0.0, f64::NAN]), (4, 5));
+}
+
+#[test]
+fn a_dot_over_the_nonzero_span_is_the_whole_dot_to_the_bit() {
+    // Rows with zeros before, after and between their nonzeros (some −0.0), of every length
+    // against every group-of-four phase, times finite vectors: the same f64, bit for bit.
+    let mut rng = Rng(37);
+    for _ in 0..5000 {
+        let n = 1 + rng.below(90);
+        let first = rng.below(n);
+        let last = first + rng.below(n - first);
+        let a: Vec<f64> = (0..n)
+            .map(|i| {
+                if i < first || i > last || rng.unit() < 0.3 {
+                    if rng.unit() < 0.5 {
+                        0.0
+                    } else {
+                        -0.0
+                    }
+                } else {
+                    rng.range(-1e3, 1e3) * 10f64.powi(rng.below(9) as i32 - 4)
+                }
+            })
+            .collect();
+        let b: Vec<f64> = (0..n).map(|_| rng.range(-50.0, 50.0)).collect();
+        let (lo, hi) = nonzero_span(&a);
+        assert!(lo % 4 == 0 && (hi % 4 == 0 || hi == n) && lo <= hi && hi <= n);
+        assert!(a[..lo].iter().chain(&a[hi..]).all(|&v| v == 0.0));
+        assert_eq!(
+            dot(&a[lo..hi], &b[lo..hi]).to_bits(),
+            dot(&a, &b).to_bits(),
+            "n {n}, span {lo}..{hi}"
+        );
+    }
+}
+
+#[test]
+fn rows_not_written_again_keep_their_norms_and_give_the_same_solves() {
+    // One solver is given every row at every solve, the other only the rows that changed:
+    // the second's kept norms and spans must make it solve exactly as the first, bit for bit.
+    // The rows have blocks of zeros (as the condensed MPC's do), so the spans are partial.
+    let mut rng = Rng(4242);
+    for _ in 0..20 {
+        let mut p = random_feasible(&mut rng);
+        for r in p.rows.iter_mut() {
+            let n = r.len();
+            let keep = rng.below(n) + 1;
+            let start = rng.below(n - keep + 1);
+            for (i, v) in r.iter_mut().enumerate() {
+                if i < start || i >= start + keep {
+                    *v = 0.0;
+                }
+            }
+        }
+        // Zero rows are the problem's statement about bounds only: keep them feasible.
+        for k in 0..p.rows.len() {
+            if p.rows[k].iter().all(|&v| v == 0.0) {
+                p.lo[k] = p.lo[k].min(0.0);
+                p.hi[k] = p.hi[k].max(0.0);
+            }
+        }
+        let mut all = ActiveSetQp::new(p.n, p.rows.len());
+        let mut some = ActiveSetQp::new(p.n, p.rows.len());
+        p.load(&mut all);
+        p.load(&mut some);
+        let m = p.rows.len();
+        for step in 0..30 {
+            let changed = if m > p.n_eq && step > 0 {
+                let k = p.n_eq + rng.below(m - p.n_eq);
+                for v in p.rows[k].iter_mut().filter(|v| **v != 0.0) {
+                    *v += 0.1 * rng.range(-1.0, 1.0);
+                }
+                Some(k)
+            } else {
+                None
+            };
+            for v in p.g.iter_mut() {
+                *v += 0.05 * rng.range(-1.0, 1.0);
+            }
+            for qp in [&mut all, &mut some] {
+                qp.gradient_mut().copy_from_slice(&p.g);
+                for k in 0..m {
+                    qp.set_bounds(k, p.lo[k], p.hi[k]);
+                }
+            }
+            for k in 0..m {
+                all.row_mut(k).copy_from_slice(&p.rows[k]);
+            }
+            if let Some(k) = changed {
+                some.row_mut(k).copy_from_slice(&p.rows[k]);
+            }
+            let (sa, ss) = (
+                all.solve(&QpSettings::default()),
+                some.solve(&QpSettings::default()),
+            );
+            assert_eq!(sa, ss, "step {step}");
+            let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(all.solution()), bits(some.solution()), "step {step}");
+            assert_eq!(all.objective().to_bits(), some.objective().to_bits());
+            assert_eq!(all.iterations(), some.iterations());
+        }
+    }
+}

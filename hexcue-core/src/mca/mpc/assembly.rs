@@ -388,7 +388,14 @@ impl Mpc {
         let mut t = std::mem::take(&mut self.a_trip);
         let mut b = std::mem::take(&mut self.b);
         let mut sc = std::mem::take(&mut self.scratch);
-        t.clear();
+        // The dynamics' entries come first and never change (the models are fixed when the MPC
+        // is built): after the first assembly they are kept, and only their b is written.
+        let keep_dynamics = sc.dynamics_entries > 0 && t.len() >= sc.dynamics_entries;
+        if keep_dynamics {
+            t.truncate(sc.dynamics_entries);
+        } else {
+            t.clear();
+        }
         b.clear();
         let mut row = 0;
         // x_{i+1} − A x_i − B u_i − ΦE (u_i − u_{i−1}) = 0, with x_0 and u_{−1} (the applied
@@ -396,22 +403,24 @@ impl Mpc {
         for i in 0..n {
             let m = self.interval_model[i];
             let (xc, uc) = (Self::x_col(i), Self::u_col(i));
-            for k in 0..NX {
-                t.push(row + k, xc + k, 1.0);
-            }
-            if i > 0 {
-                let prev = Self::x_col(i - 1);
-                for &(r, c, v) in &self.cache.a_entries[m] {
-                    t.push(row + r, prev + c, -v);
+            if !keep_dynamics {
+                for k in 0..NX {
+                    t.push(row + k, xc + k, 1.0);
                 }
-            }
-            for &(r, c, v) in &self.cache.b_entries[m] {
-                t.push(row + r, uc + c, -v);
-            }
-            for &(r, c, v) in &self.cache.e_entries[m] {
-                t.push(row + r, uc + c, -v);
                 if i > 0 {
-                    t.push(row + r, Self::u_col(i - 1) + c, v);
+                    let prev = Self::x_col(i - 1);
+                    for &(r, c, v) in &self.cache.a_entries[m] {
+                        t.push(row + r, prev + c, -v);
+                    }
+                }
+                for &(r, c, v) in &self.cache.b_entries[m] {
+                    t.push(row + r, uc + c, -v);
+                }
+                for &(r, c, v) in &self.cache.e_entries[m] {
+                    t.push(row + r, uc + c, -v);
+                    if i > 0 {
+                        t.push(row + r, Self::u_col(i - 1) + c, v);
+                    }
                 }
             }
             if i == 0 {
@@ -426,6 +435,7 @@ impl Mpc {
             }
             row += NX;
         }
+        sc.dynamics_entries = t.len();
         if self.terminal == Terminal::Cotc {
             let (xc, uc) = (Self::x_col(n - 1), Self::u_col(n - 1));
             // At rest at neutral: position and velocity zero, no acceleration in the last
@@ -708,11 +718,8 @@ impl Mpc {
                     }
                 }
                 let col = self.slack_col(i, j);
-                for k in 0..NX {
-                    let v = self.cache.perceived_c[(c, k)];
-                    if v != 0.0 {
-                        t.push(row, xc + k, -sign * v);
-                    }
+                for &(k, v) in &sc.perceived_c_entries[c] {
+                    t.push(row, xc + k, -sign * v);
                 }
                 t.push(row, col, -1.0);
                 b.push(bound);
@@ -734,11 +741,8 @@ impl Mpc {
                 };
                 let col = self.dead_zone_col(i, j);
                 for sign in [1.0, -1.0] {
-                    for k in 0..NX {
-                        let v = self.cache.perceived_c[(c, k)];
-                        if v != 0.0 {
-                            t.push(row, xc + k, sign * v);
-                        }
+                    for &(k, v) in &sc.perceived_c_entries[c] {
+                        t.push(row, xc + k, sign * v);
                     }
                     t.push(row, col, -1.0);
                     b.push(th + sign * finite_or_zero(r));

@@ -180,6 +180,15 @@ impl Mpc {
         self.scratch.u_prev = u_prev;
         // The active-set solver first; Clarabel when it runs out of iterations or time, or
         // reports a numerical error. Its infeasibility is an answer (COTC's every bump).
+        // A Hessian that cannot be factored leaves Clarabel alone, as when the gain was set.
+        // (Before the clock starts: the factorisation was never part of the solve's time.)
+        if self
+            .condensed
+            .as_mut()
+            .is_some_and(|c| c.factor_hessian().is_err())
+        {
+            self.condensed = None;
+        }
         let started = Instant::now();
         let mut active_set_us = 0.0;
         if let Some(c) = self.condensed.as_mut() {

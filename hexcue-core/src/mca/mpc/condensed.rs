@@ -15,8 +15,17 @@
 //!
 //! P changes only with the washout gain, and it is affine in it. H(gain) = H₀ + gain·H_w is
 //! condensed once from P at gains 0 and 1 and checked at gain 2; a change of gain then costs
-//! an n_u × n_u sum and one Cholesky factorisation of that size. If the check fails (a
-//! cost that is not affine in the gain), every change of P is condensed in full instead.
+//! an n_u × n_u sum, and one Cholesky factorisation of that size at the next solve (not at
+//! every change: the S-MPC moves the gain of its free MPC at every step while it follows
+//! COTC without solving). If the check fails (a cost that is not affine in the gain), every
+//! change of P is condensed in full instead.
+//!
+//! What a step does not repeat (docs/performance.md, "The condensation, cached"): a row
+//! whose sparse entries are those of the last step keeps its condensed coefficients (only
+//! its bounds move with x̄), and the active set keeps its norm; and every product with Γ
+//! reads only the part of Γ's row that can be nonzero (a state depends on the inputs up to
+//! its interval, none on the slacks). The sums left out are sums of zeros, so the condensed
+//! QP is the same to the bit.
 
 use nalgebra::DMatrix;
 
@@ -95,16 +104,26 @@ pub struct CondensedQp {
     a_x_inv: DMatrix<f64>,
     /// Γ, row-major (state i's row at i·n_u).
     gamma: Vec<f64>,
+    /// `crate::qp::nonzero_span` of each of Γ's rows.
+    gamma_span: Vec<(usize, usize)>,
     x_bar: Vec<f64>,
     /// H₀ and H_w (column-major) when P is affine in the gain.
     h_affine: Option<(Vec<f64>, Vec<f64>)>,
     h: Vec<f64>,
+    /// `h` changed since the solver last factored it.
+    h_unfactored: bool,
     /// Rows of the sparse QP, the first `n_eq` equalities.
     m: usize,
     n_eq: usize,
     rows: Vec<RowMap>,
     n_eq_rows: usize,
     row_trips: Vec<usize>,
+    /// The column and value of each of `row_trips`' triplets when its row's coefficients
+    /// were last condensed; valid while `rows_condensed` (same layout, same Γ).
+    condensed_entries: Vec<(usize, u64)>,
+    rows_condensed: bool,
+    /// Rows the last solve condensed (the others kept theirs).
+    rows_condensed_last: usize,
     v: Vec<f64>,
     z: Vec<f64>,
     qp: ActiveSetQp,
@@ -154,14 +173,19 @@ impl CondensedQp {
             dyn_vals: Vec::new(),
             a_x_inv: DMatrix::zeros(0, 0),
             gamma: vec![0.0; n_x * n_u],
+            gamma_span: vec![(0, 0); n_x],
             x_bar: vec![0.0; n_x],
             h_affine: None,
             h: vec![0.0; n_u * n_u],
+            h_unfactored: true,
             m,
             n_eq,
             rows: Vec::new(),
             n_eq_rows: 0,
             row_trips: Vec::new(),
+            condensed_entries: Vec::new(),
+            rows_condensed: false,
+            rows_condensed_last: 0,
             v: Vec::new(),
             z: Vec::new(),
             qp: ActiveSetQp::new(n_u, 0),
@@ -185,7 +209,8 @@ impl CondensedQp {
         if affine {
             cq.h_affine = Some((h0, hw));
         }
-        cq.set_gain(gain, p_now)?;
+        cq.set_gain(gain, p_now);
+        cq.factor_hessian()?;
         Ok(cq)
     }
 
@@ -228,8 +253,10 @@ impl CondensedQp {
             for j in 0..n_u {
                 self.gamma[i * n_u + j] = gamma[(i, j)];
             }
+            self.gamma_span[i] = crate::qp::nonzero_span(&self.gamma[i * n_u..(i + 1) * n_u]);
         }
         self.a_x_inv = inv;
+        self.rows_condensed = false;
         Ok(())
     }
 
@@ -249,6 +276,8 @@ impl CondensedQp {
         }
         let mut next = count.clone();
         self.row_trips = vec![0; a.len()];
+        self.condensed_entries = vec![(usize::MAX, 0); a.len()];
+        self.rows_condensed = false;
         for (t, &r) in a.rows.iter().enumerate() {
             self.row_trips[next[r]] = t;
             next[r] += 1;
@@ -317,8 +346,9 @@ impl CondensedQp {
         out
     }
 
-    /// The Hessian for washout gain `gain`, with `p` P's upper triangle at that gain.
-    pub fn set_gain(&mut self, gain: f64, p: &Triplets) -> Result<(), CondenseError> {
+    /// The Hessian for washout gain `gain`, with `p` P's upper triangle at that gain. It is
+    /// factored by [`CondensedQp::factor_hessian`], or else by the next solve.
+    pub fn set_gain(&mut self, gain: f64, p: &Triplets) {
         match &self.h_affine {
             Some((h0, hw)) => {
                 for ((h, a), w) in self.h.iter_mut().zip(h0).zip(hw) {
@@ -327,7 +357,16 @@ impl CondensedQp {
             }
             None => self.h = self.condense_p(p),
         }
-        self.qp.set_hessian(&self.h)?;
+        self.h_unfactored = true;
+    }
+
+    /// Factors the Hessian last set, if it has not been: an error says it is not positive
+    /// definite (then every solve reports a numerical error until another is set).
+    pub fn factor_hessian(&mut self) -> Result<(), CondenseError> {
+        if self.h_unfactored {
+            self.h_unfactored = false;
+            self.qp.set_hessian(&self.h)?;
+        }
         Ok(())
     }
 
@@ -356,17 +395,19 @@ impl CondensedQp {
             }
             self.h_affine = None;
             self.h = self.condense_p(p);
-            if self.qp.set_hessian(&self.h).is_err() {
-                return QpStatus::NumericalError;
-            }
+            self.h_unfactored = true;
         }
-        // x̄ = A_x⁻¹ b_dyn, over b_dyn's nonzeros.
+        if self.factor_hessian().is_err() {
+            return QpStatus::NumericalError;
+        }
+        // x̄ = A_x⁻¹ b_dyn, over b_dyn's nonzeros (A_x⁻¹ column-major: column r contiguous).
         let (n_u, n_x) = (self.n_u, self.n_x);
         self.x_bar.fill(0.0);
+        let inv = self.a_x_inv.as_slice();
         for (r, &br) in b.iter().enumerate().take(n_x) {
             if br != 0.0 {
-                let col = self.a_x_inv.column(r);
-                for (x, c) in self.x_bar.iter_mut().zip(col.iter()) {
+                let col = &inv[r * n_x..(r + 1) * n_x];
+                for (x, c) in self.x_bar.iter_mut().zip(col) {
                     *x += br * c;
                 }
             }
@@ -392,8 +433,9 @@ impl CondensedQp {
             for i in 0..n_x {
                 let vx = self.v[self.x_cols[i]];
                 if vx != 0.0 {
-                    let row = &self.gamma[i * n_u..(i + 1) * n_u];
-                    for (gj, gam) in g.iter_mut().zip(row) {
+                    let (lo, hi) = gamma_span(&self.gamma_span, i, vx, n_u);
+                    let row = &self.gamma[i * n_u + lo..i * n_u + hi];
+                    for (gj, gam) in g[lo..hi].iter_mut().zip(row) {
                         *gj += vx * gam;
                     }
                 }
@@ -414,20 +456,34 @@ impl CondensedQp {
                 self.z[c] = u[j];
             }
             for i in 0..n_x {
-                let row = &self.gamma[i * n_u..(i + 1) * n_u];
-                self.z[self.x_cols[i]] = self.x_bar[i] + crate::qp::dot(row, u);
+                // The solution is finite (the solver checks): the span's dot is the whole's.
+                let (lo, hi) = self.gamma_span[i];
+                let row = &self.gamma[i * n_u + lo..i * n_u + hi];
+                self.z[self.x_cols[i]] = self.x_bar[i] + crate::qp::dot(row, &u[lo..hi]);
             }
         }
         status
     }
 
-    /// Writes every condensed row and its bounds; false if a pair is no longer opposite.
+    /// Writes every condensed row whose sparse entries changed, and every row's bounds; false
+    /// if a pair is no longer opposite.
     fn fill_rows(&mut self, a: &Triplets, b: &[f64]) -> bool {
         let n_u = self.n_u;
+        self.rows_condensed_last = 0;
         for k in 0..self.rows.len() {
             let m = self.rows[k];
             let len = m.end - m.start;
-            if m.paired {
+            // A pair's second row (right after the first in `row_trips`) is compared too.
+            let entries = m.start..if m.paired { m.end + len } else { m.end };
+            // Compared bit for bit, so that a kept row is exactly the one condensing would
+            // write (the solver keeps its coefficients, norm and span).
+            let unchanged = self.rows_condensed
+                && entries.clone().all(|j| {
+                    let t = self.row_trips[j];
+                    self.condensed_entries[j] == (a.cols[t], a.vals[t].to_bits())
+                });
+            // A pair kept is still opposite: it was when it was condensed.
+            if m.paired && !unchanged {
                 for j in 0..len {
                     let (t0, t1) = (self.row_trips[m.start + j], self.row_trips[m.end + j]);
                     if a.vals[t0] != -a.vals[t1] {
@@ -436,17 +492,32 @@ impl CondensedQp {
                 }
             }
             let mut shift = 0.0;
-            let out = self.qp.row_mut(k);
-            out.fill(0.0);
-            for &t in &self.row_trips[m.start..m.end] {
-                let val = a.vals[t];
-                match self.vars[a.cols[t]] {
-                    Var::Input(i) => out[i] += val,
-                    Var::State(i) => {
-                        shift += val * self.x_bar[i];
-                        let row = &self.gamma[i * n_u..(i + 1) * n_u];
-                        for (o, g) in out.iter_mut().zip(row) {
-                            *o += val * g;
+            if unchanged {
+                for &t in &self.row_trips[m.start..m.end] {
+                    if let Var::State(i) = self.vars[a.cols[t]] {
+                        shift += a.vals[t] * self.x_bar[i];
+                    }
+                }
+            } else {
+                self.rows_condensed_last += 1;
+                for j in entries {
+                    let t = self.row_trips[j];
+                    self.condensed_entries[j] = (a.cols[t], a.vals[t].to_bits());
+                }
+                let out = self.qp.row_mut(k);
+                out.fill(0.0);
+                for j in m.start..m.end {
+                    let t = self.row_trips[j];
+                    let val = a.vals[t];
+                    match self.vars[a.cols[t]] {
+                        Var::Input(i) => out[i] += val,
+                        Var::State(i) => {
+                            shift += val * self.x_bar[i];
+                            let (lo, hi) = gamma_span(&self.gamma_span, i, val, n_u);
+                            let row = &self.gamma[i * n_u + lo..i * n_u + hi];
+                            for (o, g) in out[lo..hi].iter_mut().zip(row) {
+                                *o += val * g;
+                            }
                         }
                     }
                 }
@@ -461,6 +532,7 @@ impl CondensedQp {
                 self.qp.set_bounds(k, f64::NEG_INFINITY, hi);
             }
         }
+        self.rows_condensed = true;
         true
     }
 
@@ -496,6 +568,18 @@ impl CondensedQp {
     }
 }
 
+/// The part of Γ's row `i` that a product with the factor `f` must read: its nonzero span, or
+/// the whole row when `f` is not finite (∞ · 0 is NaN, which the whole row then carries, as
+/// before the spans).
+#[inline]
+fn gamma_span(spans: &[(usize, usize)], i: usize, f: f64, n_u: usize) -> (usize, usize) {
+    if f.is_finite() {
+        spans[i]
+    } else {
+        (0, n_u)
+    }
+}
+
 /// ½zᵀPz + qᵀz for P's upper triangle `p`: the sparse QP's objective.
 pub fn sparse_objective(p: &Triplets, q: &[f64], z: &[f64]) -> f64 {
     let mut f: f64 = q.iter().zip(z).map(|(a, b)| a * b).sum();
@@ -508,4 +592,98 @@ pub fn sparse_objective(p: &Triplets, q: &[f64], z: &[f64]) -> f64 {
         };
     }
     f
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector3;
+
+    use super::super::{Mpc, Terminal};
+    use crate::mca::{CueInput, CueSample, PlatformCommand};
+    use crate::qp::{QpSettings, QpStatus};
+    use crate::testing::full_flight;
+
+    /// The condensed QP a step leaves in the MPC's solver, against the same step's sparse QP
+    /// condensed afresh by a new `CondensedQp`: every row's coefficients and bounds and the
+    /// gradient the same to the bit, though the kept solver wrote only the rows whose sparse
+    /// entries changed and reads Γ over its rows' nonzero spans; and the same solution (the
+    /// kept solver warm-started, with a Hessian factored lazily after gain changes, the new
+    /// one cold), to the solver's tolerance.
+    #[test]
+    fn kept_rows_are_the_rows_condensed_afresh() {
+        let p = full_flight().offline();
+        for terminal in [Terminal::Free, Terminal::Cotc] {
+            let params = match terminal {
+                Terminal::Cotc => p.cotc_params(),
+                Terminal::Free => p.mpc.clone(),
+            };
+            let mut mpc = Mpc::new(&params, &p.setting(), terminal).unwrap();
+            let mut applied = PlatformCommand::default();
+            let (mut kept_rows, mut changed_rows) = (0usize, 0usize);
+            for k in 0..60 {
+                let t = k as f64 * 0.01;
+                // A surge that reverses (the false-cue rows' signs flip), a roll rate, and
+                // every few steps a new washout gain (factored only when the MPC solves).
+                if k % 7 == 3 {
+                    mpc.set_washout_gain(1.0 + 0.5 * (k % 3) as f64);
+                    mpc.set_washout_gain(1.0 + 0.25 * (k % 5) as f64);
+                }
+                let sample = CueSample {
+                    delta_f_mps2: Vector3::new(2.0 * (6.0 * t).sin(), 0.3, -0.5 * t),
+                    angular_velocity_radps: Vector3::new(0.1 * (4.0 * t).cos(), 0.0, 0.05),
+                };
+                let input = CueInput {
+                    k,
+                    t_s: t,
+                    dt_s: 0.01,
+                    sample,
+                    preview: &[],
+                    applied: &applied,
+                    deadline: None,
+                };
+                let out = mpc.solve(&input);
+                applied = out.command;
+                let mut fresh = mpc.condense().expect("condenses");
+                let kept = mpc.condensed.as_ref().expect("condensed");
+                let settings = QpSettings::default();
+                let status = fresh.solve(&mpc.p_trip, &mpc.q, &mpc.a_trip, &mpc.b, &settings);
+                let (a, b) = (&kept.qp, &fresh.qp);
+                assert_eq!(a.n_rows(), b.n_rows());
+                let (eq, ineq) = a.n_rows();
+                for r in 0..eq + ineq {
+                    let same = |x: &[f64], y: &[f64]| {
+                        x.iter().zip(y).all(|(u, v)| u.to_bits() == v.to_bits())
+                    };
+                    assert!(same(a.row(r), b.row(r)), "{terminal:?} step {k} row {r}");
+                    let (lo_a, hi_a) = a.bounds(r);
+                    let (lo_b, hi_b) = b.bounds(r);
+                    assert_eq!(lo_a.to_bits(), lo_b.to_bits(), "step {k} row {r} lo");
+                    assert_eq!(hi_a.to_bits(), hi_b.to_bits(), "step {k} row {r} hi");
+                }
+                let same_g = (a.gradient().iter())
+                    .zip(b.gradient())
+                    .all(|(u, v)| u.to_bits() == v.to_bits());
+                assert!(same_g, "{terminal:?} step {k}: gradient");
+                if out.report.status == crate::mca::SolveStatus::Solved {
+                    assert_eq!(status, QpStatus::Solved, "{terminal:?} step {k}");
+                    let dz = kept
+                        .z()
+                        .iter()
+                        .zip(fresh.z())
+                        .map(|(u, v)| (u - v).abs())
+                        .fold(0.0, f64::max);
+                    assert!(dz < 1e-7, "{terminal:?} step {k}: solutions differ by {dz}");
+                }
+                // The fresh one condensed every row; the kept one, after its first step, only
+                // some (the legs' linearisation moves every step, the excursions' rows never).
+                assert_eq!(fresh.rows_condensed_last, eq + ineq);
+                if k > 0 {
+                    changed_rows += kept.rows_condensed_last;
+                    kept_rows += eq + ineq - kept.rows_condensed_last;
+                }
+            }
+            assert!(kept_rows > 0, "{terminal:?}: no row kept");
+            assert!(changed_rows > 0, "{terminal:?}: no row condensed again");
+        }
+    }
 }

@@ -420,10 +420,10 @@ impl Mpc {
         }
         self.washout_gain = gain;
         self.assemble_p();
+        // Factored when this MPC next solves (`solve_qp`): a controller in standby follows the
+        // gain without paying for a factorisation at every step.
         if let Some(c) = self.condensed.as_mut() {
-            if c.set_gain(gain, &self.p_trip).is_err() {
-                self.condensed = None;
-            }
+            c.set_gain(gain, &self.p_trip);
         }
         // Clarabel's copy follows when Clarabel next solves (`update_clarabel_p`).
         self.clarabel_p_stale = true;

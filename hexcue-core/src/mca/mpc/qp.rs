@@ -22,6 +22,13 @@ impl Triplets {
         self.vals.clear();
     }
 
+    /// Keeps the first `len` entries, and their capacity.
+    pub fn truncate(&mut self, len: usize) {
+        self.rows.truncate(len);
+        self.cols.truncate(len);
+        self.vals.truncate(len);
+    }
+
     /// Adds `val` at (`row`, `col`).
     pub fn push(&mut self, row: usize, col: usize, val: f64) {
         self.rows.push(row);

@@ -1,6 +1,9 @@
 //! The MPC step's kept intermediate vectors, so that a step allocates nothing (issue 37).
 
-use super::*;
+use nalgebra::{DMatrix, DVector, Vector6};
+
+use super::cache::PredictionCache;
+use super::model::{NU, NX};
 
 /// The step's intermediate vectors, kept between steps. Each product is computed into one
 /// of these with nalgebra's `gemv`/`gemm`, the same arithmetic as the operators it replaces,
@@ -47,6 +50,12 @@ pub(super) struct Scratch {
     pub(super) perceived: DMatrix<f64>,
     /// `structure` and `perceived` hold their values.
     pub(super) hessians_ready: bool,
+    /// `assemble_a`: how many of A's first entries are the dynamics' (fixed with the models,
+    /// kept from one assembly to the next); 0 before the first.
+    pub(super) dynamics_entries: usize,
+    /// The nonzeros (state, value) of each row of the perceived motion's C, in column order:
+    /// the false-cue and dead-zone rows' entries.
+    pub(super) perceived_c_entries: Vec<Vec<(usize, f64)>>,
 }
 
 impl Default for Scratch {
@@ -80,6 +89,8 @@ impl Default for Scratch {
             c_t_q: m(),
             perceived: m(),
             hessians_ready: false,
+            dynamics_entries: 0,
+            perceived_c_entries: Vec::new(),
         }
     }
 }
@@ -115,6 +126,15 @@ impl Scratch {
             c_t_q: DMatrix::zeros(NX, n_out),
             perceived: DMatrix::zeros(NX, NX),
             hessians_ready: false,
+            dynamics_entries: 0,
+            perceived_c_entries: (0..n_out)
+                .map(|c| {
+                    (0..NX)
+                        .map(|k| (k, cache.perceived_c[(c, k)]))
+                        .filter(|&(_, v)| v != 0.0)
+                        .collect()
+                })
+                .collect(),
         }
     }
 }
