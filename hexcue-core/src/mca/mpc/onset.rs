@@ -187,22 +187,43 @@ impl OnsetGuard {
     }
 }
 
+/// The inputs that are angular rates: the only ones the head signal is quadratic in.
+const RATE_INPUTS: [usize; 5] = [
+    input::TILT_ROLL_RATE,
+    input::TILT_PITCH_RATE,
+    input::ROT_ROLL_RATE,
+    input::ROT_PITCH_RATE,
+    input::ROT_YAW_RATE,
+];
+
 /// The next command's head signal, s(u₀) ≈ s(u_lin) + J (u₀ − u_lin): `command` maps an input
 /// to the command it issues (pose and translational velocity fixed, the rates and
-/// accelerations from the input, the angular acceleration over one trace step). J by central
-/// differences, exact for the terms linear and quadratic in the input, which are all of them
-/// but the rotation's own nonlinearity through the pose (fixed here).
+/// accelerations from the input, the angular acceleration over one trace step). s(u_lin) is
+/// exact; J is the gradient at u_lin with its rates at zero (central differences), which is
+/// the gradient of every term but the centripetal ω × (ω × r), quadratic in the input like the Euler-rate matrix's change Ė·η̇ (the pose's own nonlinearity is fixed here).
+/// Those are kept at their value at u_lin rather than linearised there: the centripetal
+/// term's gradient, 2·ω_lin·|r| in size, would let the QP buy one
+/// channel's onset with a rate the plan does not otherwise want (yawing to lighten a braking's
+/// surge onset), and re-linearised the next step at the rate it bought, buy more: on the 737
+/// rejected take-off with preview the S-MPC yawed 0.5 rad and swayed 0.4 m on a flight with
+/// neither (docs/mpc.md, "Preview against causal"). Frozen, the error is their change over one
+/// step, of the order of (|ω₀| + |ω_lin|)·|ω₀ − ω_lin|·|r|, and the first move's rate change is
+/// bounded by the angular-acceleration limit × one step.
 pub(super) fn linearise(
     command: impl Fn(&[f64; NU]) -> PlatformCommand,
     u_lin: &[f64; NU],
     eye_m: &Vector3<f64>,
 ) -> (HeadSignal, nalgebra::SMatrix<f64, 6, NU>) {
     let s0 = head_signal(&command(u_lin), eye_m);
+    let mut at = *u_lin;
+    for k in RATE_INPUTS {
+        at[k] = 0.0;
+    }
     let mut jac = nalgebra::SMatrix::<f64, 6, NU>::zeros();
     const H: f64 = 1e-4;
     for k in 0..NU {
-        let mut up = *u_lin;
-        let mut down = *u_lin;
+        let mut up = at;
+        let mut down = at;
         up[k] += H;
         down[k] -= H;
         let (a, b) = (
@@ -293,16 +314,58 @@ mod tests {
         let exact = head_signal(&command(&u), &s.eye_point_m);
         let du = nalgebra::SVector::<f64, NU>::from_fn(|k, _| u[k] - u_lin[k]);
         let lin = jac * du;
+        // The terms quadratic in the rates (the centripetal ω × (ω × r) and the Euler-rate
+        // matrix's change Ė·η̇ in α × r) are held at u_lin: the error is their change, each at
+        // most (|η̇₀| + |η̇₁|)·|Δη̇|·|r| near level (|E| ≈ 1), and with the rate change's own
+        // square, three of it bound the error; the rest is linear in the input.
+        let (w0, w1) = (total_rates(&u_lin), total_rates(&u));
+        let bound = 3.0 * (w0.norm() + w1.norm()) * (w1 - w0).norm() * s.eye_point_m.norm();
         for c in 0..6 {
-            // The rate change is 0.5 rad/s² × 1.2 m at most here: the quadratic terms are
-            // (rate change)² × 1.2 m, under 1e-4.
             assert!(
-                (s0[c] + lin[c] - exact[c]).abs() < 1e-4,
+                (s0[c] + lin[c] - exact[c]).abs() <= bound + 1e-9,
                 "channel {c}: {} vs {}",
                 s0[c] + lin[c],
                 exact[c]
             );
         }
+    }
+
+    fn total_rates(u: &[f64; NU]) -> Vector3<f64> {
+        Vector3::new(
+            u[input::TILT_ROLL_RATE] + u[input::ROT_ROLL_RATE],
+            u[input::TILT_PITCH_RATE] + u[input::ROT_PITCH_RATE],
+            u[input::ROT_YAW_RATE],
+        )
+    }
+
+    #[test]
+    fn a_rate_does_not_feed_its_own_gain() {
+        // At rest but for a yaw rate w, with the eye at r = (0, 0, −1.2 m): by hand the
+        // centripetal term ω × (ω × r) = (0, 0, 0) for ω ∥ z and r ∥ z, so take the eye off
+        // the axis, r = (0.5, 0, −1.2): ω × (ω × r) = (−w²·0.5, 0, 0), whose gradient in w is
+        // −w (surge at the head per yaw rate, 2·0.5·w). Linearised at w = 0.6, the surge gain
+        // on the yaw rate must be that of w = 0, α × r alone: α = Δw/dt about z gives
+        // (0, 0.5, 0)/dt, no surge.
+        let eye = Vector3::new(0.5, 0.0, -1.2);
+        let pose = Vector6::zeros();
+        let vel = Vector3::zeros();
+        let prev = Vector3::zeros();
+        let dt = 0.01;
+        let command = |u: &[f64; NU]| command_of(&pose, &vel, &prev, u, dt);
+        let mut u_lin = [0.0; NU];
+        u_lin[input::ROT_YAW_RATE] = 0.6;
+        let (s0, jac) = linearise(command, &u_lin, &eye);
+        let yaw = input::ROT_YAW_RATE;
+        assert!(
+            jac[(0, yaw)].abs() < 1e-6,
+            "surge per yaw rate {}",
+            jac[(0, yaw)]
+        );
+        assert!((jac[(1, yaw)] - 0.5 / dt).abs() < 1e-6, "{}", jac[(1, yaw)]);
+        // The centripetal term itself is in s0: −0.6²·0.5 = −0.18 m/s² of surge, beside the
+        // yaw acceleration's 0.6/dt·0.5 of sway.
+        assert!((s0[0] + 0.18).abs() < 1e-9, "{s0:?}");
+        assert!((s0[1] - 0.6 / dt * 0.5).abs() < 1e-9, "{s0:?}");
     }
 
     #[test]

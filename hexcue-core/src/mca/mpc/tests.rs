@@ -71,9 +71,15 @@ fn qp_is_small_and_the_horizon_long_enough() {
     let mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
     let (nv, neq, nin) = mpc.qp_size();
     // Inputs and states per interval, and a false-cue slack per guarded channel and interval.
+    // And an onset slack per priced channel, the next command's only.
     let guarded = p.mpc.false_cue_weight.iter().filter(|w| **w > 0.0).count();
     assert!(guarded > 0, "the default profile guards against false cues");
-    assert_eq!((nv, neq), (6 * (NU + NX + guarded), 6 * NX));
+    let onset = p.mpc.onset_weight.iter().filter(|w| **w > 0.0).count();
+    assert_eq!(
+        onset, 6,
+        "the default profile prices the onset on every channel"
+    );
+    assert_eq!((nv, neq), (6 * (NU + NX + guarded) + onset, 6 * NX));
     assert!(nin > 0);
     assert!(mpc.horizon_s() >= 1.5);
     let cotc = Mpc::new(&p.mpc, &p.setting(), Terminal::Cotc).unwrap();
@@ -85,8 +91,10 @@ fn first_move_equals_the_dense_kkt_optimum_when_no_constraint_is_active() {
     let mut p = full_flight();
     p.mpc.tolerance = 1e-9;
     // The false-cue slacks rest on their bound σ ≥ 0 at any optimum without a false cue: an
-    // active row by construction. This test is about the tracking cost, so without them.
+    // active row by construction. This test is about the tracking cost, so without them, and
+    // without the onset rows (shipped on), which bind whenever the first move's onset would.
     p.mpc.false_cue_weight = [0.0; 6];
+    p.mpc.onset_weight = [0.0; 6];
     let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
     // A gentle motion, so that every limit stays far away, and a state away from rest.
     let input = |t: f64| sample([0.3 * (0.5 * t).sin(), 0.2, 0.1], [0.02, -0.01, 0.03]);
@@ -1008,6 +1016,8 @@ fn threshold_weights_price_each_channel_per_threshold() {
 fn with_dead_zone(weight: f64) -> Profile {
     let mut p = full_flight();
     p.mpc.dead_zone_weight = [weight; 6];
+    // The dead zone alone: the onset rows (shipped on) have their own slacks and tests.
+    p.mpc.onset_weight = [0.0; 6];
     p
 }
 
