@@ -882,7 +882,12 @@ fn agree_on_trace(p: &Profile, name: &str, samples: &[CueSample], terminal: Term
     );
     assert!(solved > samples.len() / 2, "{summary}");
     assert!(fallback * 1000 <= samples.len(), "{summary}");
-    assert!(flat * 1000 <= samples.len(), "{summary}");
+    // Flat optima: with the onset rows on (shipped since session 17) their slacks are priced
+    // linearly, and the objective can be flat along a slack and an input together; the
+    // stall's COTC then has 22 of 5,500 (0.4 %), each with the active set's objective at or
+    // below Clarabel's (asserted above). At most 1 %: more would say that Clarabel's
+    // reference no longer tells the answers apart, and the test no longer checks much.
+    assert!(flat * 100 <= samples.len(), "{summary}");
     summary
 }
 
