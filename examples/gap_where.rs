@@ -106,6 +106,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             rep.total,
             rep.error.map(|e| (e * 1e4).round() / 1e4)
         );
+        if rep.commands.is_empty() {
+            println!("  (unsolved)");
+            continue;
+        }
         if best.as_ref().is_none_or(|b| rep.total < b.1) {
             best = Some((label, rep.total, rep.issued.clone()));
         }

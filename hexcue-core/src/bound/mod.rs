@@ -679,7 +679,7 @@ pub const ACHIEVED_SEQUENCES: [Sequence; 4] = [
         inset_m: LEG_INSETS_M[0],
         relinearise_head: true,
         lookahead: Lookahead::Path,
-        passes: 7,
+        passes: 6,
         trust_from: 5,
     },
 ];
@@ -711,17 +711,13 @@ fn legs_sequence(
     let mut velocities: Option<Vec<Vector6<f64>>> = None;
     let mut head: Option<Vec<HeadRows>> = None;
     let mut out = Vec::new();
-    let label = |i: usize| {
+    let label = |i: usize, trusted: bool| {
         let look = match seq.lookahead {
             Lookahead::StopPoint if i > 1 => " (braking)",
             Lookahead::Path if i > 1 => " (braking path)",
             _ => "",
         };
-        let trusted = if seq.trust_from > 0 && i >= seq.trust_from {
-            " in a trust region"
-        } else {
-            ""
-        };
+        let trusted = if trusted { " in a trust region" } else { "" };
         format!(
             "legs{look}{} linearised {i}× at {:.0} mm inset{trusted}",
             if seq.relinearise_head && i > 1 {
@@ -737,38 +733,49 @@ fn legs_sequence(
     for iteration in 1..=seq.passes {
         // The first pass is the shared one when given (`achieved_with_legs`).
         let shared = iteration == 1 && first.is_some();
+        let radius: Vector6<f64> = coarse.limits.excursion * TRUST_FRACTION;
+        let solve_pass = |trusted: bool| {
+            let rows = leg_rows(
+                profile,
+                &poses,
+                if seq.lookahead == Lookahead::StopPoint {
+                    velocities.as_deref()
+                } else {
+                    None
+                },
+                &coarse.limits,
+            );
+            let mut prog = coarse.programme(&all, &all, &all, None);
+            // A hair inside the boxes, so that rounding never makes the limiter act.
+            prog.box_scale = 1.0 - 1e-6;
+            prog.legs = Some((&rows, lo, hi));
+            prog.head = head.as_deref();
+            prog.node_rows = Some(&node_rows);
+            if trusted {
+                prog.trust = Some((&poses, radius));
+            }
+            prog.solve()
+        };
+        let solved =
+            |s: &Solution| matches!(s.status, SolverStatus::Solved | SolverStatus::AlmostSolved);
+        let mut trusted = seq.trust_from > 0 && iteration >= seq.trust_from;
         let sol = match first.take().filter(|_| iteration == 1) {
             Some(sol) => sol,
             None => {
-                let rows = leg_rows(
-                    profile,
-                    &poses,
-                    if seq.lookahead == Lookahead::StopPoint {
-                        velocities.as_deref()
-                    } else {
-                        None
-                    },
-                    &coarse.limits,
-                );
-                let mut prog = coarse.programme(&all, &all, &all, None);
-                // A hair inside the boxes, so that rounding never makes the limiter act.
-                prog.box_scale = 1.0 - 1e-6;
-                prog.legs = Some((&rows, lo, hi));
-                prog.head = head.as_deref();
-                prog.node_rows = Some(&node_rows);
-                let radius: Vector6<f64> = coarse.limits.excursion * TRUST_FRACTION;
-                if seq.trust_from > 0 && iteration >= seq.trust_from {
-                    prog.trust = Some((&poses, radius));
+                let sol = solve_pass(trusted);
+                // A pass that ends unsolved (the legs linearised about an answer that moved
+                // far) is tried again in the trust region about that answer.
+                if !solved(&sol) && !trusted && iteration > 1 && seq.trust_from > 0 {
+                    trusted = true;
+                    solve_pass(true)
+                } else {
+                    sol
                 }
-                prog.solve()
             }
         };
-        if !matches!(
-            sol.status,
-            SolverStatus::Solved | SolverStatus::AlmostSolved
-        ) {
+        if !solved(&sol) {
             if !shared || emit_first {
-                out.push((label(iteration), replay(profile, trace, &[]), sol));
+                out.push((label(iteration, trusted), replay(profile, trace, &[]), sol));
             }
             break;
         }
@@ -796,7 +803,7 @@ fn legs_sequence(
             head = Some(head_rows(&sol, &setup.eye_m));
         }
         if let Some(r) = r {
-            out.push((label(iteration), r, sol));
+            out.push((label(iteration, trusted), r, sol));
         }
     }
     out
