@@ -369,6 +369,7 @@ impl Setup {
             node_rows: None,
             pose_cost: 0.0,
             residual: self.residual,
+            trust: None,
         }
     }
 }
@@ -564,15 +565,53 @@ pub const ACHIEVED_GRID: usize = 5;
 /// linearised about neutral and then about the previous answer's poses, one sequence of
 /// passes per entry of `ACHIEVED_SEQUENCES`. Every answer is replayed at the full rate;
 /// returns them all (label, replay, programme).
+///
+/// The first pass depends on the inset alone (no head rows, braking rows or trust region yet),
+/// so it is solved once per inset and shared by the sequences of that inset, and returned
+/// once.
 pub fn achieved_with_legs(
     profile: &Profile,
     trace: &Trace,
     setup: &Setup,
 ) -> Vec<(String, Replayed, Solution)> {
+    let mut insets: Vec<f64> = Vec::new();
+    for seq in &ACHIEVED_SEQUENCES {
+        if !insets.contains(&seq.inset_m) {
+            insets.push(seq.inset_m);
+        }
+    }
+    let coarse = setup.coarse(profile, ACHIEVED_GRID);
+    let firsts: Vec<Solution> = insets
+        .par_iter()
+        .map(|&inset_m| first_pass(profile, &coarse, inset_m))
+        .collect();
     ACHIEVED_SEQUENCES
         .par_iter()
-        .flat_map_iter(|seq| legs_sequence(profile, trace, setup, seq))
+        .enumerate()
+        .flat_map_iter(|(i, seq)| {
+            let at = insets.iter().position(|&m| m == seq.inset_m);
+            let first = at.map(|a| firsts[a].clone());
+            let owner = ACHIEVED_SEQUENCES
+                .iter()
+                .position(|s| s.inset_m == seq.inset_m)
+                == Some(i);
+            legs_sequence(profile, trace, setup, seq, first, owner)
+        })
         .collect()
+}
+
+/// The achieved programme's first pass at an inset: the legs linearised about neutral.
+fn first_pass(profile: &Profile, coarse: &Setup, inset_m: f64) -> Solution {
+    let g = &profile.geometry;
+    let margin = profile.limiter.leg_margin_m + inset_m;
+    let poses = vec![Vector6::zeros(); coarse.reference[0].len()];
+    let rows = leg_rows(profile, &poses, None, &coarse.limits);
+    let all: Vec<usize> = (0..6).collect();
+    let mut prog = coarse.programme(&all, &all, &all, None);
+    // A hair inside the boxes, so that rounding never makes the limiter act.
+    prog.box_scale = 1.0 - 1e-6;
+    prog.legs = Some((&rows, g.leg_min_m + margin, g.leg_max_m - margin));
+    prog.solve()
 }
 
 /// How a sequence of the achieved programme keeps its motion where the workspace limiter's
@@ -601,7 +640,17 @@ pub struct Sequence {
     pub lookahead: Lookahead,
     /// Passes (the first about neutral).
     pub passes: usize,
+    /// From this pass on (0: never) each pass keeps its poses within a trust region about the
+    /// previous answer's, `TRUST_FRACTION` of each DoF's excursion: the legs and the head it
+    /// linearised there are then accurate to second order in that radius, so that the plan's
+    /// own poses stay in the stroke (docs/bound.md, "`achieved`").
+    pub trust_from: usize,
 }
+
+/// Radius of the achieved programme's trust region per DoF, as a share of its excursion
+/// (`Sequence::trust_from`): 3 % is 51 mm of surge on the full-flight platform, where a leg of
+/// 1.5 m is off its tangent by under a millimetre, inside every inset.
+pub const TRUST_FRACTION: f64 = 0.03;
 
 /// The sequences of the achieved programme (docs/bound.md, "`achieved`").
 pub const ACHIEVED_SEQUENCES: [Sequence; 4] = [
@@ -610,24 +659,28 @@ pub const ACHIEVED_SEQUENCES: [Sequence; 4] = [
         relinearise_head: true,
         lookahead: Lookahead::None,
         passes: LEG_ITERATIONS,
+        trust_from: 0,
     },
     Sequence {
         inset_m: LEG_INSETS_M[1],
         relinearise_head: true,
         lookahead: Lookahead::None,
-        passes: LEG_ITERATIONS,
+        passes: LEG_ITERATIONS + 2,
+        trust_from: LEG_ITERATIONS + 1,
     },
     Sequence {
         inset_m: LEG_INSETS_M[0],
         relinearise_head: true,
         lookahead: Lookahead::StopPoint,
         passes: LEG_ITERATIONS,
+        trust_from: 0,
     },
     Sequence {
         inset_m: LEG_INSETS_M[0],
         relinearise_head: true,
         lookahead: Lookahead::Path,
         passes: 6,
+        trust_from: 5,
     },
 ];
 
@@ -636,6 +689,8 @@ fn legs_sequence(
     trace: &Trace,
     setup: &Setup,
     seq: &Sequence,
+    mut first: Option<Solution>,
+    emit_first: bool,
 ) -> Vec<(String, Replayed, Solution)> {
     let g = &profile.geometry;
     let inset_m = seq.inset_m;
@@ -656,14 +711,15 @@ fn legs_sequence(
     let mut velocities: Option<Vec<Vector6<f64>>> = None;
     let mut head: Option<Vec<HeadRows>> = None;
     let mut out = Vec::new();
-    let label = |i: usize| {
+    let label = |i: usize, trusted: bool| {
         let look = match seq.lookahead {
             Lookahead::StopPoint if i > 1 => " (braking)",
             Lookahead::Path if i > 1 => " (braking path)",
             _ => "",
         };
+        let trusted = if trusted { " in a trust region" } else { "" };
         format!(
-            "legs{look}{} linearised {i}× at {:.0} mm inset",
+            "legs{look}{} linearised {i}× at {:.0} mm inset{trusted}",
             if seq.relinearise_head && i > 1 {
                 " and head"
             } else {
@@ -675,33 +731,59 @@ fn legs_sequence(
     let path_margin = profile.limiter.leg_margin_m + PATH_INSET_M;
     let path_stroke = (g.leg_min_m + path_margin, g.leg_max_m - path_margin);
     for iteration in 1..=seq.passes {
-        let rows = leg_rows(
-            profile,
-            &poses,
-            if seq.lookahead == Lookahead::StopPoint {
-                velocities.as_deref()
-            } else {
-                None
-            },
-            &coarse.limits,
-        );
-        let mut prog = coarse.programme(&all, &all, &all, None);
-        // A hair inside the boxes, so that rounding never makes the limiter act.
-        prog.box_scale = 1.0 - 1e-6;
-        prog.legs = Some((&rows, lo, hi));
-        prog.head = head.as_deref();
-        prog.node_rows = Some(&node_rows);
-        let sol = prog.solve();
-        if !matches!(
-            sol.status,
-            SolverStatus::Solved | SolverStatus::AlmostSolved
-        ) {
-            out.push((label(iteration), replay(profile, trace, &[]), sol));
+        // The first pass is the shared one when given (`achieved_with_legs`).
+        let shared = iteration == 1 && first.is_some();
+        let radius: Vector6<f64> = coarse.limits.excursion * TRUST_FRACTION;
+        let solve_pass = |trusted: bool| {
+            let rows = leg_rows(
+                profile,
+                &poses,
+                if seq.lookahead == Lookahead::StopPoint {
+                    velocities.as_deref()
+                } else {
+                    None
+                },
+                &coarse.limits,
+            );
+            let mut prog = coarse.programme(&all, &all, &all, None);
+            // A hair inside the boxes, so that rounding never makes the limiter act.
+            prog.box_scale = 1.0 - 1e-6;
+            prog.legs = Some((&rows, lo, hi));
+            prog.head = head.as_deref();
+            prog.node_rows = Some(&node_rows);
+            if trusted {
+                prog.trust = Some((&poses, radius));
+            }
+            prog.solve()
+        };
+        let solved =
+            |s: &Solution| matches!(s.status, SolverStatus::Solved | SolverStatus::AlmostSolved);
+        let mut trusted = seq.trust_from > 0 && iteration >= seq.trust_from;
+        let sol = match first.take().filter(|_| iteration == 1) {
+            Some(sol) => sol,
+            None => {
+                let sol = solve_pass(trusted);
+                // A pass that ends unsolved (the legs linearised about an answer that moved
+                // far) is tried again in the trust region about that answer.
+                if !solved(&sol) && !trusted && iteration > 1 && seq.trust_from > 0 {
+                    trusted = true;
+                    solve_pass(true)
+                } else {
+                    sol
+                }
+            }
+        };
+        if !solved(&sol) {
+            if !shared || emit_first {
+                out.push((label(iteration, trusted), replay(profile, trace, &[]), sol));
+            }
             break;
         }
-        let steps = expand(&sol, ACHIEVED_GRID, trace.len(), setup.dt_s);
-        let cmds = clamp_commands(&steps, &setup.limits);
-        let r = replay(profile, trace, &cmds);
+        let emit = !shared || emit_first;
+        let r = emit.then(|| {
+            let steps = expand(&sol, ACHIEVED_GRID, trace.len(), setup.dt_s);
+            replay(profile, trace, &clamp_commands(&steps, &setup.limits))
+        });
         poses = sol.pose.clone();
         velocities = Some(sol.velocity.clone());
         if seq.lookahead == Lookahead::Path {
@@ -720,7 +802,9 @@ fn legs_sequence(
         if seq.relinearise_head {
             head = Some(head_rows(&sol, &setup.eye_m));
         }
-        out.push((label(iteration), r, sol));
+        if let Some(r) = r {
+            out.push((label(iteration, trusted), r, sol));
+        }
     }
     out
 }

@@ -199,6 +199,10 @@ pub struct Programme<'a> {
     /// `envelope::residual_box` the programme contains the exact head model's inputs of every
     /// motion in the boxes (the valid relaxation of docs/bound.md).
     pub residual: Option<[[f64; 2]; 6]>,
+    /// Optional trust region: per grid step a pose p̄_k and per DoF a radius r, so that
+    /// |p_k,d − p̄_k,d| ≤ r_d. Keeps a pass of the sequential programme where the legs and the
+    /// head it linearised about p̄ are accurate (docs/bound.md, "`achieved`").
+    pub trust: Option<(&'a [Vector6<f64>], Vector6<f64>)>,
 }
 
 /// The programme's answer.
@@ -318,6 +322,11 @@ impl Programme<'_> {
                     let b = bound * self.box_scale;
                     ineq.row(&[(col, 1.0)], b);
                     ineq.row(&[(col, -1.0)], b);
+                }
+                if let Some((centre, radius)) = self.trust {
+                    let col = dof_col(k, j, 0);
+                    ineq.row(&[(col, 1.0)], centre[k][d] + radius[d]);
+                    ineq.row(&[(col, -1.0)], radius[d] - centre[k][d]);
                 }
                 if per_dof == 4 {
                     let scale = 1.0 / bounds[0].max(1e-9);

@@ -195,6 +195,50 @@ fn a_sustained_heave_is_cued_at_onset_and_the_rest_is_uncueable() {
 }
 
 #[test]
+fn a_trust_region_about_neutral_is_the_excursion_box_of_its_radius() {
+    // Two formulations of one programme: heave held within 2 cm of neutral by the trust
+    // region, and heave's excursion box set to 2 cm. Same optimum, every pose inside.
+    let profile = full_flight();
+    let trace = trace_of(600, |t| {
+        (
+            Vector3::new(0.0, 0.0, 2.0 * (3.0 * t).sin()),
+            Vector3::zeros(),
+        )
+    });
+    let setup = Setup::new(&profile, &trace).unwrap();
+    let r = 0.02;
+    let free = setup.programme(&[2], &[2], &[2], None).solve();
+    let centre = vec![Vector6::zeros(); trace.len()];
+    let mut trusted = setup.programme(&[2], &[2], &[2], None);
+    let radius = Vector6::from_element(r);
+    trusted.trust = Some((&centre, radius));
+    let trusted = trusted.solve();
+    let mut boxed = setup.programme(&[2], &[2], &[2], None);
+    boxed.limits.excursion[2] = r;
+    let boxed = boxed.solve();
+    assert!(trusted.pose.iter().all(|p| p[2].abs() <= r + 1e-7));
+    assert!(
+        (trusted.objective - boxed.objective).abs() < 1e-6 * (1.0 + boxed.objective),
+        "{} vs {}",
+        trusted.objective,
+        boxed.objective
+    );
+    // A heave of 2 m/s² at 3 rad/s needs 0.22 m of stroke: 2 cm is a real restriction.
+    assert!(trusted.objective > free.objective + 1e-3);
+    // About a moving centre (the free answer) with a radius of 5 mm: within it everywhere,
+    // and at least as good as the centre itself is under the same model.
+    let mut about = setup.programme(&[2], &[2], &[2], None);
+    about.trust = Some((&free.pose, Vector6::from_element(0.005)));
+    let about = about.solve();
+    assert!(about
+        .pose
+        .iter()
+        .zip(&free.pose)
+        .all(|(p, c)| (p[2] - c[2]).abs() <= 0.005 + 1e-7));
+    assert!((about.objective - free.objective).abs() < 1e-6 * (1.0 + free.objective));
+}
+
+#[test]
 fn the_head_linearised_at_neutral_is_the_relaxations_model() {
     // An independent derivation of the relaxation's input rows: `head_motion` differentiated
     // numerically at rest must give `input_coefficients`, at the shipped eye point and one
