@@ -217,7 +217,7 @@ const MAX_DRIVES: usize = 4;
 /// asked for; the command moves from the old lane's to the new lane's along a [`Blend`].
 /// A switch while another still blends in blends from that blended command: the command is
 /// lane₀ mixed in turn with each newer lane by its own blend, and a lane whose blend is done
-/// makes every older one unheard. Beyond [`MAX_DRIVES`] lanes the oldest is cut short (a
+/// makes every older one unheard. Beyond `MAX_DRIVES` (4) lanes the oldest is cut short (a
 /// step in what the algorithms ask, which the hand-over stage after it still keeps within
 /// its bounds). No allocation: fixed arrays.
 #[derive(Clone, Debug)]
