@@ -209,6 +209,10 @@ impl Mpc {
                     return Some(Input::from_column_slice(&z[0..NU]));
                 }
                 QpStatus::Infeasible => return None,
+                // The step's deadline has passed: Clarabel would be given no time and stop
+                // at iteration 0 with the same status, after allocating inside the crate on
+                // the stepping thread (tests/live_alloc.rs met it on a loaded machine).
+                QpStatus::MaxTime => return None,
                 _ => {}
             }
         }
