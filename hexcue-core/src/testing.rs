@@ -48,3 +48,17 @@ pub fn manoeuvre() -> Trace {
         notices: vec![],
     }
 }
+
+/// The text of a native trace of `n` rows at 100 Hz, row k with fx = k / 10 and every other
+/// column constant: the parser's tests in this crate and the application's file tests.
+pub fn native_trace_text(n: usize) -> String {
+    let mut s = format!("{}\n", crate::trace::text::NATIVE_HEADER);
+    for k in 0..n {
+        s += &format!(
+            "{:.2},{},0.1,-9.81,0.01,-0.02,0.03,0.1,0.2,0.3\n",
+            k as f64 / 100.0,
+            k as f64 / 10.0
+        );
+    }
+    s
+}

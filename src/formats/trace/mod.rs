@@ -229,18 +229,7 @@ fn read_sidecar(path: &Path, trace: &mut Trace, measured_rate_hz: f64) {
 mod tests {
     use super::*;
 
-    /// A native trace of `n` rows at 100 Hz; row k has fx = k / 10.
-    fn native(n: usize) -> String {
-        let mut s = format!("{NATIVE_HEADER}\n");
-        for k in 0..n {
-            s += &format!(
-                "{:.2},{},0.1,-9.81,0.01,-0.02,0.03,0.1,0.2,0.3\n",
-                k as f64 / 100.0,
-                k as f64 / 10.0
-            );
-        }
-        s
-    }
+    use hexcue_core::testing::native_trace_text as native;
 
     fn shipped(name: &str) -> std::path::PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -6,18 +6,7 @@ use std::f64::consts::{PI, TAU};
 
 const RATE: f64 = 100.0;
 
-/// A native trace of `n` rows at 100 Hz; row k has fx = k / 10.
-fn native(n: usize) -> String {
-    let mut s = format!("{NATIVE_HEADER}\n");
-    for k in 0..n {
-        s += &format!(
-            "{:.2},{},0.1,-9.81,0.01,-0.02,0.03,0.1,0.2,0.3\n",
-            k as f64 / 100.0,
-            k as f64 / 10.0
-        );
-    }
-    s
-}
+use crate::testing::native_trace_text as native;
 
 fn parse(text: &str) -> Result<Trace, TraceError> {
     parse_trace(text, "x.csv", "x", RATE)
