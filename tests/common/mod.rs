@@ -226,17 +226,22 @@ pub struct Pty {
 }
 
 pub fn openpty() -> Pty {
+    openpty_sized(None)
+}
+
+/// [`openpty`] with a window size (the console's tests), or none (a serial port's).
+pub fn openpty_sized(size: Option<libc::winsize>) -> Pty {
     use std::os::fd::FromRawFd;
     let (mut master, mut slave) = (-1, -1);
-    // SAFETY: openpty writes two descriptors into the given ints; name, termios and window
-    // size are optional and left null.
+    // SAFETY: openpty writes two descriptors into the given ints; name and termios are
+    // optional and left null, the window size points to `size` or is null.
     let rc = unsafe {
         libc::openpty(
             &mut master,
             &mut slave,
             std::ptr::null_mut(),
             std::ptr::null(),
-            std::ptr::null(),
+            size.as_ref().map_or(std::ptr::null(), |ws| ws as *const _),
         )
     };
     assert_eq!(rc, 0, "openpty: {}", std::io::Error::last_os_error());

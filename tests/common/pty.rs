@@ -3,7 +3,7 @@
 
 use std::fs::File;
 use std::io::{Read, Write};
-use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
+use std::os::fd::{AsRawFd, OwnedFd};
 use std::os::unix::process::CommandExt;
 use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
@@ -31,21 +31,9 @@ pub fn winsize(cols: u16, rows: u16) -> libc::winsize {
 /// Starts hexcue on a new pseudo-terminal, as its controlling terminal (so that resizes
 /// send it SIGWINCH as a real terminal would).
 pub fn spawn_pty(args: &[&std::ffi::OsStr], cols: u16, rows: u16) -> PtySession {
-    let (mut master, mut slave) = (0, 0);
-    let ws = winsize(cols, rows);
-    // SAFETY: openpty writes two fds into the pointers given; no name buffer, default termios.
-    let rc = unsafe {
-        libc::openpty(
-            &mut master,
-            &mut slave,
-            std::ptr::null_mut(),
-            std::ptr::null(),
-            &ws,
-        )
-    };
-    assert_eq!(rc, 0, "openpty: {}", std::io::Error::last_os_error());
-    // SAFETY: both fds were just returned by openpty and are owned here.
-    let (master, slave) = unsafe { (File::from_raw_fd(master), OwnedFd::from_raw_fd(slave)) };
+    // Not inherited as such by hexcue: its stdio are dup2'd copies of the port end.
+    let pty = super::openpty_sized(Some(winsize(cols, rows)));
+    let (master, slave) = (File::from(pty.master), pty.slave);
     let stdio = || Stdio::from(slave.try_clone().unwrap());
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_hexcue"));
     cmd.args(args)
