@@ -20,24 +20,9 @@ use hexcue_core::engine::Engine;
 use hexcue_core::mca::mpc::{Mpc, Terminal};
 use hexcue_core::mca::{AlgorithmId, CueInput, CueSample, PlatformCommand};
 use hexcue_core::profile::text::default_profile;
+use hexcue_core::testing::manoeuvre_cue;
 use hexcue_core::trace::{AircraftSample, Trace};
 use nalgebra::Vector3;
-
-fn manoeuvre(t: f64) -> CueSample {
-    let pulse = |t0: f64, t1: f64| if t >= t0 && t < t1 { 1.0 } else { 0.0 };
-    CueSample {
-        delta_f_mps2: Vector3::new(
-            3.0 * pulse(1.0, 4.0) - 2.5 * pulse(6.0, 8.0) + 0.5 * (0.8 * t).sin(),
-            1.5 * pulse(10.0, 16.0) * (0.5 * t).sin(),
-            1.0 * (1.3 * t).sin() * pulse(12.0, 20.0),
-        ),
-        angular_velocity_radps: Vector3::new(
-            0.15 * pulse(9.0, 10.0) - 0.15 * pulse(16.0, 17.0),
-            0.05 * (0.9 * t).sin(),
-            0.1 * pulse(10.0, 16.0),
-        ),
-    }
-}
 
 /// This thread's CPU time (µs); 0 where the clock is not available.
 #[cfg(target_os = "linux")]
@@ -103,7 +88,9 @@ fn synthetic(terminal: Terminal, runs: usize) {
     };
     let dt = profile.dt_s();
     let steps = 2000;
-    let samples: Vec<CueSample> = (0..steps + 300).map(|k| manoeuvre(k as f64 * dt)).collect();
+    let samples: Vec<CueSample> = (0..steps + 300)
+        .map(|k| manoeuvre_cue(k as f64 * dt))
+        .collect();
     let (mut cpu, mut hash) = (Vec::new(), Hash(0));
     for _ in 0..runs {
         let mut mpc = Mpc::new(&params, &profile.setting(), terminal).expect("the MPC builds");

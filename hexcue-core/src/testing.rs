@@ -62,3 +62,22 @@ pub fn native_trace_text(n: usize) -> String {
     }
     s
 }
+
+/// The synthetic MPC workload of the step-cost benchmark (benches/mpc.rs) and of the
+/// core's `step_cost` example, as the cue at time `t` (s): surge pulses on a slow sine, a
+/// sway and a heave oscillation, a roll in and out, a pitch sine and a yaw rate.
+pub fn manoeuvre_cue(t: f64) -> crate::mca::CueSample {
+    let pulse = |t0: f64, t1: f64| if t >= t0 && t < t1 { 1.0 } else { 0.0 };
+    crate::mca::CueSample {
+        delta_f_mps2: Vector3::new(
+            3.0 * pulse(1.0, 4.0) - 2.5 * pulse(6.0, 8.0) + 0.5 * (0.8 * t).sin(),
+            1.5 * pulse(10.0, 16.0) * (0.5 * t).sin(),
+            1.0 * (1.3 * t).sin() * pulse(12.0, 20.0),
+        ),
+        angular_velocity_radps: Vector3::new(
+            0.15 * pulse(9.0, 10.0) - 0.15 * pulse(16.0, 17.0),
+            0.05 * (0.9 * t).sin(),
+            0.1 * pulse(10.0, 16.0),
+        ),
+    }
+}
