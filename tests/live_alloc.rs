@@ -5,6 +5,10 @@
 //! (the fade-in, the first sample's events and the 10 s unit checks are over) for 3 s.
 //!
 //! Each counted allocation's backtrace is kept, so that a failure says where it came from.
+//! The count and the backtraces are the stepping thread's own (thread-locals), so the
+//! sessions run side by side as the test harness schedules them: on CI's two cores that
+//! halves this file's time, and a stepping thread that shares the machine with another
+//! session's is a harsher test of the deadline paths, not a weaker one.
 //! Nothing at all: the input, the safety stage, the core's `Engine::step` with the driving
 //! algorithm, the outputs, the statistics and the hand-off to the other threads.
 
@@ -12,9 +16,9 @@ mod common;
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::backtrace::Backtrace;
-use std::cell::Cell;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::cell::{Cell, RefCell};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use common::*;
 use hexcue::live::{run, Control, LiveSession};
@@ -31,9 +35,12 @@ thread_local! {
     static INSIDE: Cell<bool> = const { Cell::new(false) };
 }
 
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-/// The counted allocations' backtraces (the first [`KEEP`]).
-static WHERE: Mutex<Vec<Backtrace>> = Mutex::new(Vec::new());
+thread_local! {
+    /// The stepping thread's counted allocations, and the first [`KEEP`] backtraces: kept
+    /// per thread, so that sessions run side by side, each counting its own stepping thread.
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+    static WHERE: RefCell<Vec<Backtrace>> = const { RefCell::new(Vec::new()) };
+}
 const KEEP: usize = 2000;
 
 fn count() {
@@ -41,18 +48,19 @@ fn count() {
     if !counting || INSIDE.try_with(Cell::get).unwrap_or(true) {
         return;
     }
-    ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
     INSIDE.with(|i| i.set(true));
-    if let Ok(mut w) = WHERE.lock() {
+    ALLOCATIONS.with(|a| a.set(a.get() + 1));
+    WHERE.with(|w| {
+        let mut w = w.borrow_mut();
         if w.len() < KEEP {
             w.push(Backtrace::force_capture());
         }
-    }
+    });
     INSIDE.with(|i| i.set(false));
 }
 
 // SAFETY: every call is passed to the system allocator unchanged; counting touches only
-// thread-locals, an atomic and, when counting, a mutex whose own allocations are not counted.
+// thread-locals, and the backtraces it keeps allocate with the counter's own flag set.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
         count();
@@ -78,13 +86,11 @@ static GLOBAL: Counting = Counting;
 const WARM_UP_STEPS: u64 = 1200;
 const COUNTED_STEPS: u64 = 300;
 
-/// The sessions run one at a time: the counter is the process's.
-static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
-
-/// Where the output goes.
+/// Where the output goes: a JSON stream, and a Moog base beside it.
+#[derive(Clone, Copy, PartialEq)]
 enum Output {
     Json,
-    Moog,
+    JsonAndMoog,
 }
 
 /// A live session of `algorithms` driven by `drive` against the steep turn replayed in
@@ -109,34 +115,26 @@ fn stepping_allocations_switching(
     output: Output,
     switch: Option<(AlgorithmId, f64)>,
 ) -> (Vec<String>, u64) {
-    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let profile = hexcue_core::testing::full_flight();
     let in_port = free_udp_port();
     let input = LiveInput::open(&format!("jsbsim://127.0.0.1:{in_port}")).unwrap();
     let mut session = LiveSession::new(&profile, algorithms, drive, input).unwrap();
     let stop = Arc::new(AtomicBool::new(false));
-    let (listener, base) = match output {
-        Output::Json => {
-            let (port, listener) = json_listener(stop.clone());
-            let url = format!("udp://127.0.0.1:{port}");
-            let out = hexcue::sinks::open_output(&url, &profile, session.period()).unwrap();
-            session.add_output(out);
-            (Some(listener), None)
-        }
-        Output::Moog => {
-            let base = FakeBase::start(FakeBaseConfig::default()).unwrap();
-            let url = format!("moog://{}", base.addr());
-            let out = hexcue::sinks::open_output(&url, &profile, session.period()).unwrap();
-            session.add_output(out);
-            (None, Some(base))
-        }
-    };
+    let (port, listener) = json_listener(stop.clone());
+    let url = format!("udp://127.0.0.1:{port}");
+    session.add_output(hexcue::sinks::open_output(&url, &profile, session.period()).unwrap());
+    let base = (output == Output::JsonAndMoog).then(|| {
+        let base = FakeBase::start(FakeBaseConfig::default()).unwrap();
+        let url = format!("moog://{}", base.addr());
+        session.add_output(hexcue::sinks::open_output(&url, &profile, session.period()).unwrap());
+        base
+    });
     // 18 s of the steep turn, from 20 s in: longer than the session's counted part.
     let rows = trace_rows("steep-turn.csv")[2000..3800].to_vec();
     let sender = replay_jsbsim(in_port, rows);
-    ALLOCATIONS.store(0, Ordering::Relaxed);
-    WHERE.lock().unwrap().clear();
     let mut counted = 0;
+    // The stepping thread's count and backtraces, taken on that thread when counting ends.
+    let mut caught: Option<(u64, Vec<Backtrace>)> = None;
     let mut running_at_warm_up = None;
     // Whether the stepping thread stepped both lanes mid-blend, and only the new one at the
     // end.
@@ -156,13 +154,20 @@ fn stepping_allocations_switching(
                     released = !s.steps_lane(drive) && s.steps_lane(to);
                 }
             }
-            if k == WARM_UP_STEPS {
+            // `control` is asked more than once at the same count (and again after Stop):
+            // the count starts once and is taken once.
+            if k == WARM_UP_STEPS && running_at_warm_up.is_none() {
                 running_at_warm_up = Some(s.safety().state());
+                ALLOCATIONS.with(|a| a.set(0));
+                WHERE.with(|w| w.borrow_mut().clear());
                 COUNTING.with(|c| c.set(true));
             }
             if k >= WARM_UP_STEPS + COUNTED_STEPS {
                 COUNTING.with(|c| c.set(false));
                 counted = COUNTED_STEPS;
+                if caught.is_none() {
+                    caught = Some((ALLOCATIONS.with(Cell::get), WHERE.with(RefCell::take)));
+                }
                 return Control::Stop;
             }
             Control::Continue
@@ -174,10 +179,8 @@ fn stepping_allocations_switching(
     let (summary, _) = session.finish().unwrap();
     stop.store(true, Ordering::Relaxed);
     sender.join().unwrap();
-    if let Some(listener) = listener {
-        let commands = listener.join().unwrap();
-        assert!(commands.len() as u64 > WARM_UP_STEPS + COUNTED_STEPS);
-    }
+    let commands = listener.join().unwrap();
+    assert!(commands.len() as u64 > WARM_UP_STEPS + COUNTED_STEPS);
     if let Some(base) = base {
         assert!(base.finish().len() as u64 > WARM_UP_STEPS + COUNTED_STEPS);
     }
@@ -202,16 +205,9 @@ fn stepping_allocations_switching(
     // Every lane stepped, on one thread or the other.
     assert_eq!(summary.algorithms.len(), algorithms.len());
     assert!(live.deadline_share.len() == algorithms.len(), "{live:?}");
-    let traces = WHERE
-        .lock()
-        .unwrap()
-        .iter()
-        .map(|b| b.to_string())
-        .collect();
-    assert_eq!(
-        (ALLOCATIONS.load(Ordering::Relaxed) as usize).min(KEEP),
-        WHERE.lock().unwrap().len()
-    );
+    let (allocations, kept) = caught.expect("the counted part ended");
+    assert_eq!((allocations as usize).min(KEEP), kept.len());
+    let traces = kept.iter().map(|b| b.to_string()).collect();
     (traces, counted)
 }
 
@@ -225,9 +221,42 @@ fn assert_none(traces: &[String], counted: u64, what: &str) {
     );
 }
 
+/// Every session at once, each on its own threads: the sessions are paced by the replayed
+/// stream's clock (15 s each) and use little CPU, so side by side they take the time of one
+/// instead of five. Each scenario's failure is reported with its name.
+#[test]
+fn no_stepping_thread_allocates_after_warm_up() {
+    let scenarios: [(&str, fn()); 5] = [
+        (
+            "comparison lanes",
+            the_comparison_lanes_allocate_off_the_stepping_thread,
+        ),
+        (
+            "drive switch",
+            a_lane_handed_over_for_a_drive_switch_allocates_nothing,
+        ),
+        (
+            "CWF to JSON and Moog",
+            the_stepping_thread_allocates_nothing_cwf_json_and_moog,
+        ),
+        ("MPC", the_stepping_thread_allocates_nothing_mpc),
+        ("S-MPC", the_stepping_thread_allocates_nothing_smpc),
+    ];
+    let failed: Vec<String> = std::thread::scope(|scope| {
+        let running: Vec<_> = scenarios
+            .iter()
+            .map(|&(name, scenario)| (name, scope.spawn(scenario)))
+            .collect();
+        running
+            .into_iter()
+            .filter_map(|(name, handle)| handle.join().err().map(|_| name.to_string()))
+            .collect()
+    });
+    assert!(failed.is_empty(), "failed (their panics above): {failed:?}");
+}
+
 /// The MPCs run beside the CWF as comparison lanes, on their own thread: whatever they
 /// allocate, the stepping thread does not.
-#[test]
 fn the_comparison_lanes_allocate_off_the_stepping_thread() {
     let all = [AlgorithmId::Smpc, AlgorithmId::Mpc, AlgorithmId::Cwf];
     let (traces, counted) = stepping_allocations(&all, AlgorithmId::Cwf, Output::Json);
@@ -236,8 +265,7 @@ fn the_comparison_lanes_allocate_off_the_stepping_thread() {
 
 /// The drive switched to a comparison lane (issue 36): the lanes blending on the stepping
 /// thread, and the old one's return to the comparison lanes' thread, allocate nothing there.
-#[test]
-fn a_lane_handed_over_for_a_drive_switch_allocates_nothing_on_the_stepping_thread() {
+fn a_lane_handed_over_for_a_drive_switch_allocates_nothing() {
     let (traces, counted) = stepping_allocations_switching(
         &[AlgorithmId::Mpc, AlgorithmId::Cwf],
         AlgorithmId::Cwf,
@@ -251,22 +279,22 @@ fn a_lane_handed_over_for_a_drive_switch_allocates_nothing_on_the_stepping_threa
     );
 }
 
-#[test]
 fn the_stepping_thread_allocates_nothing_cwf_json_and_moog() {
-    for output in [Output::Json, Output::Moog] {
-        let (traces, counted) = stepping_allocations(&[AlgorithmId::Cwf], AlgorithmId::Cwf, output);
-        assert_none(&traces, counted, "driving with the CWF");
-    }
+    let (traces, counted) =
+        stepping_allocations(&[AlgorithmId::Cwf], AlgorithmId::Cwf, Output::JsonAndMoog);
+    assert_none(
+        &traces,
+        counted,
+        "driving with the CWF to JSON and a Moog base",
+    );
 }
 
-#[test]
 fn the_stepping_thread_allocates_nothing_mpc() {
     let (traces, counted) =
         stepping_allocations(&[AlgorithmId::Mpc], AlgorithmId::Mpc, Output::Json);
     assert_none(&traces, counted, "driving with the MPC");
 }
 
-#[test]
 fn the_stepping_thread_allocates_nothing_smpc() {
     let (traces, counted) =
         stepping_allocations(&[AlgorithmId::Smpc], AlgorithmId::Smpc, Output::Json);
