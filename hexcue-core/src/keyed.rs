@@ -1,4 +1,5 @@
-//! Maps keyed by a word of the vocabulary ([`AlgorithmId`], [`Channel`]) inside, written as
+//! Maps keyed by a word of the vocabulary ([`AlgorithmId`], [`Channel`], [`Dof`],
+//! [`InputAxis`]) inside, written as
 //! JSON objects keyed by the word's text at the edge.
 //!
 //! The summary's JSON was written from maps keyed by `String`, so its objects list their
@@ -25,7 +26,7 @@
 //! assert_eq!(back.score, scores.score);
 //! ```
 
-use crate::vocab::{AlgorithmId, Channel};
+use crate::vocab::{AlgorithmId, Channel, Dof, InputAxis};
 
 /// A word of the vocabulary that keys a map in the JSON.
 pub trait Word: Copy + Ord + 'static {
@@ -55,6 +56,26 @@ impl Word for Channel {
     const WHAT: &'static str = "channel";
     fn all() -> &'static [Self] {
         &Channel::ALL
+    }
+    fn word(self) -> &'static str {
+        self.key()
+    }
+}
+
+impl Word for Dof {
+    const WHAT: &'static str = "degree of freedom";
+    fn all() -> &'static [Self] {
+        &Dof::ALL
+    }
+    fn word(self) -> &'static str {
+        self.key()
+    }
+}
+
+impl Word for InputAxis {
+    const WHAT: &'static str = "input axis";
+    fn all() -> &'static [Self] {
+        &InputAxis::ALL
     }
     fn word(self) -> &'static str {
         self.key()
@@ -133,6 +154,35 @@ mod tests {
             r#"{"algorithms":{"cwf":2,"mpc":1,"smpc":0},"channels":{"fx":0,"fy":1,"fz":2,"wx":3,"wy":4,"wz":5}}"#
         );
         assert_eq!(serde_json::from_str::<Keyed>(&json).unwrap(), keyed);
+    }
+
+    #[derive(Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+    struct Usage {
+        #[serde(with = "by_word")]
+        dofs: BTreeMap<Dof, u32>,
+        #[serde(with = "by_word")]
+        axes: BTreeMap<InputAxis, u32>,
+        binding: Vec<Channel>,
+    }
+
+    #[test]
+    fn dofs_and_input_axes_keyed_as_the_string_maps_were() {
+        let usage = Usage {
+            dofs: Dof::ALL.iter().map(|&d| (d, d.index() as u32)).collect(),
+            axes: InputAxis::ALL
+                .iter()
+                .map(|&a| (a, a.index() as u32))
+                .collect(),
+            binding: vec![Channel::Wz, Channel::Fx],
+        };
+        let json = serde_json::to_string(&usage).unwrap();
+        // The DoFs in the text's order (pitch before x), as `max_dof_usage` always listed
+        // them; a list of channels keeps its own order.
+        assert_eq!(
+            json,
+            r#"{"dofs":{"pitch":4,"roll":3,"x":0,"y":1,"yaw":5,"z":2},"axes":{"fx":0,"fy":1,"fz":2,"p":3,"q":4,"r":5},"binding":["wz","fx"]}"#
+        );
+        assert_eq!(serde_json::from_str::<Usage>(&json).unwrap(), usage);
     }
 
     #[test]

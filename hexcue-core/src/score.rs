@@ -106,7 +106,8 @@ impl ScoreWeights {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ScoreTerms {
     /// Threshold-aware error per channel (fx, fy, fz, wx, wy, wz).
-    pub error: BTreeMap<String, f64>,
+    #[serde(with = "crate::keyed::by_word")]
+    pub error: BTreeMap<Channel, f64>,
     /// False cues: w_false · Σ_c (false-cue time of c) / (flight time).
     pub false_cue: f64,
     /// Workspace: w_limiter · (share of steps the limiter acted).
@@ -118,8 +119,8 @@ pub struct ScoreTerms {
     pub jolt: f64,
     /// Not a term: per channel the felt error, mean_k max(|u| − 1, 0) with u the error in
     /// perception thresholds, unweighted (the supra-threshold part of `error`).
-    #[serde(default)]
-    pub felt: BTreeMap<String, f64>,
+    #[serde(default, with = "crate::keyed::by_word")]
+    pub felt: BTreeMap<Channel, f64>,
 }
 
 /// The soft dead zone φ(u) on an error of u perception thresholds.
@@ -137,6 +138,7 @@ pub fn felt(u: f64) -> f64 {
 ///
 /// ```
 /// use hexcue_core::score::{ScoreAccumulator, ScoreWeights};
+/// use hexcue_core::vocab::Channel;
 ///
 /// let weights = ScoreWeights::default();
 /// let thresholds = [0.17, 0.17, 0.28, 0.05, 0.05, 0.05]; // m/s², rad/s
@@ -148,7 +150,7 @@ pub fn felt(u: f64) -> f64 {
 /// }
 /// let (total, terms) = score.finish(&[0.0; 6]);
 /// assert_eq!(total, 0.0);
-/// assert_eq!(terms.error["fx"], 0.0);
+/// assert_eq!(terms.error[&Channel::Fx], 0.0);
 ///
 /// // Ten more where surge is missed by two thresholds: the error term is
 /// // w_fx · φ(2) = w_fx · (s + 1) on half the steps.
@@ -157,7 +159,7 @@ pub fn felt(u: f64) -> f64 {
 /// }
 /// let (total, terms) = score.finish(&[0.0; 6]);
 /// let expected = weights.channel_weight[0] * (weights.below_threshold_weight + 1.0) / 2.0;
-/// assert!((terms.error["fx"] - expected).abs() < 1e-12);
+/// assert!((terms.error[&Channel::Fx] - expected).abs() < 1e-12);
 /// assert!((total - expected).abs() < 1e-12);
 /// ```
 #[derive(Clone, Debug)]
@@ -224,13 +226,13 @@ impl ScoreAccumulator {
         }
         let n = self.steps as f64;
         let w = &self.weights;
-        let per_channel = |sums: &[f64; 6], weighted: bool| -> BTreeMap<String, f64> {
+        let per_channel = |sums: &[f64; 6], weighted: bool| -> BTreeMap<Channel, f64> {
             Channel::ALL
                 .iter()
                 .enumerate()
-                .map(|(c, channel)| {
+                .map(|(c, &channel)| {
                     let wc = if weighted { w.channel_weight[c] } else { 1.0 };
-                    (channel.key().to_string(), wc * sums[c] / n)
+                    (channel, wc * sums[c] / n)
                 })
                 .collect()
         };
@@ -367,9 +369,12 @@ mod tests {
             acc.push(&[0.0; 6], &y, false, 0.0);
         }
         let (score, terms) = acc.finish(&[0.0; 6]);
-        assert!((terms.felt["fx"] - 0.75).abs() < 1e-12, "{terms:?}");
-        assert!((terms.error["fx"] - 0.8375).abs() < 1e-12, "{terms:?}");
-        assert_eq!(terms.felt["fy"], 0.0);
+        assert!((terms.felt[&Channel::Fx] - 0.75).abs() < 1e-12, "{terms:?}");
+        assert!(
+            (terms.error[&Channel::Fx] - 0.8375).abs() < 1e-12,
+            "{terms:?}"
+        );
+        assert_eq!(terms.felt[&Channel::Fy], 0.0);
         // The felt error is reported, not added: the score is the error's sum.
         assert!((score - 0.8375).abs() < 1e-12);
         // Differences below a threshold are not felt at all, however large the error's share.
@@ -393,8 +398,8 @@ mod tests {
             0.0,
         );
         let (_, terms) = acc.finish(&[0.0; 6]);
-        assert_eq!(terms.felt["fx"], 1.0);
-        assert!((terms.error["fx"] - 3.0 * 1.1).abs() < 1e-12);
+        assert_eq!(terms.felt[&Channel::Fx], 1.0);
+        assert!((terms.error[&Channel::Fx] - 3.0 * 1.1).abs() < 1e-12);
     }
 
     #[test]

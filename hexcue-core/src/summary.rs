@@ -15,7 +15,7 @@ use crate::model::stewart::{head_motion, Stewart};
 use crate::profile::Profile;
 use crate::safety::HardBrake;
 use crate::score::{ScoreAccumulator, ScoreTerms, ScoreWeights};
-use crate::vocab::Channel;
+use crate::vocab::{Channel, Dof, InputAxis};
 
 /// Lags searched for the equivalent delay (s).
 pub const MAX_LAG_S: f64 = 1.0;
@@ -131,8 +131,8 @@ pub struct Summary {
     pub algorithms: BTreeMap<AlgorithmRun, AlgorithmSummary>,
     /// Samples of the aircraft's motion clipped by the profile's `[input]` limits, per axis
     /// (fx, fy, fz as the change from 1 g; p, q, r), before any algorithm saw them.
-    #[serde(default)]
-    pub input_clipped: BTreeMap<String, u64>,
+    #[serde(default, with = "crate::keyed::by_word")]
+    pub input_clipped: BTreeMap<InputAxis, u64>,
     /// The aircraft's own jolts per channel (fx..wz), measured at the head as the
     /// simulator's are (`crate::jolts`): the onsets that excuse the simulator's.
     #[serde(default, with = "crate::keyed::by_word")]
@@ -178,9 +178,6 @@ pub struct ParameterChange {
     pub undo: bool,
 }
 
-/// The input axes [`Summary::input_clipped`] counts, in the order of `cue_sample`.
-pub const INPUT_AXES: [&str; 6] = ["fx", "fy", "fz", "p", "q", "r"];
-
 impl Summary {
     /// `id`'s causal run, if it ran.
     pub fn algorithm(&self, id: AlgorithmId) -> Option<&AlgorithmSummary> {
@@ -208,10 +205,10 @@ impl Summary {
 
     /// "fx 12 (0.2 %), r 3 (0.1 %)" for the axes with clipped samples; `None` when none was.
     pub fn clipping_line(&self) -> Option<String> {
-        let parts: Vec<String> = INPUT_AXES
+        let parts: Vec<String> = InputAxis::ALL
             .iter()
             .filter_map(|axis| {
-                let n = self.input_clipped.get(*axis).copied().unwrap_or(0);
+                let n = self.input_clipped.get(axis).copied().unwrap_or(0);
                 (n > 0).then(|| {
                     format!(
                         "{axis} {n} ({:.1} %)",
@@ -360,7 +357,8 @@ pub struct AlgorithmSummary {
     /// Controller switches (S-MPC), from its state.
     pub switches: u64,
     /// Largest |excursion| of each DoF as a fraction of its limit: x, y, z, roll, pitch, yaw.
-    pub max_dof_usage: BTreeMap<String, f64>,
+    #[serde(with = "crate::keyed::by_word")]
+    pub max_dof_usage: BTreeMap<Dof, f64>,
     /// The cueing score, lower is better (`crate::score`, weights from the profile's
     /// `[score]`).
     #[serde(default)]
@@ -374,9 +372,6 @@ pub struct AlgorithmSummary {
 fn head_signal(df: &nalgebra::Vector3<f64>, w: &nalgebra::Vector3<f64>) -> [f64; 6] {
     [df.x, df.y, df.z, w.x, w.y, w.z]
 }
-
-/// DoF names in pose order.
-pub const DOFS: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
 
 /// One lane's metrics so far, on its way from one builder to another.
 pub struct LaneAccumulator {
@@ -583,11 +578,7 @@ impl SummaryBuilder {
                     },
                     leg_violations: acc.leg_violations,
                     switches: acc.switches,
-                    max_dof_usage: DOFS
-                        .iter()
-                        .zip(acc.max_dof_usage)
-                        .map(|(d, u)| (d.to_string(), u))
-                        .collect(),
+                    max_dof_usage: Dof::ALL.into_iter().zip(acc.max_dof_usage).collect(),
                     score,
                     score_terms,
                 };
@@ -600,11 +591,7 @@ impl SummaryBuilder {
             steps: self.steps,
             rate_hz: self.rate_hz,
             algorithms,
-            input_clipped: INPUT_AXES
-                .iter()
-                .zip(self.input_clipped)
-                .map(|(axis, n)| (axis.to_string(), n))
-                .collect(),
+            input_clipped: InputAxis::ALL.into_iter().zip(self.input_clipped).collect(),
             aircraft_jolts: Channel::ALL
                 .iter()
                 .zip(self.aircraft_onsets.jolts())

@@ -107,7 +107,11 @@ impl std::fmt::Display for AlgorithmId {
 
 /// A cueing channel the metrics judge: the perceived specific force along x, y, z and the
 /// perceived angular velocity about them (head frame), in the order of [`Channel::ALL`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+/// In JSON, its key (`fx` … `wz`).
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
 pub enum Channel {
     /// Perceived specific force along x, forward (m/s²).
     Fx,
@@ -207,6 +211,105 @@ impl Channel {
 }
 
 impl std::fmt::Display for Channel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.key())
+    }
+}
+
+/// A degree of freedom of the platform, in pose order: x, y, z (m), roll, pitch, yaw (rad).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Dof {
+    /// Surge, along x (m).
+    X,
+    /// Sway, along y (m).
+    Y,
+    /// Heave, along z (m).
+    Z,
+    /// Roll, about x (rad).
+    Roll,
+    /// Pitch, about y (rad).
+    Pitch,
+    /// Yaw, about z (rad).
+    Yaw,
+}
+
+impl Dof {
+    /// The six DoFs in pose order, the order of a pose 6-vector.
+    pub const ALL: [Dof; 6] = [Dof::X, Dof::Y, Dof::Z, Dof::Roll, Dof::Pitch, Dof::Yaw];
+
+    /// The key in summaries (`max_dof_usage`) and tables.
+    pub const fn key(self) -> &'static str {
+        match self {
+            Dof::X => "x",
+            Dof::Y => "y",
+            Dof::Z => "z",
+            Dof::Roll => "roll",
+            Dof::Pitch => "pitch",
+            Dof::Yaw => "yaw",
+        }
+    }
+
+    /// Its place in [`Dof::ALL`], and in a pose 6-vector.
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+impl std::fmt::Display for Dof {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.key())
+    }
+}
+
+/// An axis of the aircraft's motion as the engine takes it in, before any algorithm: the
+/// specific force along x, y, z (as the change from 1 g) and the body rates p, q, r; what
+/// the profile's `[input]` limits clip.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum InputAxis {
+    /// Specific force along x (m/s²).
+    Fx,
+    /// Specific force along y (m/s²).
+    Fy,
+    /// Specific force along z, from 1 g (m/s²).
+    Fz,
+    /// Roll rate (rad/s).
+    P,
+    /// Pitch rate (rad/s).
+    Q,
+    /// Yaw rate (rad/s).
+    R,
+}
+
+impl InputAxis {
+    /// The six axes in the order of the engine's input sample: fx, fy, fz, p, q, r.
+    pub const ALL: [InputAxis; 6] = [
+        InputAxis::Fx,
+        InputAxis::Fy,
+        InputAxis::Fz,
+        InputAxis::P,
+        InputAxis::Q,
+        InputAxis::R,
+    ];
+
+    /// The key in summaries (`input_clipped`) and messages.
+    pub const fn key(self) -> &'static str {
+        match self {
+            InputAxis::Fx => "fx",
+            InputAxis::Fy => "fy",
+            InputAxis::Fz => "fz",
+            InputAxis::P => "p",
+            InputAxis::Q => "q",
+            InputAxis::R => "r",
+        }
+    }
+
+    /// Its place in [`InputAxis::ALL`].
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+impl std::fmt::Display for InputAxis {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.key())
     }

@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use crate::app::common::{inputs, print_stdout};
+use crate::app::common::{channel_list, inputs, print_stdout};
 use crate::cli::{parse_algorithms, parse_channels, BoundArgs};
 use crate::formats::profile::load_profile;
 use crate::formats::trace::load_trace_within;
@@ -31,16 +31,19 @@ struct BoundReport<'a> {
     bound: &'a Bound,
     details: &'a BoundDetails,
     /// Per algorithm: its error per channel and total, and the cueable error (error − lower).
-    algorithms: BTreeMap<String, AlgorithmErrors>,
+    #[serde(with = "hexcue_core::keyed::by_word")]
+    algorithms: BTreeMap<AlgorithmId, AlgorithmErrors>,
     wall_time_s: f64,
     bound_time_s: f64,
 }
 
 #[derive(Serialize)]
 struct AlgorithmErrors {
-    error: BTreeMap<String, f64>,
+    #[serde(with = "hexcue_core::keyed::by_word")]
+    error: BTreeMap<Channel, f64>,
     total: f64,
-    cueable: BTreeMap<String, f64>,
+    #[serde(with = "hexcue_core::keyed::by_word")]
+    cueable: BTreeMap<Channel, f64>,
     cueable_total: f64,
 }
 
@@ -64,7 +67,7 @@ pub fn channel_errors(summary: &Summary, id: AlgorithmId) -> Option<[f64; 6]> {
     Some(std::array::from_fn(|c| {
         a.score_terms
             .error
-            .get(Channel::ALL[c].key())
+            .get(&Channel::ALL[c])
             .copied()
             .unwrap_or(0.0)
     }))
@@ -164,7 +167,7 @@ pub fn run(args: &BoundArgs) -> Result<()> {
                 .iter()
                 .filter_map(|&a| {
                     let e = channel_errors(&summary, a)?;
-                    Some((a.key().to_string(), errors_against(&e, &bound)))
+                    Some((a, errors_against(&e, &bound)))
                 })
                 .collect(),
             wall_time_s,
@@ -179,18 +182,14 @@ pub fn run(args: &BoundArgs) -> Result<()> {
 
 fn errors_against(e: &[f64; 6], bound: &Bound) -> AlgorithmErrors {
     let mut cueable = BTreeMap::new();
-    for (c, ch) in Channel::ALL.iter().enumerate() {
-        if let Some(l) = bound.lower.channel.get(ch.key()) {
-            cueable.insert(ch.key().to_string(), e[c] - l);
+    for (c, ch) in Channel::ALL.into_iter().enumerate() {
+        if let Some(l) = bound.lower.channel.get(&ch) {
+            cueable.insert(ch, e[c] - l);
         }
     }
     let total: f64 = e.iter().sum();
     AlgorithmErrors {
-        error: Channel::ALL
-            .iter()
-            .zip(e)
-            .map(|(c, v)| (c.key().to_string(), *v))
-            .collect(),
+        error: Channel::ALL.into_iter().zip(*e).collect(),
         total,
         cueable,
         cueable_total: total - bound.lower.total,
@@ -231,13 +230,13 @@ pub fn render(
         .collect();
     let num = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
     for (c, ch) in Channel::ALL.iter().enumerate() {
-        let lower = bound.lower.channel.get(ch.key()).copied();
+        let lower = bound.lower.channel.get(ch).copied();
         let mut line = format!(
             "{:<7} {:>8} {:>8} {:>9}",
             ch.key(),
             num(lower),
-            num(details.joint_error.get(ch.key()).copied()),
-            num(bound.achieved.error.get(ch.key()).copied())
+            num(details.joint_error.get(ch).copied()),
+            num(bound.achieved.error.get(ch).copied())
         );
         for (_, e) in &errors {
             let cueable = lower.map_or("-".into(), |l| format!("{:.3}", e[c] - l));
@@ -264,7 +263,7 @@ pub fn render(
     if let Some(v) = &bound.lower.valid {
         let per: Vec<String> = Channel::ALL
             .iter()
-            .filter_map(|c| Some(format!("{} {:.3}", c.key(), v.channel.get(c.key())?)))
+            .filter_map(|c| Some(format!("{} {:.3}", c.key(), v.channel.get(c)?)))
             .collect();
         let _ = writeln!(
             out,
@@ -315,7 +314,7 @@ pub fn render(
         if d.binding.is_empty() {
             String::new()
         } else {
-            format!("; binding: {}", d.binding.join(", "))
+            format!("; binding: {}", channel_list(&d.binding))
         }
     );
     if let Some((_, cwf)) = errors.iter().find(|(a, _)| *a == AlgorithmId::Cwf) {

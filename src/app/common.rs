@@ -143,12 +143,12 @@ pub fn format_table(s: &Summary) -> String {
             alg.step_time_us.p99,
             alg.step_time_us.max
         ));
-        let dofs: Vec<String> = hexcue_core::summary::DOFS
+        let dofs: Vec<String> = hexcue_core::vocab::Dof::ALL
             .iter()
             .map(|d| {
                 format!(
                     "{d} {:.0} %",
-                    100.0 * alg.max_dof_usage.get(*d).copied().unwrap_or(0.0)
+                    100.0 * alg.max_dof_usage.get(d).copied().unwrap_or(0.0)
                 )
             })
             .collect();
@@ -220,7 +220,7 @@ fn bound_lines(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
         if b.dominance.binding.is_empty() {
             String::new()
         } else {
-            format!(" (binding: {})", b.dominance.binding.join(", "))
+            format!(" (binding: {})", channel_list(&b.dominance.binding))
         }
     );
     out.push_str(&format!("{:<6} {:>8}", "cueable", "total"));
@@ -234,8 +234,8 @@ fn bound_lines(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
         let per = Channel::ALL
             .iter()
             .map(|c| {
-                alg.score_terms.error.get(c.key()).copied().unwrap_or(0.0)
-                    - b.lower.channel.get(c.key()).copied().unwrap_or(0.0)
+                alg.score_terms.error.get(c).copied().unwrap_or(0.0)
+                    - b.lower.channel.get(c).copied().unwrap_or(0.0)
             })
             .collect();
         Some((total, per))
@@ -437,6 +437,12 @@ pub fn check_folder_outputs(
         );
     }
     Ok(())
+}
+
+/// Channels' keys joined for a report line: "fx, wz".
+pub fn channel_list(channels: &[Channel]) -> String {
+    let keys: Vec<&str> = channels.iter().map(|c| c.key()).collect();
+    keys.join(", ")
 }
 
 #[cfg(test)]

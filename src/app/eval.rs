@@ -131,7 +131,8 @@ struct Flight {
     min_leg_margin_m: f64,
     leg_violations: u64,
     switches: u64,
-    max_dof_usage: BTreeMap<String, f64>,
+    #[serde(with = "hexcue_core::keyed::by_word")]
+    max_dof_usage: BTreeMap<hexcue_core::vocab::Dof, f64>,
     base: BaseFigures,
 }
 

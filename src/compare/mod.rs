@@ -60,12 +60,12 @@ mod tests {
                 error: Channel::ALL
                     .map(Channel::key)
                     .iter()
-                    .map(|c| (c.to_string(), rae(c)))
+                    .map(|c| (Channel::from_key(c).unwrap(), rae(c)))
                     .collect(),
                 felt: Channel::ALL
                     .map(Channel::key)
                     .iter()
-                    .map(|c| (c.to_string(), rae(c)))
+                    .map(|c| (Channel::from_key(c).unwrap(), rae(c)))
                     .collect(),
                 ..Default::default()
             },
@@ -173,9 +173,10 @@ mod tests {
     fn set(r: &mut TraceResult, alg: &str, ch: &str, error: f64, pc: f64, false_s: f64) {
         r.summary.steps = 9000;
         let a = r.summary.algorithms.get_mut(&run(alg)).unwrap();
-        a.score_terms.error.insert(ch.to_string(), error);
-        a.score_terms.felt.insert(ch.to_string(), error);
-        let m = a.metrics.get_mut(&Channel::from_key(ch).unwrap()).unwrap();
+        let ch = Channel::from_key(ch).unwrap();
+        a.score_terms.error.insert(ch, error);
+        a.score_terms.felt.insert(ch, error);
+        let m = a.metrics.get_mut(&ch).unwrap();
         m.rae = error;
         m.pc = pc;
         m.false_cue_s = false_s;
@@ -300,8 +301,8 @@ mod tests {
 
     fn with_bound(r: &mut TraceResult, felt_floor: f64, possible: bool, binding: &[&str]) {
         let mut lower = hexcue_core::bound::Lower::default();
-        for c in Channel::ALL.map(Channel::key) {
-            lower.felt.insert(c.to_string(), felt_floor);
+        for c in Channel::ALL {
+            lower.felt.insert(c, felt_floor);
         }
         r.summary.bound = Some(hexcue_core::bound::Bound {
             lower,
@@ -313,7 +314,10 @@ mod tests {
             },
             dominance: hexcue_core::bound::Dominance {
                 possible,
-                binding: binding.iter().map(|s| s.to_string()).collect(),
+                binding: binding
+                    .iter()
+                    .map(|s| Channel::from_key(s).unwrap())
+                    .collect(),
             },
         });
     }
@@ -361,7 +365,7 @@ mod tests {
         set(&mut r, "cwf", "fz", 0.03, 0.9, 0.0);
         for k in [SMPC, MPC, CWF] {
             let a = r.summary.algorithms.get_mut(&k).unwrap();
-            a.score_terms.felt.insert("fz".into(), 0.0);
+            a.score_terms.felt.insert(Channel::Fz, 0.0);
         }
         let v = verdict(&r.summary, Channel::Fz);
         assert_eq!(v.worse_than_cwf(), vec![]);
@@ -381,7 +385,7 @@ mod tests {
             .unwrap()
             .score_terms
             .felt
-            .insert("fz".into(), 0.011);
+            .insert(Channel::Fz, 0.011);
         let v = verdict(&r.summary, Channel::Fz);
         assert_eq!(v.worse_than_cwf(), vec![(MPC, Criterion::Felt)]);
     }

@@ -86,9 +86,8 @@ pub fn render_markdown(
         let _ = writeln!(out, "|---|{}", "---:|".repeat(header.len()));
         for (k, a) in ordered(s) {
             let errors: Vec<String> = Channel::ALL
-                .map(Channel::key)
                 .iter()
-                .map(|c| match a.score_terms.error.get(*c) {
+                .map(|c| match a.score_terms.error.get(c) {
                     Some(e) => format!("{e:.3}"),
                     None => "–".to_string(),
                 })
@@ -111,9 +110,8 @@ pub fn render_markdown(
         let _ = writeln!(out, "|---|{}", "---:|".repeat(header.len()));
         for (k, a) in ordered(s) {
             let felt: Vec<String> = Channel::ALL
-                .map(Channel::key)
                 .iter()
-                .map(|c| match a.score_terms.felt.get(*c) {
+                .map(|c| match a.score_terms.felt.get(c) {
                     Some(e) => format!("{e:.3}"),
                     None => "–".to_string(),
                 })
@@ -251,10 +249,11 @@ pub fn bound_table(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
     );
     let _ = writeln!(out, "| channel | lower | achieved | {} |", head.join(" | "));
     let _ = writeln!(out, "|---|---:|---:|{}", "---:|".repeat(head.len()));
-    let err =
-        |a: &hexcue_core::summary::AlgorithmSummary, c: &str| a.score_terms.error.get(c).copied();
-    for c in Channel::ALL.map(Channel::key) {
-        let lower = b.lower.channel.get(c).copied();
+    let err = |a: &hexcue_core::summary::AlgorithmSummary, c: Channel| {
+        a.score_terms.error.get(&c).copied()
+    };
+    for c in Channel::ALL {
+        let lower = b.lower.channel.get(&c).copied();
         let cells: Vec<String> = algs
             .iter()
             .map(|(_, a)| match (err(a, c), lower) {
@@ -268,16 +267,12 @@ pub fn bound_table(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
             out,
             "| {c} | {} | {} | {} |",
             num(lower),
-            num(b.achieved.error.get(c).copied()),
+            num(b.achieved.error.get(&c).copied()),
             cells.join(" | ")
         );
     }
     let total = |a: &hexcue_core::summary::AlgorithmSummary| -> f64 {
-        Channel::ALL
-            .map(Channel::key)
-            .iter()
-            .filter_map(|c| err(a, c))
-            .sum()
+        Channel::ALL.into_iter().filter_map(|c| err(a, c)).sum()
     };
     let cells: Vec<String> = algs
         .iter()
@@ -319,7 +314,7 @@ pub fn bound_table(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
         if d.binding.is_empty() {
             String::new()
         } else {
-            format!(" (binding: {})", d.binding.join(", "))
+            format!(" (binding: {})", crate::app::common::channel_list(&d.binding))
         },
         100.0 * b.achieved.limiter_fraction,
         b.achieved.leg_violations

@@ -164,13 +164,7 @@ pub(super) fn verdict(summary: &Summary, ch: Channel) -> Verdict {
                 // channel (what no motion can cue is no one's loss): the tolerance's relative
                 // part then applies to what an algorithm can change.
                 let floor = felt_floor(summary, ch);
-                let felt = a
-                    .score_terms
-                    .felt
-                    .get(ch.key())
-                    .copied()
-                    .unwrap_or(f64::NAN)
-                    - floor;
+                let felt = a.score_terms.felt.get(&ch).copied().unwrap_or(f64::NAN) - floor;
                 (k, Judged { metrics: *m, felt })
             })
         })
@@ -217,7 +211,7 @@ pub(super) fn felt_floor(summary: &Summary, ch: Channel) -> f64 {
     summary
         .bound
         .as_ref()
-        .and_then(|b| b.lower.felt.get(ch.key()).copied())
+        .and_then(|b| b.lower.felt.get(&ch).copied())
         .unwrap_or(0.0)
 }
 
@@ -229,7 +223,7 @@ pub(super) fn felt_floor(summary: &Summary, ch: Channel) -> f64 {
 pub(super) fn forced_against_cwf(summary: &Summary, ch: Channel) -> bool {
     summary.bound.as_ref().is_some_and(|b| {
         !b.dominance.possible
-            && (b.dominance.binding.is_empty() || b.dominance.binding.iter().any(|c| c == ch.key()))
+            && (b.dominance.binding.is_empty() || b.dominance.binding.contains(&ch))
     })
 }
 

@@ -405,7 +405,9 @@ fn the_columns_show_what_the_verdict_decides_by() {
         .get_mut(&AlgorithmId::Cwf.into())
         .unwrap();
     cwf.score = 3.21;
-    cwf.score_terms.felt.insert("fx".into(), 0.123);
+    cwf.score_terms
+        .felt
+        .insert(hexcue_core::vocab::Channel::Fx, 0.123);
     let fx = cwf
         .metrics
         .get_mut(&hexcue_core::vocab::Channel::Fx)

@@ -280,10 +280,10 @@ pub(super) fn header_line2(app: &App, width: usize) -> Line<'static> {
         (None, false) => {}
     }
     if let Some(clipped) = s.summary.as_ref().and_then(|sum| {
-        let parts: Vec<String> = hexcue_core::summary::INPUT_AXES
+        let parts: Vec<String> = hexcue_core::vocab::InputAxis::ALL
             .iter()
             .filter_map(|a| {
-                let n = sum.input_clipped.get(*a).copied().unwrap_or(0);
+                let n = sum.input_clipped.get(a).copied().unwrap_or(0);
                 (n > 0).then(|| format!("{a} {n}"))
             })
             .collect();
@@ -707,12 +707,7 @@ pub(super) fn lane_metrics(app: &App, lane: usize) -> Option<LaneNumbers> {
     let ch = app.channel();
     let m = alg.metrics.get(&ch)?;
     Some(LaneNumbers {
-        felt: alg
-            .score_terms
-            .felt
-            .get(ch.key())
-            .copied()
-            .unwrap_or(f64::NAN),
+        felt: alg.score_terms.felt.get(&ch).copied().unwrap_or(f64::NAN),
         false_cue_s: m.false_cue_s,
         jolts: m.jolts.charged,
         score: alg.score,

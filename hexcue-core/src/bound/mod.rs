@@ -65,13 +65,18 @@ pub struct Bound {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Lower {
     /// Each channel's own optimum (only that channel's error minimised).
-    pub channel: BTreeMap<String, f64>,
+    #[serde(with = "crate::keyed::by_word")]
+    pub channel: BTreeMap<Channel, f64>,
     /// The joint optimum: the weighted sum of the channels' errors, as `score_terms.error`.
     pub total: f64,
     /// Each channel's own optimum of the felt error (`score_terms.felt`: the mean of
     /// max(|u| − 1, 0), unweighted), what `compare`'s verdicts judge on.
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
-    pub felt: BTreeMap<String, f64>,
+    #[serde(
+        default,
+        skip_serializing_if = "BTreeMap::is_empty",
+        with = "crate::keyed::by_word"
+    )]
+    pub felt: BTreeMap<Channel, f64>,
     /// The valid relaxation's optima (docs/bound.md, "A valid relaxation"): the same
     /// programmes with the exact head model's residual over the boxes as a free term in every
     /// step's input, so that they contain every motion with its exact perceived signals.
@@ -83,7 +88,8 @@ pub struct Lower {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ValidLower {
     /// Each channel's own optimum (`fx` … `wz`): no motion's error on that channel is lower.
-    pub channel: BTreeMap<String, f64>,
+    #[serde(with = "crate::keyed::by_word")]
+    pub channel: BTreeMap<Channel, f64>,
     /// The joint optimum, weighted as `score_terms.error` sums the channels.
     pub total: f64,
 }
@@ -93,7 +99,8 @@ pub struct ValidLower {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Achieved {
     /// Weighted mean error per channel, as `score_terms.error`.
-    pub error: BTreeMap<String, f64>,
+    #[serde(with = "crate::keyed::by_word")]
+    pub error: BTreeMap<Channel, f64>,
     /// The sum of `error`.
     pub total: f64,
     /// Share of the steps at which the limiter acted on the replayed motion.
@@ -109,14 +116,15 @@ pub struct Dominance {
     /// total is below it.
     pub possible: bool,
     /// Channels whose cap is active at that programme's optimum.
-    pub binding: Vec<String>,
+    pub binding: Vec<Channel>,
 }
 
 /// What else a run of the yardstick measured (the CLI's report, docs/bound.md).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct BoundDetails {
     /// Per channel, its error at the joint optimum of the relaxation.
-    pub joint_error: BTreeMap<String, f64>,
+    #[serde(with = "crate::keyed::by_word")]
+    pub joint_error: BTreeMap<Channel, f64>,
     /// The capped programme's total, when it was feasible.
     pub dominance_total: Option<f64>,
     /// How the achieved motion was found: "relaxed" (the joint optimum itself) or
@@ -853,12 +861,11 @@ pub fn gap_parts(
     }
 }
 
-fn by_channel(values: &[f64; 6]) -> BTreeMap<String, f64> {
+fn by_channel(values: &[f64; 6]) -> BTreeMap<Channel, f64> {
     Channel::ALL
-        .iter()
-        .zip(values)
+        .into_iter()
+        .zip(*values)
         .filter(|(_, v)| v.is_finite())
-        .map(|(c, v)| (c.key().to_string(), *v))
         .collect()
 }
 
@@ -940,10 +947,7 @@ pub fn bound(
         },
         dominance: Dominance {
             possible: dominance_total.is_some_and(|t| t < cwf_total),
-            binding: binding
-                .iter()
-                .map(|&c| Channel::ALL[c].key().to_string())
-                .collect(),
+            binding: binding.iter().map(|&c| Channel::ALL[c]).collect(),
         },
     };
     let details = BoundDetails {

@@ -103,13 +103,8 @@ pub fn replay_with(
     }
     // Only the error terms are read: jolts are not part of the yardstick's error.
     let (total_score, terms) = score.finish(&[0.0; 6]);
-    let error: [f64; 6] = std::array::from_fn(|c| {
-        terms
-            .error
-            .get(Channel::ALL[c].key())
-            .copied()
-            .unwrap_or(0.0)
-    });
+    let error: [f64; 6] =
+        std::array::from_fn(|c| terms.error.get(&Channel::ALL[c]).copied().unwrap_or(0.0));
     Replayed {
         total: error.iter().sum(),
         error,
