@@ -645,6 +645,8 @@ pub struct Sequence {
     /// linearised there are then accurate to second order in that radius, so that the plan's
     /// own poses stay in the stroke (docs/bound.md, "`achieved`").
     pub trust_from: usize,
+    /// The trust region's radius per DoF as a share of its excursion (`TRUST_FRACTION`).
+    pub trust_fraction: f64,
 }
 
 /// Radius of the achieved programme's trust region per DoF, as a share of its excursion
@@ -660,6 +662,7 @@ pub const ACHIEVED_SEQUENCES: [Sequence; 4] = [
         lookahead: Lookahead::None,
         passes: LEG_ITERATIONS,
         trust_from: 0,
+        trust_fraction: TRUST_FRACTION,
     },
     Sequence {
         inset_m: LEG_INSETS_M[1],
@@ -667,6 +670,7 @@ pub const ACHIEVED_SEQUENCES: [Sequence; 4] = [
         lookahead: Lookahead::None,
         passes: LEG_ITERATIONS + 2,
         trust_from: LEG_ITERATIONS + 1,
+        trust_fraction: TRUST_FRACTION,
     },
     Sequence {
         inset_m: LEG_INSETS_M[0],
@@ -674,6 +678,7 @@ pub const ACHIEVED_SEQUENCES: [Sequence; 4] = [
         lookahead: Lookahead::StopPoint,
         passes: LEG_ITERATIONS,
         trust_from: 0,
+        trust_fraction: TRUST_FRACTION,
     },
     Sequence {
         inset_m: LEG_INSETS_M[0],
@@ -681,10 +686,11 @@ pub const ACHIEVED_SEQUENCES: [Sequence; 4] = [
         lookahead: Lookahead::Path,
         passes: 6,
         trust_from: 5,
+        trust_fraction: TRUST_FRACTION,
     },
 ];
 
-fn legs_sequence(
+pub(crate) fn legs_sequence(
     profile: &Profile,
     trace: &Trace,
     setup: &Setup,
@@ -733,7 +739,7 @@ fn legs_sequence(
     for iteration in 1..=seq.passes {
         // The first pass is the shared one when given (`achieved_with_legs`).
         let shared = iteration == 1 && first.is_some();
-        let radius: Vector6<f64> = coarse.limits.excursion * TRUST_FRACTION;
+        let radius: Vector6<f64> = coarse.limits.excursion * seq.trust_fraction;
         let solve_pass = |trusted: bool| {
             let rows = leg_rows(
                 profile,
@@ -763,11 +769,15 @@ fn legs_sequence(
             Some(sol) => sol,
             None => {
                 let sol = solve_pass(trusted);
-                // A pass that ends unsolved (the legs linearised about an answer that moved
-                // far) is tried again in the trust region about that answer.
-                if !solved(&sol) && !trusted && iteration > 1 && seq.trust_from > 0 {
-                    trusted = true;
-                    solve_pass(true)
+                // A pass that ends unsolved is tried once more the other way: a plain pass
+                // (the legs linearised about an answer that moved far) in the trust region
+                // about that answer; a pass in the trust region (the answer breaks the legs
+                // re-linearised about it by more than the radius can repair, as on the
+                // steep turn) without it. The failed attempt is reported as unsolved.
+                if !solved(&sol) && iteration > 1 && seq.trust_from > 0 {
+                    out.push((label(iteration, trusted), replay(profile, trace, &[]), sol));
+                    trusted = !trusted;
+                    solve_pass(trusted)
                 } else {
                     sol
                 }

@@ -539,3 +539,67 @@ mod valid {
         }
     }
 }
+
+#[test]
+fn an_infeasible_trust_region_pass_falls_back_to_the_plain_pass() {
+    // Onsets on every translational channel at once: the first pass (legs linearised about
+    // neutral) takes the legs to the stroke at large poses, where the exact legs run past
+    // the rows by centimetres. A trust region of 0.1 % of each excursion (1.7 mm of surge)
+    // about those poses cannot bring them back, so that pass has no solution; the plain pass
+    // (the legs re-linearised there, no trust region) has one, and it is the sequence's
+    // answer, replayed like the others.
+    let profile = full_flight();
+    let trace = trace_of(500, |t| {
+        let on = if t > 0.5 { 1.0 } else { 0.0 };
+        (
+            Vector3::new(4.0 * on, -4.0 * on, 4.0 * on),
+            Vector3::zeros(),
+        )
+    });
+    let setup = Setup::new(&profile, &trace).unwrap();
+    let seq = Sequence {
+        inset_m: LEG_INSETS_M[0],
+        relinearise_head: true,
+        lookahead: Lookahead::None,
+        passes: 2,
+        trust_from: 2,
+        trust_fraction: 1e-3,
+    };
+    let out = legs_sequence(&profile, &trace, &setup, &seq, None, true);
+    let names: Vec<&str> = out.iter().map(|(n, _, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "legs linearised 1× at 5 mm inset",
+            "legs and head linearised 2× at 5 mm inset in a trust region",
+            "legs and head linearised 2× at 5 mm inset",
+        ]
+    );
+    // Why the trust region has no solution, by hand: at some node a leg of the first pass's
+    // pose lies further outside the stroke than any pose within the radius can move it
+    // (|J_i·(p − p̄)| ≤ Σ_d |J_i,d|·r_d).
+    let g = &profile.geometry;
+    let margin = profile.limiter.leg_margin_m + seq.inset_m;
+    let (lo, hi) = (g.leg_min_m + margin, g.leg_max_m - margin);
+    let radius = setup.coarse(&profile, ACHIEVED_GRID).limits.excursion * seq.trust_fraction;
+    let stewart = profile.stewart();
+    let beyond_repair = out[0].2.pose.iter().any(|p| {
+        let (l, j) = (stewart.leg_lengths(p), stewart.jacobian(p));
+        (0..6).any(|i| {
+            let reach: f64 = (0..6).map(|d| j[(i, d)].abs() * radius[d]).sum();
+            l[i] - hi > reach || lo - l[i] > reach
+        })
+    });
+    assert!(beyond_repair);
+    assert_eq!(out[1].2.status, SolverStatus::PrimalInfeasible);
+    // The plain pass is solved and replayed: a motion within the legs, better than the first.
+    let (_, plain, sol) = &out[2];
+    assert_eq!(sol.status, SolverStatus::Solved);
+    assert_eq!(plain.leg_violations, 0);
+    assert!(
+        plain.total < out[0].1.total,
+        "{} vs {}",
+        plain.total,
+        out[0].1.total
+    );
+}
