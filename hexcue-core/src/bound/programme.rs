@@ -70,8 +70,8 @@ pub fn input_coefficients(channel: usize, dof: usize, eye_m: &Vector3<f64>) -> [
 ///
 /// each a second-order cone (‖(L − 1, 2√c·x)‖ ≤ L + 1, Clarabel's), and held below its largest
 /// true value, L_θ ≤ g(1 − cos θmax), L_φ ≤ g(1 − cos φmax). L_θ + L_φ is added to the heave
-/// input. The programme computes it from its own `limits`. Why this contains every tilt's exact lightening: docs/bound.md, "The tilt's
-/// lightening".
+/// input. The programme computes it from its own `limits`. Why this contains every tilt's
+/// exact lightening: docs/bound.md, "The tilt's lightening".
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Lightening {
     /// c_θ (m/s² per rad²).
