@@ -1,12 +1,13 @@
 //! Where the yardstick's gap lies, by channel and by time window (docs/bound.md, "The gap"):
 //! the relaxed joint optimum as the linear model charges it against the achieved candidates
 //! through the exact head, each channel's error in windows of WINDOW seconds.
-//! `cargo run --example gap_where -- TRACE.csv [SECONDS] [WINDOW]`
+//! `cargo run --example gap_where -- TRACE.csv [SECONDS] [WINDOW]` (GAP_WHERE_RELAXED=1: the
+//! relaxation only; GAP_WHERE_LIGHTENING=1: with the tilt's lightening in heave)
 
 use std::path::Path;
 
 use hexcue::formats::trace::load_trace;
-use hexcue_core::bound::{achieved_with_legs, commands_of, input_coefficients, relaxed, Setup};
+use hexcue_core::bound::{achieved_with_legs, commands_of, model_input, relaxed, Setup};
 use hexcue_core::engine::perceive_command;
 use hexcue_core::mca::PlatformCommand;
 use hexcue_core::model::vestibular::Vestibular;
@@ -34,7 +35,7 @@ fn errors(profile: &Profile, setup: &Setup, cmds: &[PlatformCommand]) -> Vec<[f6
         .collect()
 }
 
-/// Per step and channel, the weighted error the programmes' linear model gives a motion.
+/// Per step and channel, the weighted error the programmes' model gives a motion.
 fn linear_steps(setup: &Setup, cmds: &[PlatformCommand]) -> Vec<[f64; 6]> {
     let mut states: Vec<nalgebra::DVector<f64>> = setup
         .filters
@@ -52,13 +53,7 @@ fn linear_steps(setup: &Setup, cmds: &[PlatformCommand]) -> Vec<[f64; 6]> {
                         (y - setup.reference[c][k]) / setup.thresholds[c],
                         setup.below_threshold_weight,
                     );
-                let u: f64 = (0..6)
-                    .map(|d| {
-                        let w = input_coefficients(c, d, &setup.eye_m);
-                        w[0] * cmd.pose[d] + w[1] * cmd.velocity[d] + w[2] * cmd.acceleration[d]
-                    })
-                    .sum();
-                states[c] = &f.a * &states[c] + &f.b * u;
+                states[c] = &f.a * &states[c] + &f.b * model_input(setup, c, cmd);
                 e
             })
         })
@@ -75,7 +70,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .truncate((s.parse::<f64>()? * profile.rate_hz) as usize);
     }
     let window: f64 = args.get(2).map_or(Ok(5.0), |s| s.parse())?;
-    let setup = Setup::new(&profile, &trace)?;
+    // GAP_WHERE_LIGHTENING: `lower` with the tilt's lightening in heave (docs/bound.md).
+    let mut setup = Setup::new(&profile, &trace)?;
+    if std::env::var("GAP_WHERE_LIGHTENING").is_ok() {
+        setup = setup.lightened();
+    }
     let n = trace.len();
     let r = relaxed(&setup, [true; 6])?;
     println!("lower per channel alone: {:?}", r.channel);

@@ -21,9 +21,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 pub use programme::{
-    channel_dofs, input_coefficients, HeadRows, LegRows, NodeRow, Programme, Solution,
+    channel_dofs, input_coefficients, HeadRows, LegRows, Lightening, NodeRow, Programme, Solution,
 };
-pub use replay::{commands_of, linear_error, replay, replay_with, Replayed};
+pub use replay::{commands_of, linear_error, model_input, replay, replay_with, Replayed};
 
 use crate::mca::limiter::WorkspaceLimiter;
 use crate::mca::PlatformCommand;
@@ -203,6 +203,11 @@ pub struct Setup {
     /// Bounds of the free term added to every step's input (`None`: the linearised model
     /// alone; `Setup::valid`: the exact model's residual over the boxes).
     pub residual: Option<[[f64; 2]; 6]>,
+    /// The tilt's lightening in the heave input (`Lightening`; docs/bound.md, "The tilt's
+    /// lightening"): off for `lower` (it lowers the bound on four of the five shipped
+    /// flights), the valid relaxation (whose residual covers it) and the achieved programme's
+    /// grid; on in `Setup::lightened`.
+    pub lightening: bool,
 }
 
 /// Perception thresholds per channel, as the summary's score uses them.
@@ -249,9 +254,13 @@ pub fn channel_filters(profile: &Profile, dt_s: f64) -> [DiscreteStateSpace; 6] 
 /// separates into them. At an eye point on the vertical axis: {fx, wy} on {x, pitch},
 /// {fy, wx} on {y, roll}, {fz} on {z}, {wz} on {yaw}.
 pub fn blocks(eye_m: &Vector3<f64>) -> Vec<(Vec<usize>, Vec<usize>)> {
+    blocks_of(|c| channel_dofs(c, eye_m))
+}
+
+fn blocks_of(dofs_of: impl Fn(usize) -> Vec<usize>) -> Vec<(Vec<usize>, Vec<usize>)> {
     let mut groups: Vec<(Vec<usize>, Vec<usize>)> = Vec::new();
     for c in 0..6 {
-        let dofs = channel_dofs(c, eye_m);
+        let dofs = dofs_of(c);
         let mut merged = (vec![c], dofs);
         groups.retain(|(cs, ds)| {
             if ds.iter().any(|d| merged.1.contains(d)) {
@@ -272,6 +281,24 @@ pub fn blocks(eye_m: &Vector3<f64>) -> Vec<(Vec<usize>, Vec<usize>)> {
 }
 
 impl Setup {
+    /// The DoFs channel c's input depends on here: `channel_dofs`, and with the lightening
+    /// the tilts for heave.
+    pub fn channel_dofs(&self, c: usize) -> Vec<usize> {
+        let mut d = channel_dofs(c, &self.eye_m);
+        if c == 2 && self.lightening {
+            d.extend([3, 4]);
+            d.sort_unstable();
+            d.dedup();
+        }
+        d
+    }
+
+    /// The blocks the programme separates into here (`blocks`): with the lightening heave
+    /// joins the tilts', so {fx, fy, fz, wx, wy} on {x, y, z, roll, pitch} and {wz} on {yaw}.
+    pub fn blocks(&self) -> Vec<(Vec<usize>, Vec<usize>)> {
+        blocks_of(|c| self.channel_dofs(c))
+    }
+
     /// The flight as the programmes see it: the perceived reference through the engine's input
     /// limiting and vestibular model, and the profile's thresholds, weights and limits.
     pub fn new(profile: &Profile, trace: &Trace) -> Result<Self, BoundError> {
@@ -295,7 +322,16 @@ impl Setup {
             eye_m: profile.eye_point(),
             filters: channel_filters(profile, dt),
             residual: None,
+            lightening: false,
         })
+    }
+
+    /// The same flight with the tilt's lightening in the heave input (`Lightening`): the
+    /// programmes contain every motion with its linear-model inputs plus g(1 − cos θ cos φ)
+    /// in heave (docs/bound.md, "The tilt's lightening").
+    pub fn lightened(mut self) -> Setup {
+        self.lightening = true;
+        self
     }
 
     /// The same flight for the valid relaxation: every step's input may carry any value of
@@ -313,6 +349,7 @@ impl Setup {
             eye_m: self.eye_m,
             filters: self.filters.clone(),
             residual: Some(std::array::from_fn(|c| [r[c].lo, r[c].hi])),
+            lightening: false,
         }
     }
 
@@ -342,6 +379,7 @@ impl Setup {
             eye_m: self.eye_m,
             filters: channel_filters(profile, self.dt_s * m as f64),
             residual: None,
+            lightening: false,
         }
     }
 
@@ -378,6 +416,7 @@ impl Setup {
             pose_cost: 0.0,
             residual: self.residual,
             trust: None,
+            lightening: self.lightening,
         }
     }
 }
@@ -396,13 +435,14 @@ pub fn felt_lower(setup: &Setup, alone: [bool; 6]) -> Result<[f64; 6], BoundErro
         eye_m: setup.eye_m,
         filters: setup.filters.clone(),
         residual: setup.residual,
+        lightening: setup.lightening,
     };
     let solved: Vec<(usize, Solution)> = (0..6)
         .filter(|&c| alone[c])
         .collect::<Vec<_>>()
         .par_iter()
         .map(|&c| {
-            let ds = channel_dofs(c, &felt.eye_m);
+            let ds = felt.channel_dofs(c);
             (c, felt.programme(&[c], &ds, &[c], None).solve())
         })
         .collect();
@@ -446,7 +486,7 @@ fn channel_list(cs: &[usize]) -> String {
 /// Solves the joint programme (per block) and each channel's own (those of `alone`), on
 /// rayon's pool. A channel not solved alone has `NAN` as its own optimum.
 pub fn relaxed(setup: &Setup, alone: [bool; 6]) -> Result<Relaxed, BoundError> {
-    let blocks = blocks(&setup.eye_m);
+    let blocks = setup.blocks();
     // Jobs: every block jointly, then each channel alone unless its block is that channel.
     let mut jobs: Vec<(bool, Vec<usize>, Vec<usize>)> = blocks
         .iter()
@@ -454,7 +494,7 @@ pub fn relaxed(setup: &Setup, alone: [bool; 6]) -> Result<Relaxed, BoundError> {
         .collect();
     for (c, &wanted) in alone.iter().enumerate() {
         if wanted && !blocks.iter().any(|(cs, _)| cs == &vec![c]) {
-            jobs.push((false, vec![c], channel_dofs(c, &setup.eye_m)));
+            jobs.push((false, vec![c], setup.channel_dofs(c)));
         }
     }
     let solved: Vec<(bool, Vec<usize>, Solution)> = jobs
@@ -653,6 +693,8 @@ pub struct Sequence {
     /// linearised there are then accurate to second order in that radius, so that the plan's
     /// own poses stay in the stroke (docs/bound.md, "`achieved`").
     pub trust_from: usize,
+    /// The trust region's radius per DoF as a share of its excursion (`TRUST_FRACTION`).
+    pub trust_fraction: f64,
 }
 
 /// Radius of the achieved programme's trust region per DoF, as a share of its excursion
@@ -668,6 +710,7 @@ pub const ACHIEVED_SEQUENCES: [Sequence; 4] = [
         lookahead: Lookahead::None,
         passes: LEG_ITERATIONS,
         trust_from: 0,
+        trust_fraction: TRUST_FRACTION,
     },
     Sequence {
         inset_m: LEG_INSETS_M[1],
@@ -675,6 +718,7 @@ pub const ACHIEVED_SEQUENCES: [Sequence; 4] = [
         lookahead: Lookahead::None,
         passes: LEG_ITERATIONS + 2,
         trust_from: LEG_ITERATIONS + 1,
+        trust_fraction: TRUST_FRACTION,
     },
     Sequence {
         inset_m: LEG_INSETS_M[0],
@@ -682,6 +726,7 @@ pub const ACHIEVED_SEQUENCES: [Sequence; 4] = [
         lookahead: Lookahead::StopPoint,
         passes: LEG_ITERATIONS,
         trust_from: 0,
+        trust_fraction: TRUST_FRACTION,
     },
     Sequence {
         inset_m: LEG_INSETS_M[0],
@@ -689,10 +734,11 @@ pub const ACHIEVED_SEQUENCES: [Sequence; 4] = [
         lookahead: Lookahead::Path,
         passes: 6,
         trust_from: 5,
+        trust_fraction: TRUST_FRACTION,
     },
 ];
 
-fn legs_sequence(
+pub(crate) fn legs_sequence(
     profile: &Profile,
     trace: &Trace,
     setup: &Setup,
@@ -741,7 +787,7 @@ fn legs_sequence(
     for iteration in 1..=seq.passes {
         // The first pass is the shared one when given (`achieved_with_legs`).
         let shared = iteration == 1 && first.is_some();
-        let radius: Vector6<f64> = coarse.limits.excursion * TRUST_FRACTION;
+        let radius: Vector6<f64> = coarse.limits.excursion * seq.trust_fraction;
         let solve_pass = |trusted: bool| {
             let rows = leg_rows(
                 profile,
@@ -771,11 +817,15 @@ fn legs_sequence(
             Some(sol) => sol,
             None => {
                 let sol = solve_pass(trusted);
-                // A pass that ends unsolved (the legs linearised about an answer that moved
-                // far) is tried again in the trust region about that answer.
-                if !solved(&sol) && !trusted && iteration > 1 && seq.trust_from > 0 {
-                    trusted = true;
-                    solve_pass(true)
+                // A pass that ends unsolved is tried once more the other way: a plain pass
+                // (the legs linearised about an answer that moved far) in the trust region
+                // about that answer; a pass in the trust region (the answer breaks the legs
+                // re-linearised about it by more than the radius can repair, as on the
+                // steep turn) without it. The failed attempt is reported as unsolved.
+                if !solved(&sol) && iteration > 1 && seq.trust_from > 0 {
+                    out.push((label(iteration, trusted), replay(profile, trace, &[]), sol));
+                    trusted = !trusted;
+                    solve_pass(trusted)
                 } else {
                     sol
                 }
@@ -918,7 +968,8 @@ pub fn bound(
     // Dominance: every channel held at or below the CWF's, per block.
     let cwf_total: f64 = cwf_error.iter().sum();
     let caps = Some(*cwf_error);
-    let capped: Vec<Solution> = blocks(&setup.eye_m)
+    let capped: Vec<Solution> = setup
+        .blocks()
         .par_iter()
         .map(|(cs, ds)| setup.programme(cs, ds, cs, caps).solve())
         .collect();

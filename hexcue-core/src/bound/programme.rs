@@ -61,6 +61,69 @@ pub fn input_coefficients(channel: usize, dof: usize, eye_m: &Vector3<f64>) -> [
     }
 }
 
+/// The tilt's loss of vertical gravity in the heave input, g(1 − cos θ cos φ) (DESIGN §1: z
+/// down, so a tilted platform's head is *lighter*, Δf_z > 0), which the linear model leaves
+/// out, as two variables per step with convex lower bounds valid over the tilt boxes:
+///
+/// - L_θ ≥ c_θ·θ², c_θ = g(1 − cos θmax)/θmax², standing for g(1 − cos θ);
+/// - L_φ ≥ c_φ·φ², c_φ = g·cos θmax·(1 − cos φmax)/φmax², standing for g·cos θ·(1 − cos φ);
+///
+/// each a second-order cone (‖(L − 1, 2√c·x)‖ ≤ L + 1, Clarabel's), and held below its largest
+/// true value, L_θ ≤ g(1 − cos θmax), L_φ ≤ g(1 − cos φmax). L_θ + L_φ is added to the heave
+/// input. The programme computes it from its own `limits`. Why this contains every tilt's
+/// exact lightening: docs/bound.md, "The tilt's lightening".
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lightening {
+    /// c_θ (m/s² per rad²).
+    pub pitch_gain: f64,
+    /// c_φ (m/s² per rad²).
+    pub roll_gain: f64,
+    /// θmax (rad).
+    pub pitch_max_rad: f64,
+    /// φmax (rad).
+    pub roll_max_rad: f64,
+}
+
+impl Lightening {
+    /// The lightening's bounds over a platform's tilt boxes (pitch and roll excursions).
+    pub fn of(limits: &DofLimits) -> Lightening {
+        // (1 − cos x)/x² = sinc²(x/2)/2 falls on (0, 2π], so on |x| ≤ m it is at least its
+        // value at m; beyond π, cos θ ≥ cos θmax fails, and no cut is claimed (gain 0).
+        let ratio = |m: f64| {
+            if m < 1e-6 {
+                0.5
+            } else if m > std::f64::consts::PI {
+                0.0
+            } else {
+                (1.0 - m.cos()) / (m * m)
+            }
+        };
+        let (pitch, roll) = (limits.excursion[4], limits.excursion[3]);
+        Lightening {
+            pitch_gain: G_MPS2 * ratio(pitch),
+            roll_gain: G_MPS2 * pitch.cos().max(0.0) * ratio(roll),
+            pitch_max_rad: pitch,
+            roll_max_rad: roll,
+        }
+    }
+
+    /// The largest true value of each variable: g(1 − cos θmax) and g(1 − cos φmax).
+    pub fn max_mps2(&self) -> [f64; 2] {
+        [
+            G_MPS2 * (1.0 - self.pitch_max_rad.min(std::f64::consts::PI).cos()),
+            G_MPS2 * (1.0 - self.roll_max_rad.min(std::f64::consts::PI).cos()),
+        ]
+    }
+
+    /// The lowest (L_θ, L_φ) the cones allow at a tilt: c_θ·θ², c_φ·φ².
+    pub fn floor(&self, roll_rad: f64, pitch_rad: f64) -> [f64; 2] {
+        [
+            self.pitch_gain * pitch_rad * pitch_rad,
+            self.roll_gain * roll_rad * roll_rad,
+        ]
+    }
+}
+
 /// The linearised leg rows of one step: lengths l̄ and Jacobian J at a pose p̄, so that
 /// l ≈ l̄ + J·(p − p̄) must stay in [lo, hi].
 #[derive(Clone, Debug)]
@@ -203,6 +266,9 @@ pub struct Programme<'a> {
     /// |p_k,d − p̄_k,d| ≤ r_d. Keeps a pass of the sequential programme where the legs and the
     /// head it linearised about p̄ are accurate (docs/bound.md, "`achieved`").
     pub trust: Option<(&'a [Vector6<f64>], Vector6<f64>)>,
+    /// Optional tilt lightening in the heave input (`Lightening`), for the pitch and roll
+    /// among `dofs`; only with the linear head (`head` is `None`), whose rows leave it out.
+    pub lightening: bool,
 }
 
 /// The programme's answer.
@@ -268,7 +334,16 @@ impl Programme<'_> {
         let per_dof = if self.pose_cost > 0.0 { 4 } else { 3 };
         // Per channel: its filter states, the error slack and, with a residual, the free term.
         let extra = usize::from(self.residual.is_some());
-        let stride = per_dof * nd + nstates.iter().map(|s| s + 1 + extra).sum::<usize>();
+        // Per step, with the lightening: L_θ and L_φ for the tilts that move.
+        let light: Vec<(usize, usize)> = match self.lightening {
+            true if self.head.is_none() && self.channels.contains(&2) => [4usize, 3]
+                .iter()
+                .filter_map(|d| self.dofs.iter().position(|x| x == d).map(|j| (*d, j)))
+                .collect(),
+            _ => Vec::new(),
+        };
+        let stride =
+            per_dof * nd + nstates.iter().map(|s| s + 1 + extra).sum::<usize>() + light.len();
         let nvar = n * stride;
         let dof_col = |k: usize, j: usize, what: usize| k * stride + per_dof * j + what;
         let mut chan_off = Vec::with_capacity(self.channels.len());
@@ -277,6 +352,8 @@ impl Programme<'_> {
             chan_off.push(off);
             off += s + 1 + extra;
         }
+        let light_off = off;
+        let light_col = |k: usize, i: usize| k * stride + light_off + i;
         let state_col = |k: usize, ci: usize, r: usize| k * stride + chan_off[ci] + r;
         let slack_col = |k: usize, ci: usize| k * stride + chan_off[ci] + nstates[ci];
         let residual_col = |k: usize, ci: usize| k * stride + chan_off[ci] + nstates[ci] + 1;
@@ -285,6 +362,9 @@ impl Programme<'_> {
 
         let mut eq = Rows::default();
         let mut ineq = Rows::default();
+        // Second-order cones of three rows each (the lightening's).
+        let mut soc = Rows::default();
+        let lightening = self.lightening.then(|| Lightening::of(&self.limits));
         let mut entries: Vec<(usize, f64)> = Vec::with_capacity(64);
         for k in 0..n {
             for j in 0..nd {
@@ -369,6 +449,11 @@ impl Programme<'_> {
                         if self.residual.is_some() {
                             entries.push((residual_col(k - 1, ci), -f.b[(r, 0)]));
                         }
+                        if c == 2 {
+                            for i in 0..light.len() {
+                                entries.push((light_col(k - 1, i), -f.b[(r, 0)]));
+                            }
+                        }
                         eq.row(&entries, rhs);
                     }
                 }
@@ -389,6 +474,21 @@ impl Programme<'_> {
                         entries.push((slack_col(k, ci), -1.0));
                         ineq.row(&entries, sign * gain * x / tau + offset);
                     }
+                }
+            }
+            if let Some(l) = lightening {
+                let max = l.max_mps2();
+                for (i, &(d, j)) in light.iter().enumerate() {
+                    let (gain, top) = if d == 4 {
+                        (l.pitch_gain, max[0])
+                    } else {
+                        (l.roll_gain, max[1])
+                    };
+                    // L ≥ c·x² as the cone ‖(L − 1, 2√c·x)‖ ≤ L + 1 ((L+1)² − (L−1)² = 4L).
+                    soc.row(&[(light_col(k, i), -1.0)], 1.0);
+                    soc.row(&[(light_col(k, i), -1.0)], -1.0);
+                    soc.row(&[(dof_col(k, j, 0), -2.0 * gain.sqrt())], 0.0);
+                    ineq.row(&[(light_col(k, i), 1.0)], top);
                 }
             }
             if let Some((legs, lo, hi)) = self.legs {
@@ -445,15 +545,21 @@ impl Programme<'_> {
         }
 
         let n_eq = eq.b.len();
-        let n_rows = n_eq + ineq.b.len();
+        let n_ineq = ineq.b.len();
+        let n_soc = soc.b.len();
+        let n_rows = n_eq + n_ineq + n_soc;
         let mut ii = eq.i;
         ii.extend(ineq.i.iter().map(|r| r + n_eq));
+        ii.extend(soc.i.iter().map(|r| r + n_eq + n_ineq));
         let mut jj = eq.j;
         jj.extend(ineq.j);
+        jj.extend(soc.j);
         let mut vv = eq.v;
         vv.extend(ineq.v);
+        vv.extend(soc.v);
         let mut b = eq.b;
         b.extend(ineq.b);
+        b.extend(soc.b);
         let a = CscMatrix::new_from_triplets(n_rows, nvar, ii, jj, vv);
         let p = CscMatrix::zeros((nvar, nvar));
         let mut q = vec![0.0; nvar];
@@ -469,10 +575,11 @@ impl Programme<'_> {
                 }
             }
         }
-        let cones = [
+        let mut cones = vec![
             SupportedConeT::ZeroConeT(n_eq),
-            SupportedConeT::NonnegativeConeT(n_rows - n_eq),
+            SupportedConeT::NonnegativeConeT(n_ineq),
         ];
+        cones.extend((0..n_soc / 3).map(|_| SupportedConeT::SecondOrderConeT(3)));
         let settings = DefaultSettings {
             verbose: false,
             max_iter: 400,

@@ -116,8 +116,9 @@ pub fn replay_with(
     }
 }
 
-/// The error per channel (weighted, as the score) that the programmes' linear model gives a
-/// command sequence: what the relaxation charges that motion. Set beside the pipeline's error
+/// The error per channel (weighted, as the score) that the programmes' model (`model_input`:
+/// the linear head, and the tilt's lightening where the setup has it) gives a command
+/// sequence: what the relaxation charges that motion. Set beside the pipeline's error
 /// of the same commands it measures what the linearisation leaves out (docs/bound.md).
 pub fn linear_error(setup: &Setup, commands: &[PlatformCommand]) -> [f64; 6] {
     let s = setup.below_threshold_weight;
@@ -129,14 +130,24 @@ pub fn linear_error(setup: &Setup, commands: &[PlatformCommand]) -> [f64; 6] {
             let y = (&f.c * &state)[0];
             sum +=
                 crate::score::soft_dead_zone((y - setup.reference[c][k]) / setup.thresholds[c], s);
-            let u: f64 = (0..6)
-                .map(|d| {
-                    let w = input_coefficients(c, d, &setup.eye_m);
-                    w[0] * cmd.pose[d] + w[1] * cmd.velocity[d] + w[2] * cmd.acceleration[d]
-                })
-                .sum();
-            state = &f.a * &state + &f.b * u;
+            state = &f.a * &state + &f.b * model_input(setup, c, cmd);
         }
         setup.score_weights[c] * sum / commands.len().max(1) as f64
     })
+}
+
+/// Channel c's input under the programmes' model (`Setup`): the linearised head, and with
+/// the lightening the tilt's exact loss of vertical gravity in heave, g(1 − cos θ cos φ).
+pub fn model_input(setup: &Setup, c: usize, cmd: &PlatformCommand) -> f64 {
+    let linear: f64 = (0..6)
+        .map(|d| {
+            let w = input_coefficients(c, d, &setup.eye_m);
+            w[0] * cmd.pose[d] + w[1] * cmd.velocity[d] + w[2] * cmd.acceleration[d]
+        })
+        .sum();
+    if c == 2 && setup.lightening {
+        linear + crate::G_MPS2 * (1.0 - cmd.pose[3].cos() * cmd.pose[4].cos())
+    } else {
+        linear
+    }
 }
