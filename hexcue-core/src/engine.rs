@@ -147,10 +147,38 @@ fn phase_spares(air: &Profile, ground: &Profile, id: AlgorithmId) -> Result<Spar
     if tunes_alike(air, ground, id) {
         return Ok(Default::default());
     }
-    Ok([
-        [Some(air.algorithm(id)?), Some(air.algorithm(id)?)],
-        [Some(ground.algorithm(id)?), Some(ground.algorithm(id)?)],
-    ])
+    let built = |p: &Profile| p.algorithm(id).map(|a| Some(warmed(a, p.dt_s())));
+    Ok([[built(air)?, built(air)?], [built(ground)?, built(ground)?]])
+}
+
+/// Steps taken by a spare before it is put aside ([`warmed`]).
+const WARM_UP_STEPS: usize = 50;
+
+/// `algorithm` stepped [`WARM_UP_STEPS`] on a gentle manoeuvre, then reset to rest: an
+/// algorithm sizes some of its buffers in its first steps (the MPC's prediction of the tilt it
+/// follows, its solver's), which must not happen on a live session's stepping thread when the
+/// spare is taken. A reset restores every running state, so the warm-up leaves no trace in
+/// the commands.
+fn warmed(mut algorithm: Box<dyn MotionCueing>, dt_s: f64) -> Box<dyn MotionCueing> {
+    let mut applied = PlatformCommand::default();
+    for k in 0..WARM_UP_STEPS {
+        let t_s = k as f64 * dt_s;
+        let sample = CueSample {
+            delta_f_mps2: Vector3::new(1.5 * (2.0 * t_s).sin(), 0.5, -0.5),
+            angular_velocity_radps: Vector3::new(0.05, 0.02 * t_s.cos(), 0.03),
+        };
+        applied = algorithm.step(&CueInput {
+            k,
+            t_s,
+            dt_s,
+            sample,
+            preview: &[],
+            applied: &applied,
+            deadline: None,
+        });
+    }
+    algorithm.reset();
+    algorithm
 }
 
 /// A retune's algorithm for a profile with `[ground]`: its new tuning for each phase.
