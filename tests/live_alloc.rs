@@ -115,7 +115,35 @@ fn stepping_allocations_switching(
     output: Output,
     switch: Option<(AlgorithmId, f64)>,
 ) -> (Vec<String>, u64) {
-    let profile = hexcue_core::testing::full_flight();
+    stepping_allocations_with(algorithms, drive, output, switch, false)
+}
+
+/// A `[ground]` table that tunes the gain, the CWF and the MPCs otherwise on the ground.
+const GROUND: &str = "motion_gain = 0.5\ncwf.specific_force_scale = [0.3, 0.3, 0.8]\n\
+                      mpc.specific_force_weight = [0.8, 0.8, 0.1]";
+
+/// The simulator's weight on wheels at step k of the replay: on the ground until 0.8 s into
+/// the counted part, in the air for 1 s, back on the ground (during the blend from the
+/// first change: the second spare of each phase is used).
+fn weight_on_wheels(k: usize) -> bool {
+    let counted = k as i64 - WARM_UP_STEPS as i64;
+    !(80..180).contains(&counted)
+}
+
+/// [`stepping_allocations_switching`]; with `ground`, the profile has [`GROUND`] and the
+/// simulator sends weight on wheels, changing twice in the counted part (asserted from the
+/// summary).
+fn stepping_allocations_with(
+    algorithms: &[AlgorithmId],
+    drive: AlgorithmId,
+    output: Output,
+    switch: Option<(AlgorithmId, f64)>,
+    ground: bool,
+) -> (Vec<String>, u64) {
+    let mut profile = hexcue_core::testing::full_flight();
+    if ground {
+        profile.ground = Some(toml::from_str(GROUND).unwrap());
+    }
     let in_port = free_udp_port();
     let input = LiveInput::open(&format!("jsbsim://127.0.0.1:{in_port}")).unwrap();
     let mut session = LiveSession::new(&profile, algorithms, drive, input).unwrap();
@@ -131,7 +159,11 @@ fn stepping_allocations_switching(
     });
     // 18 s of the steep turn, from 20 s in: longer than the session's counted part.
     let rows = trace_rows("steep-turn.csv")[2000..3800].to_vec();
-    let sender = replay_jsbsim(in_port, rows);
+    let sender = if ground {
+        replay_jsbsim_with_wow(in_port, rows)
+    } else {
+        replay_jsbsim(in_port, rows)
+    };
     let mut counted = 0;
     // The stepping thread's count and backtraces, taken on that thread when counting ends.
     let mut caught: Option<(u64, Vec<Backtrace>)> = None;
@@ -201,6 +233,22 @@ fn stepping_allocations_switching(
     }
     let live = summary.live.unwrap();
     assert_eq!(live.frames_dropped, 0, "{live:?}");
+    if ground {
+        // Onto the ground at the first sample, then the two changes counted.
+        let counted_s =
+            WARM_UP_STEPS as f64 / 100.0..(WARM_UP_STEPS + COUNTED_STEPS) as f64 / 100.0;
+        let phases: Vec<(bool, bool)> = live
+            .ground_changes
+            .iter()
+            .map(|c| (c.on_ground, counted_s.contains(&c.t_s)))
+            .collect();
+        assert_eq!(
+            phases,
+            [(true, false), (false, true), (true, true)],
+            "{:?}",
+            live.ground_changes
+        );
+    }
     assert!(live.first_input_s.is_some_and(|t| t < 1.0), "{live:?}");
     // Every lane stepped, on one thread or the other.
     assert_eq!(summary.algorithms.len(), algorithms.len());
@@ -209,6 +257,30 @@ fn stepping_allocations_switching(
     assert_eq!((allocations as usize).min(KEEP), kept.len());
     let traces = kept.iter().map(|b| b.to_string()).collect();
     (traces, counted)
+}
+
+/// [`replay_jsbsim`] with the directive's `gear/wow` column, [`weight_on_wheels`] of each row.
+fn replay_jsbsim_with_wow(port: u16, rows: Vec<Vec<f64>>) -> std::thread::JoinHandle<usize> {
+    std::thread::spawn(move || {
+        let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        let to = format!("127.0.0.1:{port}");
+        sender
+            .send_to(b"<LABELS> ,Time,a-pilot-x-ft sec2,a-pilot-y-ft sec2,a-pilot-z-ft sec2,p-rad sec,q-rad sec,r-rad sec,phi-rad,theta-rad,psi-rad,wow\n", &to)
+            .unwrap();
+        let start = std::time::Instant::now();
+        for (k, row) in rows.iter().enumerate() {
+            let due = start + std::time::Duration::from_secs_f64(k as f64 * 0.01);
+            std::thread::sleep(due.saturating_duration_since(std::time::Instant::now()));
+            let line = format!(
+                "{},{}\n",
+                jsbsim_line(row[0], row).trim_end(),
+                u8::from(weight_on_wheels(k))
+            );
+            // Gone once the session has stopped.
+            let _ = sender.send_to(line.as_bytes(), &to);
+        }
+        rows.len()
+    })
 }
 
 fn assert_none(traces: &[String], counted: u64, what: &str) {
@@ -223,10 +295,16 @@ fn assert_none(traces: &[String], counted: u64, what: &str) {
 
 /// Every session at once, each on its own threads: the sessions are paced by the replayed
 /// stream's clock (15 s each) and use little CPU, so side by side they take the time of one
-/// instead of five. Each scenario's failure is reported with its name.
+/// instead of seven. Each scenario's failure is reported with its name.
 #[test]
 fn no_stepping_thread_allocates_after_warm_up() {
-    let scenarios: [(&str, fn()); 5] = [
+    let scenarios: [(&str, fn()); 7] = [
+        ("phase change, CWF driving", || {
+            a_change_of_phase_allocates_nothing(AlgorithmId::Cwf)
+        }),
+        ("phase change, MPC driving", || {
+            a_change_of_phase_allocates_nothing(AlgorithmId::Mpc)
+        }),
         (
             "comparison lanes",
             the_comparison_lanes_allocate_off_the_stepping_thread,
@@ -299,4 +377,23 @@ fn the_stepping_thread_allocates_nothing_smpc() {
     let (traces, counted) =
         stepping_allocations(&[AlgorithmId::Smpc], AlgorithmId::Smpc, Output::Json);
     assert_none(&traces, counted, "driving with the S-MPC");
+}
+
+/// A profile's `[ground]` (issue 36): the simulator's weight on wheels changes twice in the
+/// counted part, the second time during the first change's blend. Every algorithm of the
+/// other phase was built at the start: the stepping thread builds and allocates nothing, the
+/// driving lane's nor the hand-over of the phase to the comparison lanes.
+fn a_change_of_phase_allocates_nothing(drive: AlgorithmId) {
+    let (traces, counted) = stepping_allocations_with(
+        &[AlgorithmId::Mpc, AlgorithmId::Cwf],
+        drive,
+        Output::Json,
+        None,
+        true,
+    );
+    assert_none(
+        &traces,
+        counted,
+        &format!("changing phase with the {drive} driving"),
+    );
 }

@@ -466,3 +466,224 @@ fn wait_child(child: &mut Child) -> std::process::ExitStatus {
         std::thread::sleep(Duration::from_millis(10));
     }
 }
+
+/// The commanded poses of a `play` recording's only lane, with their times.
+fn recorded_poses(path: &std::path::Path) -> Vec<(f64, [f64; 6])> {
+    hexcue::formats::recording::Recording::open(path)
+        .unwrap()
+        .frames()
+        .unwrap()
+        .map(|f| {
+            let f = f.unwrap();
+            (f.t_s, std::array::from_fn(|i| f.lanes[0].command.pose[i]))
+        })
+        .collect()
+}
+
+/// `hexcue play --headless --foxglove` (issue 36): Foxglove's Parameters tune a played
+/// flight as they tune a live one. The CWF on the steep turn at ×4: a WebSocket client lists
+/// the parameters and finds `motion_gain`, is refused 2.0 with the range (nothing changed),
+/// and sets 0.5 while the flight plays. From the recording, against the same flight played
+/// untuned: the command is the untuned one exactly before the change, exactly half of it
+/// once the gain's path is over (the time its event gives), and no acceleration on the way
+/// exceeds the untuned run's own by the transition limits; the change is an event and in the
+/// summary.
+#[test]
+fn motion_gain_set_from_foxglove_tunes_a_played_flight() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = repo().join("recordings/traces/steep-turn.csv");
+    let tuned = dir.path().join("tuned.mcap");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_hexcue"))
+        .args(["play", "--headless", "--algorithms", "cwf", "--speed", "4"])
+        .arg("--trace")
+        .arg(&trace)
+        .args(["--foxglove", "127.0.0.1:0", "--record"])
+        .arg(&tuned)
+        .arg("--summary")
+        .arg(dir.path().join("summary.json"))
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the hexcue binary runs");
+    let (tx, err_lines) = mpsc::channel();
+    let err = child.stderr.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(err).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let mut lines = Vec::new();
+    let addr = serving(&err_lines, &mut lines);
+    let socket = &mut connect(&addr);
+    let (info, _) = read_until(socket, |v| v["op"] == "serverInfo");
+    assert!(
+        info["capabilities"]
+            .as_array()
+            .unwrap()
+            .contains(&json!("parameters")),
+        "{info}"
+    );
+    // Mid-flight: 500 of the flight's /aircraft messages (one a step at most: 5 s or more)
+    // before any change.
+    let (advertised, _) = read_until(socket, |v| {
+        v["op"] == "advertise"
+            && v["channels"]
+                .as_array()
+                .is_some_and(|c| c.iter().any(|c| c["topic"] == "/aircraft"))
+    });
+    let channel = advertised["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["topic"] == "/aircraft")
+        .unwrap()["id"]
+        .clone();
+    send(
+        socket,
+        json!({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channel}]}),
+    );
+    let (mut flown, until) = (0, Instant::now() + PATIENCE);
+    while flown < 500 {
+        assert!(Instant::now() < until, "{flown} /aircraft messages");
+        if let Message::Binary(data) = socket.read().expect("messages arrive") {
+            flown += usize::from(data.first() == Some(&1));
+        }
+    }
+    send(
+        socket,
+        json!({"op": "getParameters", "parameterNames": [], "id": "list"}),
+    );
+    let (list, _) = read_until(socket, |v| {
+        v["op"] == "parameterValues" && v["id"] == "list"
+    });
+    assert_eq!(parameter(&list, "motion_gain"), Some(1.0), "{list}");
+    assert_eq!(
+        parameter(&list, "drive"),
+        None,
+        "play drives nothing: {list}"
+    );
+    send(
+        socket,
+        json!({"op": "setParameters", "id": "bad",
+               "parameters": [{"name": "motion_gain", "value": 2.0, "type": "float64"}]}),
+    );
+    let (answer, before) = read_until(socket, |v| v["op"] == "parameterValues" && v["id"] == "bad");
+    assert_eq!(parameter(&answer, "motion_gain"), Some(1.0), "{answer}");
+    let refusal = before
+        .iter()
+        .find(|v| v["op"] == "status")
+        .unwrap_or_else(|| panic!("no status: {before:?}"));
+    let message = refusal["message"].as_str().unwrap();
+    assert!(
+        message.contains("motion_gain") && message.contains("[0, 1]"),
+        "{message}"
+    );
+    send(
+        socket,
+        json!({"op": "setParameters", "id": "half",
+               "parameters": [{"name": "motion_gain", "value": 0.5, "type": "float64"}]}),
+    );
+    let (answer, _) = read_until(socket, |v| {
+        v["op"] == "parameterValues" && v["id"] == "half"
+    });
+    assert_eq!(parameter(&answer, "motion_gain"), Some(0.5), "{answer}");
+    let until = Instant::now() + PATIENCE * 2;
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(Instant::now() < until, "hexcue play did not end");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    lines.extend(err_lines.try_iter());
+    assert!(status.success(), "{status}: {lines:?}");
+    assert!(
+        lines
+            .iter()
+            .any(|l| l == "tuning: motion_gain = 0.5 (was 1)"),
+        "{lines:?}"
+    );
+
+    let plain = dir.path().join("plain.mcap");
+    let out = hexcue(&[
+        "play".as_ref(),
+        "--headless".as_ref(),
+        "--algorithms".as_ref(),
+        "cwf".as_ref(),
+        "--trace".as_ref(),
+        trace.as_os_str(),
+        "--record".as_ref(),
+        plain.as_os_str(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let (tuned_poses, plain_poses) = (recorded_poses(&tuned), recorded_poses(&plain));
+    assert_eq!(tuned_poses.len(), plain_poses.len());
+
+    let summary = read_json(&dir.path().join("summary.json"));
+    let changes = summary["tuning"]["changes"].as_array().unwrap().clone();
+    assert_eq!(changes.len(), 1, "{summary}");
+    assert_eq!(changes[0]["name"], "motion_gain");
+    let t_change = changes[0]["t_s"].as_f64().unwrap();
+    let event = recorded_events(&tuned)
+        .into_iter()
+        .find(|e| e.starts_with("parameter motion_gain set: 1 → 0.5"))
+        .expect("the change on /events");
+    let follow_s: f64 = event
+        .rsplit("within ")
+        .next()
+        .and_then(|s| s.strip_suffix(" s"))
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("{event}"));
+    eprintln!("{event} (at {t_change} s)");
+    // Mid-flight: the flight went on well past the gain's path.
+    let end_s = tuned_poses.last().unwrap().0;
+    assert!(
+        t_change >= 5.0 && t_change + follow_s + 5.0 < end_s,
+        "{t_change} {end_s}"
+    );
+    // The recording's resolution (1 µm, 1 µrad), with the halving of a rounded value.
+    const RESOLUTION: f64 = 1.5e-6 + 1e-12;
+    let (mut settled, mut halved) = (0, 0.0f64);
+    for ((t, a), (_, b)) in tuned_poses.iter().zip(&plain_poses) {
+        for i in 0..6 {
+            if *t < t_change - 1e-9 {
+                assert!((a[i] - b[i]).abs() <= 1e-12, "t {t}: {a:?} {b:?}");
+            } else if *t >= t_change + follow_s {
+                assert!(
+                    (a[i] - 0.5 * b[i]).abs() <= RESOLUTION,
+                    "t {t}: {a:?} {b:?}"
+                );
+                halved = halved.max(b[i].abs());
+            }
+        }
+        settled += usize::from(*t >= t_change + follow_s);
+    }
+    assert!(settled > 500 && halved > 1e-2, "{settled} {halved}");
+    // The worst acceleration from a second before the change to a second after the path.
+    let worst = |poses: &[(f64, [f64; 6])]| {
+        let mut w = [0.0f64; 6];
+        for k in 2..poses.len() {
+            if poses[k].0 < t_change - 1.0 || poses[k].0 > t_change + follow_s + 1.0 {
+                continue;
+            }
+            for (i, w) in w.iter_mut().enumerate() {
+                let a =
+                    (poses[k].1[i] - 2.0 * poses[k - 1].1[i] + poses[k - 2].1[i]) / (DT_S * DT_S);
+                *w = w.max(a.abs() * if i < 3 { 1.0 } else { 1f64.to_degrees() });
+            }
+        }
+        w
+    };
+    let (w_tuned, w_plain) = (worst(&tuned_poses), worst(&plain_poses));
+    eprintln!("worst |acceleration| across the change: {w_tuned:.3?}, untuned {w_plain:.3?}");
+    for i in 0..6 {
+        let limit = if i < 3 { AXIS_MPS2 } else { ANGLE_DPS2 };
+        assert!(
+            w_tuned[i] <= w_plain[i] + limit,
+            "DoF {i}: {w_tuned:?} {w_plain:?}"
+        );
+    }
+}

@@ -34,14 +34,182 @@ struct Lane {
     /// The algorithm as it was tuned before a live change, still heard while the blend to
     /// the new tuning lasts.
     fade: Option<Fade>,
+    /// Whether `algorithm` runs the ground's tuning (a profile's `[ground]`, issue 36).
+    on_ground: bool,
+    /// This algorithm built ahead for each phase (`[0]` the air's tuning, `[1]` the ground's),
+    /// taken at a change of phase so that nothing is built on the way: a live session
+    /// changes phase on its stepping thread, which must not allocate. Empty when the two
+    /// phases tune it alike or the profile has no `[ground]`.
+    spares: Spares,
 }
+
+/// Two of each phase's algorithm: a phase change while the last one's blend still runs finds
+/// one of them spare (the other is being blended out).
+type Spares = [[Option<Box<dyn MotionCueing>>; 2]; 2];
 
 impl Lane {
     fn reset(&mut self) {
         self.algorithm.reset();
         self.limiter.reset();
         self.vestibular.reset();
-        self.fade = None;
+        self.end_fade();
+    }
+
+    /// Ends a blend: an algorithm of one of the phases' tunings goes back to the spares.
+    fn end_fade(&mut self) {
+        if let Some(fade) = self.fade.take() {
+            if let Some(phase) = fade.spare_of {
+                self.put_spare(phase, fade.algorithm);
+            }
+        }
+    }
+
+    fn take_spare(&mut self, on_ground: bool) -> Option<Box<dyn MotionCueing>> {
+        self.spares[on_ground as usize]
+            .iter_mut()
+            .find_map(Option::take)
+    }
+
+    fn put_spare(&mut self, on_ground: bool, algorithm: Box<dyn MotionCueing>) {
+        if let Some(slot) = self.spares[on_ground as usize]
+            .iter_mut()
+            .find(|s| s.is_none())
+        {
+            *slot = Some(algorithm);
+        }
+    }
+
+    /// To the tuning of the phase `on_ground` through a blend of `blend_s`, with an algorithm
+    /// built ahead that takes over the running one's state ([`MotionCueing::inherit_from`]):
+    /// no allocation. A lane whose two phases tune it alike has no spare and goes on as it is.
+    fn switch_phase(&mut self, on_ground: bool, blend_s: f64, parallel: bool) {
+        if self.on_ground == on_ground {
+            return;
+        }
+        self.on_ground = on_ground;
+        let Some(mut new) = self.take_spare(on_ground) else {
+            return;
+        };
+        new.inherit_from(&*self.algorithm);
+        new.set_parallel(parallel);
+        let old = std::mem::replace(&mut self.algorithm, new);
+        if self.fade.is_none() {
+            self.fade = Some(Fade {
+                algorithm: old,
+                limiter: self.limiter.clone(),
+                blend: Blend::new(blend_s),
+                spare_of: Some(!on_ground),
+            });
+        } else {
+            // The blend under way runs on, from its old side to this one.
+            self.put_spare(!on_ground, old);
+        }
+    }
+
+    /// A retune of a lane whose phases are tuned apart: the new tuning of the phase in force
+    /// blends in, and the new spares replace the old ones.
+    fn retune_phases(&mut self, mut set: PhaseSet, blend_s: f64, parallel: bool) {
+        let Some(mut new) = set.take_for(self.on_ground) else {
+            return;
+        };
+        new.inherit_from(&*self.algorithm);
+        new.set_parallel(parallel);
+        let old = std::mem::replace(&mut self.algorithm, new);
+        match &mut self.fade {
+            None => {
+                self.fade = Some(Fade {
+                    algorithm: old,
+                    limiter: self.limiter.clone(),
+                    blend: Blend::new(blend_s),
+                    spare_of: None,
+                })
+            }
+            // Of the old tuning: not a spare any more.
+            Some(fade) => fade.spare_of = None,
+        }
+        self.spares = set.spares;
+    }
+}
+
+/// Whether the two profiles tune algorithm `id` alike (`[mpc]` tunes the MPC and the S-MPC,
+/// `[smpc]` the S-MPC).
+fn tunes_alike(a: &Profile, b: &Profile, id: AlgorithmId) -> bool {
+    match id {
+        AlgorithmId::Cwf => a.cwf == b.cwf,
+        AlgorithmId::Mpc => a.mpc == b.mpc,
+        AlgorithmId::Smpc => a.mpc == b.mpc && a.smpc == b.smpc,
+    }
+}
+
+/// Algorithm `id` built ahead for both phases ([`Spares`]); none when `air` and `ground`
+/// tune it alike.
+fn phase_spares(air: &Profile, ground: &Profile, id: AlgorithmId) -> Result<Spares, BuildError> {
+    if tunes_alike(air, ground, id) {
+        return Ok(Default::default());
+    }
+    let built = |p: &Profile| p.algorithm(id).map(|a| Some(warmed(a, p.dt_s())));
+    Ok([[built(air)?, built(air)?], [built(ground)?, built(ground)?]])
+}
+
+/// Steps taken by a spare before it is put aside ([`warmed`]).
+const WARM_UP_STEPS: usize = 50;
+
+/// `algorithm` stepped [`WARM_UP_STEPS`] on a gentle manoeuvre, then reset to rest: an
+/// algorithm sizes some of its buffers in its first steps (the MPC's prediction of the tilt it
+/// follows, its solver's), which must not happen on a live session's stepping thread when the
+/// spare is taken. A reset restores every running state, so the warm-up leaves no trace in
+/// the commands.
+fn warmed(mut algorithm: Box<dyn MotionCueing>, dt_s: f64) -> Box<dyn MotionCueing> {
+    let mut applied = PlatformCommand::default();
+    for k in 0..WARM_UP_STEPS {
+        let t_s = k as f64 * dt_s;
+        let sample = CueSample {
+            delta_f_mps2: Vector3::new(1.5 * (2.0 * t_s).sin(), 0.5, -0.5),
+            angular_velocity_radps: Vector3::new(0.05, 0.02 * t_s.cos(), 0.03),
+        };
+        applied = algorithm.step(&CueInput {
+            k,
+            t_s,
+            dt_s,
+            sample,
+            preview: &[],
+            applied: &applied,
+            deadline: None,
+        });
+    }
+    algorithm.reset();
+    algorithm
+}
+
+/// A retune's algorithm for a profile with `[ground]`: its new tuning for each phase.
+struct PhaseSet {
+    id: AlgorithmId,
+    /// The one algorithm when the two phases tune it alike.
+    single: Option<Box<dyn MotionCueing>>,
+    spares: Spares,
+}
+
+impl PhaseSet {
+    fn build(air: &Profile, ground: &Profile, id: AlgorithmId) -> Result<Self, BuildError> {
+        let alike = tunes_alike(air, ground, id);
+        Ok(PhaseSet {
+            id,
+            single: if alike {
+                Some(air.algorithm(id)?)
+            } else {
+                None
+            },
+            spares: phase_spares(air, ground, id)?,
+        })
+    }
+
+    /// The algorithm to run in phase `on_ground`, out of the set.
+    fn take_for(&mut self, on_ground: bool) -> Option<Box<dyn MotionCueing>> {
+        self.single.take().or_else(|| {
+            self.spares[on_ground as usize]
+                .iter_mut()
+                .find_map(Option::take)
+        })
     }
 }
 
@@ -79,6 +247,9 @@ struct Fade {
     algorithm: Box<dyn MotionCueing>,
     limiter: WorkspaceLimiter,
     blend: Blend,
+    /// The phase whose tuning `algorithm` runs, when it goes back to the lane's spares once
+    /// blended out (a change of phase); `None`: an outdated tuning, dropped.
+    spare_of: Option<bool>,
 }
 
 /// Algorithms rebuilt for a new tuning, ready for [`Engine::retune`]: built apart from the
@@ -87,31 +258,61 @@ struct Fade {
 pub struct Retune {
     profile: Profile,
     algorithms: Vec<Box<dyn MotionCueing>>,
+    /// With `[ground]`: the new ground profile and each changed algorithm for both phases.
+    phased: Option<PhasedRetune>,
+}
+
+struct PhasedRetune {
+    ground: Profile,
+    sets: Vec<PhaseSet>,
 }
 
 impl Retune {
     /// The algorithms among `ids` whose section differs between `old` and `new`, built as
-    /// `new` tunes them (`[mpc]` rebuilds the MPC and the S-MPC, `[smpc]` the S-MPC).
+    /// `new` tunes them (`[mpc]` rebuilds the MPC and the S-MPC, `[smpc]` the S-MPC). With
+    /// a `[ground]` table, those whose tuning differs in either phase, built for both
+    /// phases, so that the engine changes phase afterwards without building anything.
     pub fn build(old: &Profile, new: &Profile, ids: &[AlgorithmId]) -> Result<Self, BuildError> {
-        let changed = |id: AlgorithmId| match id {
-            AlgorithmId::Cwf => old.cwf != new.cwf,
-            AlgorithmId::Mpc => old.mpc != new.mpc,
-            AlgorithmId::Smpc => old.mpc != new.mpc || old.smpc != new.smpc,
-        };
+        if new.ground.is_some() {
+            let on_ground = |p: &Profile| {
+                p.on_ground().map_err(|e| BuildError::Setup {
+                    algorithm: ids.first().copied().unwrap_or(AlgorithmId::Cwf),
+                    reason: e.to_string(),
+                })
+            };
+            let (old_ground, new_ground) = (on_ground(old)?, on_ground(new)?);
+            let sets = ids
+                .iter()
+                .filter(|id| {
+                    !tunes_alike(old, new, **id) || !tunes_alike(&old_ground, &new_ground, **id)
+                })
+                .map(|id| PhaseSet::build(new, &new_ground, *id))
+                .collect::<Result<Vec<_>, _>>()?;
+            return Ok(Retune {
+                profile: new.clone(),
+                algorithms: Vec::new(),
+                phased: Some(PhasedRetune {
+                    ground: new_ground,
+                    sets,
+                }),
+            });
+        }
         let algorithms = ids
             .iter()
-            .filter(|id| changed(**id))
+            .filter(|id| !tunes_alike(old, new, **id))
             .map(|id| new.algorithm(*id))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Retune {
             profile: new.clone(),
             algorithms,
+            phased: None,
         })
     }
 
     /// The algorithms it changes.
     pub fn algorithms(&self) -> Vec<AlgorithmId> {
-        self.algorithms.iter().map(|a| a.id()).collect()
+        let sets = self.phased.iter().flat_map(|p| p.sets.iter().map(|s| s.id));
+        self.algorithms.iter().map(|a| a.id()).chain(sets).collect()
     }
 }
 
@@ -156,7 +357,7 @@ impl StepContext<'_> {
             acted |= old.acted;
             fade.blend.advance(self.dt_s);
             if fade.blend.done() {
-                lane.fade = None;
+                lane.end_fade();
             }
         }
         // After the limiter, whose last command the algorithm sees as applied: the gains
@@ -278,13 +479,18 @@ pub struct Engine {
     k: usize,
 }
 
-/// [`Engine::set_ground`]: when the flight is on the ground, and the air tuning to come back
-/// to (the engine's profile is the one in force).
+/// [`Engine::set_ground`], [`Engine::follow_ground`]: the phase in force, and the profile of
+/// the other (the engine's profile is the one in force).
 struct GroundPhases {
-    schedule: crate::ground::GroundSchedule,
-    air: Profile,
+    /// When a recorded flight is on the ground; `None`: the caller says
+    /// ([`Engine::set_on_ground`], a live session).
+    schedule: Option<crate::ground::GroundSchedule>,
+    /// The profile of the phase not in force.
+    standby: Profile,
     on_ground: bool,
     blend_s: f64,
+    /// `[ground]` states gains ([`Profile::ground_sets_gains`]).
+    sets_gains: bool,
 }
 
 /// Saturates the aircraft motion per axis as the profile's `[input]` asks.
@@ -341,6 +547,8 @@ impl Engine {
                 ),
                 vestibular: Vestibular::new(&profile.vestibular, dt),
                 fade: None,
+                on_ground: false,
+                spares: Default::default(),
             });
         }
         let transitions = profile.safety.transition_limits(&profile.limits.si(), dt);
@@ -436,7 +644,7 @@ impl Engine {
         self.gains_asked = target;
         match &self.ground {
             // On the ground with gains of its own: those stay; these come with the air.
-            Some(g) if g.on_ground && g.air.ground_sets_gains() => 0.0,
+            Some(g) if g.on_ground && g.sets_gains => 0.0,
             _ => self.gains.set_target(target),
         }
     }
@@ -454,40 +662,68 @@ impl Engine {
         if self.profile.ground.is_none() || !schedule.touches_ground() {
             return Ok(false);
         }
+        self.follow_ground(blend_s)?;
+        let start = schedule.on_ground(0.0);
+        if let Some(g) = &mut self.ground {
+            g.schedule = Some(schedule);
+        }
+        if start {
+            self.switch_ground(true);
+            self.settle_phase();
+        }
+        Ok(true)
+    }
+
+    /// Builds the profile's `[ground]` tuning beside the air's, for [`Engine::set_on_ground`]
+    /// to blend between them over `blend_s` when the caller says (a live session, from the
+    /// simulator's weight on wheels or height and speed). Every algorithm the two phases tune
+    /// apart is built here, twice for each phase, so that a change of phase builds and
+    /// allocates nothing. Starts in the air. Without `[ground]`: `Ok(false)`, nothing to do.
+    pub fn follow_ground(&mut self, blend_s: f64) -> Result<bool, BuildError> {
+        if self.profile.ground.is_none() {
+            return Ok(false);
+        }
         let air = self.profile.clone();
+        let first = self
+            .lanes
+            .first()
+            .map_or(AlgorithmId::Cwf, |l| l.algorithm.id());
         let ground = air.on_ground().map_err(|e| BuildError::Setup {
-            algorithm: self
-                .algorithms()
-                .first()
-                .copied()
-                .unwrap_or(AlgorithmId::Cwf),
+            algorithm: first,
             reason: e.to_string(),
         })?;
-        // Built once here, so that a tuning the algorithms refuse is said before the run.
-        let ids = self.algorithms();
-        let built = Retune::build(&air, &ground, &ids)?;
-        let start = schedule.on_ground(0.0);
+        for lane in &mut self.lanes {
+            let mut spares = phase_spares(&air, &ground, lane.algorithm.id())?;
+            // The lane runs one of the air's already.
+            spares[0][1] = None;
+            lane.spares = spares;
+            lane.on_ground = false;
+        }
         self.ground = Some(GroundPhases {
-            schedule,
-            air,
+            schedule: None,
+            sets_gains: air.ground_sets_gains(),
+            standby: ground,
             on_ground: false,
             blend_s,
         });
-        if start {
-            for mut new in built.algorithms {
-                if let Some(lane) = self.lanes.iter_mut().find(|l| l.algorithm.id() == new.id()) {
-                    new.set_parallel(self.algorithms_parallel);
-                    lane.algorithm = new;
-                }
-            }
-            self.profile = ground;
-            if let Some(g) = &mut self.ground {
-                g.on_ground = true;
-            }
-            let gains = self.ground_gains();
-            self.gains = self.gains.clone().settled_at(gains);
-        }
         Ok(true)
+    }
+
+    /// Says whether the aircraft is on the ground: at a change, the other phase's tuning
+    /// blends in ([`Engine::follow_ground`]), or is in force `at_once` (nothing is cued: the
+    /// platform is parked, or the lanes have just been reset to rest); true when this changed
+    /// the phase. No allocation.
+    pub fn set_on_ground(&mut self, on_ground: bool, at_once: bool) -> bool {
+        match &self.ground {
+            Some(g) if g.on_ground != on_ground => {
+                self.switch_ground(on_ground);
+                if at_once {
+                    self.settle_phase();
+                }
+                true
+            }
+            _ => false,
+        }
     }
 
     /// Whether the ground tuning is in force (false without [`Engine::set_ground`]).
@@ -495,34 +731,48 @@ impl Engine {
         self.ground.as_ref().is_some_and(|g| g.on_ground)
     }
 
+    /// Whether the engine follows a profile's `[ground]` ([`Engine::set_ground`],
+    /// [`Engine::follow_ground`]).
+    pub fn has_ground(&self) -> bool {
+        self.ground.is_some()
+    }
+
     /// The gains the phase in force asks for: the ground's where `[ground]` states gains and
     /// the flight is on the ground, else the last asked for.
     fn ground_gains(&self) -> Vector6<f64> {
         match &self.ground {
-            Some(g) if g.on_ground && g.air.ground_sets_gains() => self.profile.gains(),
+            Some(g) if g.on_ground && g.sets_gains => self.profile.gains(),
             _ => self.gains_asked,
         }
     }
 
-    /// From the air tuning to the ground's, or back, through a blend.
+    /// From the air tuning to the ground's, or back, through a blend: the profiles change
+    /// places, each lane takes its spare of the phase, the gains head for the phase's. No
+    /// allocation.
     fn switch_ground(&mut self, on_ground: bool) {
         let Some(g) = &mut self.ground else {
             return;
         };
-        let target = if on_ground {
-            // Checked by `set_ground` and by every retune's profile (`Profile::validate`).
-            g.air.on_ground().unwrap_or_else(|_| g.air.clone())
-        } else {
-            g.air.clone()
-        };
+        if g.on_ground == on_ground {
+            return;
+        }
+        std::mem::swap(&mut self.profile, &mut g.standby);
         g.on_ground = on_ground;
         let blend_s = g.blend_s;
-        let ids = self.algorithms();
-        if let Ok(retune) = Retune::build(&self.profile, &target, &ids) {
-            self.retune_lanes(retune, blend_s);
+        for lane in &mut self.lanes {
+            lane.switch_phase(on_ground, blend_s, self.algorithms_parallel);
         }
         let gains = self.ground_gains();
         self.gains.set_target(gains);
+    }
+
+    /// The phase just entered in force at once: no blend, the gains already there.
+    fn settle_phase(&mut self) {
+        for lane in &mut self.lanes {
+            lane.end_fade();
+        }
+        let gains = self.ground_gains();
+        self.gains = self.gains.clone().settled_at(gains);
     }
 
     /// The gains on the command at the current step.
@@ -535,28 +785,45 @@ impl Engine {
     /// smootherstep ([`Blend`]). A retune during a blend replaces the blend's new side and
     /// lets the blend run on, so that the command never jumps.
     pub fn retune(&mut self, retune: Retune, blend_s: f64) {
-        let retune = match &mut self.ground {
-            // The air tuning changed while on the ground: the ground's, over it, is in force.
-            Some(g) if g.on_ground => {
-                g.air = retune.profile;
-                let target = g.air.on_ground().unwrap_or_else(|_| g.air.clone());
-                let ids: Vec<AlgorithmId> = self.lanes.iter().map(|l| l.algorithm.id()).collect();
-                match Retune::build(&self.profile, &target, &ids) {
-                    Ok(r) => r,
-                    Err(_) => return,
-                }
-            }
-            Some(g) => {
-                g.air = retune.profile.clone();
-                retune
-            }
-            None => retune,
+        let Retune {
+            profile,
+            algorithms,
+            phased,
+        } = retune;
+        let Some(phased) = phased else {
+            return self.retune_lanes(profile, algorithms, blend_s);
         };
-        self.retune_lanes(retune, blend_s);
+        let Some(g) = &mut self.ground else {
+            // Not following the phases (a flight that never touches the ground): the air's.
+            let algorithms = phased
+                .sets
+                .into_iter()
+                .filter_map(|mut set| set.take_for(false))
+                .collect();
+            return self.retune_lanes(profile, algorithms, blend_s);
+        };
+        g.sets_gains = profile.ground_sets_gains();
+        let (in_force, standby) = if g.on_ground {
+            (phased.ground, profile)
+        } else {
+            (profile, phased.ground)
+        };
+        g.standby = standby;
+        for set in phased.sets {
+            if let Some(lane) = self.lanes.iter_mut().find(|l| l.algorithm.id() == set.id) {
+                lane.retune_phases(set, blend_s, self.algorithms_parallel);
+            }
+        }
+        self.profile = in_force;
     }
 
-    fn retune_lanes(&mut self, retune: Retune, blend_s: f64) {
-        for mut new in retune.algorithms {
+    fn retune_lanes(
+        &mut self,
+        profile: Profile,
+        algorithms: Vec<Box<dyn MotionCueing>>,
+        blend_s: f64,
+    ) {
+        for mut new in algorithms {
             let Some(lane) = self.lanes.iter_mut().find(|l| l.algorithm.id() == new.id()) else {
                 continue;
             };
@@ -565,15 +832,19 @@ impl Engine {
             }
             new.set_parallel(self.algorithms_parallel);
             let old = std::mem::replace(&mut lane.algorithm, new);
-            if lane.fade.is_none() {
-                lane.fade = Some(Fade {
-                    algorithm: old,
-                    limiter: lane.limiter.clone(),
-                    blend: Blend::new(blend_s),
-                });
+            match &mut lane.fade {
+                None => {
+                    lane.fade = Some(Fade {
+                        algorithm: old,
+                        limiter: lane.limiter.clone(),
+                        blend: Blend::new(blend_s),
+                        spare_of: None,
+                    })
+                }
+                Some(fade) => fade.spare_of = None,
             }
         }
-        self.profile = retune.profile;
+        self.profile = profile;
     }
 
     /// The algorithms run, in lane order.
@@ -608,15 +879,15 @@ impl Engine {
         }
         // Back to the start's phase at once, as `set_ground` started it: no blend from the
         // phase the flight was in when it was rewound.
-        let start = self.ground.as_ref().map(|g| g.schedule.on_ground(0.0));
+        let start = self
+            .ground
+            .as_ref()
+            .and_then(|g| g.schedule.as_ref())
+            .map(|s| s.on_ground(0.0));
         if let Some(start) = start.filter(|s| Some(*s) != self.ground.as_ref().map(|g| g.on_ground))
         {
             self.switch_ground(start);
-            for lane in &mut self.lanes {
-                lane.fade = None;
-            }
-            let gains = self.ground_gains();
-            self.gains = self.gains.clone().settled_at(gains);
+            self.settle_phase();
         }
     }
 
@@ -657,6 +928,10 @@ impl Engine {
         }
         let mut lane = lane.lane;
         lane.algorithm.set_parallel(self.algorithms_parallel);
+        // It left in the other phase (a change between its leaving and its arrival).
+        if let Some(g) = &self.ground {
+            lane.switch_phase(g.on_ground, g.blend_s, self.algorithms_parallel);
+        }
         self.lanes.push(lane);
         let heavy = self
             .lanes
@@ -761,8 +1036,7 @@ impl Engine {
         let aircraft = self.window.aircraft.pop_front()?;
         // The tuning of the phase the sample is in, before any lane steps on it.
         if let Some(g) = &self.ground {
-            let on_ground = g.schedule.on_ground(aircraft.t_s);
-            if on_ground != g.on_ground {
+            if let Some(on_ground) = g.schedule.as_ref().map(|s| s.on_ground(aircraft.t_s)) {
                 self.switch_ground(on_ground);
             }
         }

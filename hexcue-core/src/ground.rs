@@ -191,6 +191,84 @@ impl GroundSchedule {
     }
 }
 
+/// What a live simulator says of the ground in one sample (each `None` where its protocol,
+/// as hexcue reads it, does not carry it).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GroundSignal {
+    /// Weight on wheels: some gear touches the ground (JSBSim's `gear/wow`).
+    pub weight_on_wheels: Option<bool>,
+    /// Height of the aircraft's reference point above the ground below it (m).
+    pub height_agl_m: Option<f64>,
+    /// Speed over the ground, horizontal (m/s).
+    pub ground_speed_mps: Option<f64>,
+}
+
+/// What a change of phase was decided on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GroundBasis {
+    /// The simulator's weight on wheels.
+    WeightOnWheels,
+    /// Height above ground and ground speed, within [`GroundDetector`]'s thresholds.
+    HeightAndSpeed,
+}
+
+impl GroundBasis {
+    /// For the operator's event.
+    pub fn words(self) -> &'static str {
+        match self {
+            GroundBasis::WeightOnWheels => "the simulator's weight on wheels",
+            GroundBasis::HeightAndSpeed => "height above ground and ground speed",
+        }
+    }
+}
+
+/// On the ground by height and speed, the fallback where a simulator sends no weight on
+/// wheels: on the ground once below [`ON_GROUND_BELOW_M`] and [`ON_GROUND_SLOWER_MPS`]; in the
+/// air again once above [`IN_AIR_ABOVE_M`] or faster than [`IN_AIR_FASTER_MPS`]. The gap
+/// between each pair is the hysteresis: a bounce of a metre, or speed hovering about one
+/// threshold, does not make the phase chatter.
+pub const ON_GROUND_BELOW_M: f64 = 3.0;
+/// See [`ON_GROUND_BELOW_M`].
+pub const IN_AIR_ABOVE_M: f64 = 6.0;
+/// See [`ON_GROUND_BELOW_M`] (30 m/s: 58 kt).
+pub const ON_GROUND_SLOWER_MPS: f64 = 30.0;
+/// See [`ON_GROUND_BELOW_M`] (36 m/s: 70 kt).
+pub const IN_AIR_FASTER_MPS: f64 = 36.0;
+
+/// Says from a live simulator's samples whether the aircraft is on the ground: its weight on
+/// wheels where it sends it, else height above ground and ground speed with hysteresis
+/// ([`ON_GROUND_BELOW_M`]); in the air while it says neither. No I/O, no allocation: the live
+/// stepping thread asks it every step.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GroundDetector {
+    on_ground: bool,
+}
+
+impl GroundDetector {
+    /// The phase after `signal`, and what it rests on (`None`: the signal says nothing, the
+    /// phase is kept).
+    pub fn update(&mut self, signal: &GroundSignal) -> (bool, Option<GroundBasis>) {
+        if let Some(wow) = signal.weight_on_wheels {
+            self.on_ground = wow;
+            return (wow, Some(GroundBasis::WeightOnWheels));
+        }
+        let (Some(h), Some(v)) = (signal.height_agl_m, signal.ground_speed_mps) else {
+            return (self.on_ground, None);
+        };
+        self.on_ground = if self.on_ground {
+            h <= IN_AIR_ABOVE_M && v <= IN_AIR_FASTER_MPS
+        } else {
+            h < ON_GROUND_BELOW_M && v < ON_GROUND_SLOWER_MPS
+        };
+        (self.on_ground, Some(GroundBasis::HeightAndSpeed))
+    }
+
+    /// On the ground as last decided.
+    pub fn on_ground(&self) -> bool {
+        self.on_ground
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -334,5 +412,59 @@ mod tests {
         assert!(!landing.on_ground(32.0) && landing.on_ground(40.0));
         let cruise = GroundSchedule::from_events([(0.0, "turbulence active throughout")]);
         assert!(!cruise.touches_ground() && !cruise.on_ground(10.0));
+    }
+
+    #[test]
+    fn weight_on_wheels_decides_where_it_is_sent() {
+        let mut d = GroundDetector::default();
+        let wow = |w| GroundSignal {
+            weight_on_wheels: Some(w),
+            // Height and speed that would say the opposite: weight on wheels wins.
+            height_agl_m: Some(if w { 100.0 } else { 0.5 }),
+            ground_speed_mps: Some(if w { 80.0 } else { 1.0 }),
+        };
+        assert_eq!(
+            d.update(&wow(true)),
+            (true, Some(GroundBasis::WeightOnWheels))
+        );
+        assert_eq!(
+            d.update(&wow(false)),
+            (false, Some(GroundBasis::WeightOnWheels))
+        );
+        // Nothing said: the phase is kept.
+        d.update(&wow(true));
+        assert_eq!(d.update(&GroundSignal::default()), (true, None));
+    }
+
+    #[test]
+    fn height_and_speed_have_hysteresis() {
+        let mut d = GroundDetector::default();
+        let at = |d: &mut GroundDetector, h: f64, v: f64| {
+            d.update(&GroundSignal {
+                weight_on_wheels: None,
+                height_agl_m: Some(h),
+                ground_speed_mps: Some(v),
+            })
+            .0
+        };
+        // A flare at 2 m and 60 m/s is not the ground; rolling out at 2 m and 25 m/s is.
+        assert!(!at(&mut d, 2.0, 60.0));
+        assert!(!at(&mut d, 4.0, 20.0), "above 3 m: still flying");
+        assert!(at(&mut d, 2.0, 25.0));
+        // Between the thresholds the phase holds, either way.
+        assert!(at(&mut d, 5.0, 33.0), "a bounce to 5 m at 33 m/s");
+        assert!(at(&mut d, 2.0, 35.9));
+        assert!(
+            !at(&mut d, 2.0, 36.5),
+            "faster than 36 m/s: the take-off run"
+        );
+        assert!(
+            !at(&mut d, 2.0, 33.0),
+            "back below 36 m/s but not below 30: still air"
+        );
+        assert!(at(&mut d, 2.9, 29.0), "below both: on the ground");
+        assert!(!at(&mut d, 6.5, 10.0), "above 6 m: lifted off");
+        assert!(at(&mut d, 1.0, 10.0));
+        assert!(!at(&mut d, 6.5, 10.0), "above 6 m: lifted off");
     }
 }

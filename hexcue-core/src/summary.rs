@@ -291,6 +291,22 @@ pub struct LiveSummary {
     /// when it began and ended. A warning, not a fault: the platform may be started later.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub output_warnings: Vec<String>,
+    /// With a profile's `[ground]`: each change between the air and the ground tunings, with
+    /// what it rested on (docs/live.md, *Air and ground*).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ground_changes: Vec<GroundChange>,
+}
+
+/// A live session's change of phase (issue 36).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GroundChange {
+    /// Session time (s) of the step that began it.
+    pub t_s: f64,
+    /// On the ground after it.
+    pub on_ground: bool,
+    /// What said so: "the simulator's weight on wheels" or "height above ground and ground
+    /// speed".
+    pub basis: String,
 }
 
 /// The transitions to neutral of a live session: input lost, simulator paused, stop.

@@ -178,7 +178,12 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
             profile.safety.fade_in_s,
         )
         .context("the profile's [ground] tuning")?;
-    let engine = TunedEngine::new(engine, None);
+    // `--foxglove`: Foxglove's Parameters tune the flight as the console's panel does.
+    let tuning = match args.foxglove {
+        Some(_) => Some(play_tuning(&profile, &algorithms)?),
+        None => None,
+    };
+    let engine = TunedEngine::new(engine, tuning.clone());
     // In closing order: the bar cleared before the recording's line is printed.
     let mut sinks: Vec<Box<dyn FrameSink>> = vec![Box::new(EventsToStderr)];
     let bar = progress_bar(
@@ -190,7 +195,7 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
         sinks.push(Box::new(ProgressSink::whole(bar)));
     }
     let server = match args.foxglove {
-        Some(addr) => Some(start_foxglove(addr, &profile, &algorithms, None)?),
+        Some(addr) => Some(start_foxglove(addr, &profile, &algorithms, tuning.clone())?),
         None => None,
     };
     match (recorder, server) {
@@ -233,6 +238,12 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
         );
     }
     let mut summary = summary;
+    if let Some(shared) = tuning.as_ref().and_then(|t| t.lock().ok()) {
+        for line in shared.tuner.final_lines() {
+            eprintln!("{line}");
+        }
+        summary.tuning = Some(shared.tuner.summary());
+    }
     if args.bound && !end.interrupted {
         summary.bound = Some(bound_of(args, &profile, &summary)?);
     }
@@ -283,8 +294,11 @@ pub fn run_console(args: &PlayArgs) -> Result<()> {
     cfg.speed = args.start.speed;
     cfg.looping = args.start.looping;
     if let Some(addr) = args.foxglove {
-        let server = start_foxglove(addr, &cfg.profile, &cfg.algorithms, None)?;
+        // The panel and Foxglove's Parameters tune the same parameters.
+        let tuning = play_tuning(&cfg.profile, &cfg.algorithms)?;
+        let server = start_foxglove(addr, &cfg.profile, &cfg.algorithms, Some(tuning.clone()))?;
         cfg.sinks.push(Box::new(server));
+        cfg.tuning = Some(tuning);
     }
     let factory: tui::SinkFactory = Box::new(move |request: &tui::RecordingRequest| {
         let recorder = create_recorder(&request.path, &mut meta, trace_path.as_deref());
@@ -292,6 +306,15 @@ pub fn run_console(args: &PlayArgs) -> Result<()> {
     });
     let outcome = tui::run_live(cfg, factory)?;
     exit_for_signal(outcome.signal)
+}
+
+/// The parameters of a played flight (the console's panel's, less `drive`: docs/parameters.md).
+fn play_tuning(
+    profile: &Profile,
+    algorithms: &[AlgorithmId],
+) -> Result<crate::tuning::TuningHandle> {
+    let tuner = crate::tuning::Tuner::new(profile, algorithms).context("the parameters")?;
+    Ok(crate::tuning::Shared::handle(tuner))
 }
 
 /// When a recorded flight is on the ground: from its sidecar's lift-off and touchdown

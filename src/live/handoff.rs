@@ -161,6 +161,8 @@ mod tests {
                 cue_gain: 1.0,
                 resets: 0,
                 gains: nalgebra::Vector6::repeat(1.0),
+                on_ground: false,
+                ground_basis: None,
             },
         }
     }

@@ -28,7 +28,7 @@ use super::{lane_share, LiveSession, StepReport};
 use hexcue_core::engine::{Engine, Frame, Retune};
 use hexcue_core::mca::AlgorithmId;
 use hexcue_core::metrics::TimeHistogram;
-use hexcue_core::summary::SummaryBuilder;
+use hexcue_core::summary::{GroundChange, SummaryBuilder};
 
 /// The console's quantiles are computed again after this many reports.
 const QUANTILES_EVERY: u64 = 10;
@@ -79,7 +79,8 @@ impl Comparison {
     /// holding this one's sample); the frame of that step.
     fn step(&mut self, report: &StepReport) -> Option<Frame> {
         let orders = report.lanes;
-        if orders.resets != self.resets {
+        let reset = orders.resets != self.resets;
+        if reset {
             self.engine.reset_lanes();
             self.resets = orders.resets;
         }
@@ -88,6 +89,9 @@ impl Comparison {
             self.gains = orders.gains;
         }
         self.engine.set_cue_gain(orders.cue_gain);
+        // As the stepping thread changed it: at once when nothing is cued or at a reset.
+        self.engine
+            .set_on_ground(orders.on_ground, reset || orders.cue_gain == 0.0);
         self.engine.push_sample(report.frame.aircraft);
         let mut last = None;
         while self.engine.position() <= report.frame.k {
@@ -137,6 +141,11 @@ pub struct Lanes {
     reports: u64,
     /// The console's quantiles as last computed.
     p99: (f64, f64, Vec<(AlgorithmId, f64)>),
+    /// The phase of a profile's `[ground]` as last reported, the blend's time, and each
+    /// change: worded here, off the stepping thread, for the events and the summary.
+    on_ground: bool,
+    ground_blend_s: f64,
+    ground_changes: Vec<GroundChange>,
 }
 
 impl Lanes {
@@ -159,7 +168,37 @@ impl Lanes {
             lag_max_s: 0.0,
             reports: 0,
             p99: (0.0, 0.0, Vec::new()),
+            on_ground: false,
+            ground_blend_s: 0.0,
+            ground_changes: Vec::new(),
         }
+    }
+
+    /// How long a change of phase blends, for its event.
+    pub fn with_ground_blend(mut self, blend_s: f64) -> Self {
+        self.ground_blend_s = blend_s;
+        self
+    }
+
+    /// A change of phase since the last report becomes an event and a line of the summary.
+    fn ground_change(&mut self, report: &mut StepReport) {
+        let orders = report.lanes;
+        if orders.on_ground == self.on_ground {
+            return;
+        }
+        self.on_ground = orders.on_ground;
+        let t_s = report.frame.t_s;
+        report.events.push(crate::tuning::played::ground_event_on(
+            t_s,
+            orders.on_ground,
+            self.ground_blend_s,
+            orders.ground_basis,
+        ));
+        self.ground_changes.push(GroundChange {
+            t_s,
+            on_ground: orders.on_ground,
+            basis: orders.ground_basis.map_or("", |b| b.words()).to_string(),
+        });
     }
 
     /// Takes every report in order, adds the comparison lanes and the console's quantiles,
@@ -167,6 +206,7 @@ impl Lanes {
     /// until the stepping thread hangs up or the sink thread has stopped.
     pub fn run(&mut self, rx: Receiver<StepReport>, tx: SyncSender<StepReport>) {
         for mut report in rx.iter() {
+            self.ground_change(&mut report);
             self.add_lanes(&mut report);
             self.count(&mut report);
             if tx.send(report).is_err() {
@@ -248,6 +288,7 @@ impl Lanes {
         }
         session.stats.comparison_late_steps = self.late_steps;
         session.stats.comparison_lag_max_s = self.lag_max_s;
+        session.stats.ground_changes = self.ground_changes;
         session.comparison = self.comparison;
     }
 }

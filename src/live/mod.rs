@@ -41,6 +41,7 @@ use crate::tuning::{Shared, Tuner, TuningHandle};
 use hexcue_core::bumpless::DriveSwitch;
 use hexcue_core::engine::{Engine, Frame, Retune};
 use hexcue_core::events::{Event, EventLevel};
+use hexcue_core::ground::{GroundBasis, GroundDetector};
 use hexcue_core::mca::limiter::WorkspaceLimiter;
 use hexcue_core::mca::AlgorithmId;
 use hexcue_core::metrics::TimeHistogram;
@@ -170,6 +171,10 @@ pub struct LiveSession {
     /// Lanes asked for from the comparison lanes' thread when the drive switches to one,
     /// and sent back once no longer heard ([`moving`]).
     moving: moving::SteppingEnd,
+    /// With a profile's `[ground]`: whether the aircraft is on the ground, from what the
+    /// simulator says, and what the phase last rested on.
+    ground: GroundDetector,
+    ground_basis: Option<GroundBasis>,
 }
 
 impl LiveSession {
@@ -189,6 +194,11 @@ impl LiveSession {
         let mut engine = Engine::with_source(profile, held(input.url()), &[drive])
             .context("building the algorithms")?;
         engine.set_parallel(false);
+        // Both phases' algorithms built now: a change of phase builds nothing on the
+        // stepping thread.
+        engine
+            .follow_ground(profile.safety.fade_in_s)
+            .context("building the profile's [ground] tuning")?;
         let others: Vec<AlgorithmId> = algorithms.iter().copied().filter(|a| *a != drive).collect();
         let (retunes, retunes_rx) = mpsc::channel();
         let (moving, lanes_end) = moving::ends();
@@ -198,6 +208,9 @@ impl LiveSession {
             let mut engine = Engine::with_source(profile, held(input.url()), &others)
                 .context("building the algorithms")?;
             engine.set_parallel(false);
+            engine
+                .follow_ground(profile.safety.fade_in_s)
+                .context("building the profile's [ground] tuning")?;
             Some(lanes::Comparison::new(
                 engine,
                 SummaryBuilder::new(profile, input.url()),
@@ -221,6 +234,8 @@ impl LiveSession {
             retune_blend_s: profile.safety.fade_in_s,
             drives: DriveSwitch::new(drive),
             moving,
+            ground: GroundDetector::default(),
+            ground_basis: None,
             engine,
             comparison,
             order: algorithms.to_vec(),
@@ -484,6 +499,19 @@ impl LiveSession {
             },
         );
         self.drive = self.drives.drive();
+        // A profile's `[ground]`: the phase from what the simulator says of the ground, with
+        // fresh input only (input lost keeps the phase). The other phase's algorithms were
+        // built at the start: a change allocates nothing here. The comparison lanes' thread
+        // follows it, and words its event (`lanes`).
+        if input_ok && self.engine.has_ground() {
+            let (on_ground, basis) = self.ground.update(self.input.ground());
+            if basis.is_some() {
+                self.ground_basis = basis;
+            }
+            // Nothing cued yet, or the lanes just reset to rest: in force at once.
+            let at_once = plan.reset_algorithms || plan.cue_gain == 0.0;
+            self.engine.set_on_ground(on_ground, at_once);
+        }
         if let Some((sample, _)) = latest {
             self.engine.push_sample(sample);
         }
@@ -592,6 +620,8 @@ impl LiveSession {
                 cue_gain: plan.cue_gain,
                 resets: self.resets,
                 gains: self.gains_target,
+                on_ground: self.engine.on_ground(),
+                ground_basis: self.ground_basis,
             },
         })
     }
@@ -860,7 +890,8 @@ pub fn run(
         session.comparison.take(),
         session.order.clone(),
         session.drive,
-    );
+    )
+    .with_ground_blend(session.retune_blend_s);
     std::thread::scope(|scope| {
         // Started before this thread is raised (a thread inherits its creator's policy), and
         // raised to the lowest real-time priority of its own: below the stepping thread,

@@ -72,6 +72,9 @@ pub struct LiveStats {
     /// Each time an output's address had nothing listening: the output, from and until
     /// (session time, s; `None`: to the end).
     pub unreachable: Vec<(String, f64, Option<f64>)>,
+    /// The changes between the air and the ground tunings (the comparison lanes' thread
+    /// notes them: the stepping thread allocates nothing).
+    pub ground_changes: Vec<hexcue_core::summary::GroundChange>,
 }
 
 impl LiveStats {
@@ -112,6 +115,7 @@ impl LiveStats {
             realtime: self.realtime.clone(),
             transitions: self.transitions.clone(),
             actuators_limited_steps: self.actuators_limited_steps,
+            ground_changes: self.ground_changes.clone(),
             output_warnings: self
                 .unreachable
                 .iter()
@@ -185,6 +189,9 @@ pub struct LaneOrders {
     pub resets: u64,
     /// The live gains' target (issue 36), all ones unless changed.
     pub gains: nalgebra::Vector6<f64>,
+    /// The phase in force with a profile's `[ground]` (false without), and what said so.
+    pub on_ground: bool,
+    pub ground_basis: Option<hexcue_core::ground::GroundBasis>,
 }
 
 /// The events of the outputs' reach and the actuators' limits.

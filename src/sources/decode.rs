@@ -1,16 +1,19 @@
 //! What a live simulator's protocol decoder is, shared by the socket loop (`live`) and the
 //! protocols (JSBSim, FlightGear, X-Plane), which therefore do not import each other.
 
+use hexcue_core::ground::GroundSignal;
 use hexcue_core::trace::AircraftSample;
 
 /// What one datagram said.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Decoded {
     /// A sample in hexcue's units and frame (docs/design.md §1); its `t_s` is the simulator's time,
-    /// when it sends one (else NaN). `paused` when the simulator says it is paused.
+    /// when it sends one (else NaN). `paused` when the simulator says it is paused; `ground`
+    /// what it says of the ground (a profile's `[ground]`, docs/live.md *Air and ground*).
     Sample {
         sample: AircraftSample,
         paused: bool,
+        ground: GroundSignal,
     },
     /// Well formed but carrying no sample (JSBSim's labels line, an X-Plane reply before
     /// every subscribed value has arrived once).

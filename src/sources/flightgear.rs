@@ -62,6 +62,9 @@ impl Decoder for FlightGear {
                 attitude_rad: nalgebra::Vector3::new(f(8), f(9), f(10)) * deg,
             },
             paused,
+            // The shipped protocol file sends neither weight on wheels nor height above ground
+            // (docs/live.md, *Air and ground*): a `[ground]` tuning is not followed.
+            ground: hexcue_core::ground::GroundSignal::default(),
         })
     }
 }
@@ -80,7 +83,7 @@ mod tests {
             [10.0, -5.0, 270.0],
         );
         assert_eq!(b.len(), FRAME_BYTES);
-        let Decoded::Sample { sample, paused } = FlightGear.decode(&b).unwrap() else {
+        let Decoded::Sample { sample, paused, .. } = FlightGear.decode(&b).unwrap() else {
             panic!()
         };
         assert!(paused);

@@ -11,13 +11,16 @@
 //! `p/q/r-rad_sec` body rates in rad/s, `phi/theta/psi-rad` attitude in rad, as hexcue's.
 
 use super::decode::{Decoded, Decoder};
+use hexcue_core::ground::GroundSignal;
 use hexcue_core::trace::AircraftSample;
 
 const FT_TO_M: f64 = 0.3048;
 
 /// The quantities hexcue reads, in the order of the shipped directive after `Time`: fx, fy,
-/// fz, p, q, r, φ, θ, ψ. Each with the labels JSBSim may give it and the factor to SI.
-const COLUMNS: [&[(&str, f64)]; 9] = [
+/// fz, p, q, r, φ, θ, ψ, then what says whether the aircraft is on the ground (optional:
+/// weight on wheels, height above ground, ground speed). Each with the labels JSBSim may give
+/// it and the factor to SI.
+const COLUMNS: [&[(&str, f64)]; QUANTITIES] = [
     &[("a-pilot-x-ft_sec2", FT_TO_M)],
     &[("a-pilot-y-ft_sec2", FT_TO_M)],
     &[("a-pilot-z-ft_sec2", FT_TO_M)],
@@ -27,22 +30,42 @@ const COLUMNS: [&[(&str, f64)]; 9] = [
     &[("phi-rad", 1.0), ("phi-deg", DEG)],
     &[("theta-rad", 1.0), ("theta-deg", DEG)],
     &[("psi-rad", 1.0), ("psi-deg", DEG)],
+    // `gear/wow` (FGGroundReactions::GetWOW: some bogey gear unit has weight on wheels).
+    &[("wow", 1.0)],
+    // `position/h-agl-ft` (FGPropagate::GetDistanceAGL).
+    &[("h-agl-ft", FT_TO_M), ("h-agl-m", 1.0)],
+    // `velocities/vg-fps` (FGAuxiliary's Vground: the horizontal speed over the ground).
+    &[("vg-fps", FT_TO_M)],
 ];
+const QUANTITIES: usize = 12;
+/// The quantities every directive must send; the rest (the ground's) are optional.
+const REQUIRED: usize = 9;
+/// Columns of a line of the directive as shipped before the ground's columns (Time and nine):
+/// a session that missed the labels line still reads it.
+const WIDTH_WITHOUT_GROUND: usize = 1 + REQUIRED;
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
 /// Where each quantity is in a line: (column, factor to SI); column 0 is Time.
 #[derive(Clone, Debug, PartialEq)]
 struct Map {
-    columns: [Option<(usize, f64)>; 9],
+    columns: [Option<(usize, f64)>; QUANTITIES],
     width: usize,
 }
 
 impl Map {
-    /// The shipped directive's order: Time, then the nine quantities.
+    /// The shipped directive's order: Time, then the twelve quantities.
     fn shipped() -> Self {
         Map {
             columns: std::array::from_fn(|i| Some((i + 1, COLUMNS[i][0].1))),
-            width: 10,
+            width: 1 + QUANTITIES,
+        }
+    }
+
+    /// The order of the directive shipped before the ground's columns.
+    fn shipped_without_ground() -> Self {
+        Map {
+            columns: std::array::from_fn(|i| (i < REQUIRED).then(|| (i + 1, COLUMNS[i][0].1))),
+            width: WIDTH_WITHOUT_GROUND,
         }
     }
 
@@ -66,7 +89,7 @@ impl Map {
                 labels.first()
             ));
         }
-        let mut columns = [None; 9];
+        let mut columns = [None; QUANTITIES];
         for (q, names) in COLUMNS.iter().enumerate() {
             columns[q] = names.iter().find_map(|(name, scale)| {
                 labels.iter().position(|l| l == name).map(|c| (c, *scale))
@@ -146,6 +169,15 @@ impl Decoder for Jsbsim {
                     .map_err(|_| format!("`{}`: expected comma-separated numbers", short(line)))?;
                 self.values.push(v);
             }
+            // Without a labels line, the directive shipped before the ground's columns is
+            // told by its width.
+            if !self.labelled && self.values.len() != self.map.width {
+                self.map = if self.values.len() == WIDTH_WITHOUT_GROUND {
+                    Map::shipped_without_ground()
+                } else {
+                    Map::shipped()
+                };
+            }
             let values = &self.values;
             if values.len() != self.map.width {
                 return Err(format!(
@@ -160,6 +192,7 @@ impl Decoder for Jsbsim {
                 ));
             }
             let get = |q: usize| self.map.columns[q].map_or(0.0, |(c, scale)| values[c] * scale);
+            let optional = |q: usize| self.map.columns[q].map(|(c, scale)| values[c] * scale);
             decoded = Decoded::Sample {
                 sample: AircraftSample {
                     t_s: values[0],
@@ -168,6 +201,12 @@ impl Decoder for Jsbsim {
                     attitude_rad: nalgebra::Vector3::new(get(6), get(7), get(8)),
                 },
                 paused: false,
+                ground: GroundSignal {
+                    // JSBSim writes a bool property as 1 or 0.
+                    weight_on_wheels: optional(9).map(|w| w >= 0.5),
+                    height_agl_m: optional(10),
+                    ground_speed_mps: optional(11),
+                },
             };
         }
         Ok(decoded)
@@ -227,6 +266,50 @@ mod tests {
         assert!((s.specific_force_mps2.z + 9.8066).abs() < 1e-3);
         assert_eq!(s.specific_force_mps2.x, 0.3048);
         assert_eq!(s.attitude_rad, nalgebra::Vector3::zeros());
+    }
+
+    fn ground(d: Decoded) -> GroundSignal {
+        match d {
+            Decoded::Sample { ground, .. } => ground,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    /// The shipped directive's ground columns, labelled as JSBSim labels them (the last
+    /// path element, `_` as a space), in SI; without a labels line, by the shipped order;
+    /// the directive shipped before them still reads, with nothing said of the ground.
+    #[test]
+    fn weight_on_wheels_height_and_ground_speed_when_sent() {
+        let labels = "<LABELS> ,Time,a-pilot-x-ft sec2,a-pilot-y-ft sec2,a-pilot-z-ft sec2,p-rad sec,q-rad sec,r-rad sec,phi-rad,theta-rad,psi-rad,wow,h-agl-ft,vg-fps\n";
+        let line = "1.0, 0, 0, -32.17, 0, 0, 0, 0, 0, 0, 1, 4.5, 10\n";
+        let expected = GroundSignal {
+            weight_on_wheels: Some(true),
+            height_agl_m: Some(4.5 * 0.3048),
+            ground_speed_mps: Some(10.0 * 0.3048),
+        };
+        let mut j = Jsbsim::default();
+        j.decode(labels.as_bytes()).unwrap();
+        assert_eq!(ground(j.decode(line.as_bytes()).unwrap()), expected);
+        assert_eq!(
+            ground(Jsbsim::default().decode(line.as_bytes()).unwrap()),
+            expected
+        );
+        let off = ground(
+            j.decode(b"1.0, 0, 0, -32.17, 0, 0, 0, 0, 0, 0, 0, 40, 150\n")
+                .unwrap(),
+        );
+        assert_eq!(off.weight_on_wheels, Some(false));
+        let mut old = Jsbsim::default();
+        assert_eq!(
+            ground(old.decode(FRAME.as_bytes()).unwrap()),
+            GroundSignal::default()
+        );
+        let mut j = Jsbsim::default();
+        j.decode(LABELS.as_bytes()).unwrap();
+        assert_eq!(
+            ground(j.decode(FRAME.as_bytes()).unwrap()),
+            GroundSignal::default()
+        );
     }
 
     #[test]

@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 
+use hexcue_core::ground::GroundSignal;
 use hexcue_core::trace::AircraftSample;
 
 use super::decode::{Decoded, Decoder};
@@ -34,6 +35,8 @@ pub struct LiveInput {
     opened: Instant,
     latest: Option<(AircraftSample, Instant)>,
     paused: bool,
+    /// What the latest sample said of the ground.
+    ground: GroundSignal,
     /// Datagrams that carried a sample.
     pub samples_in: u64,
     /// Datagrams refused (and ignored).
@@ -87,6 +90,7 @@ impl LiveInput {
             opened: Instant::now(),
             latest: None,
             paused: false,
+            ground: GroundSignal::default(),
             samples_in: 0,
             malformed: 0,
             last_malformed: None,
@@ -146,9 +150,14 @@ impl LiveInput {
                 Err(e) => return Err(e),
             };
             match self.decoder.decode(&self.buf[..n]).and_then(check) {
-                Ok(Decoded::Sample { sample, paused }) => {
+                Ok(Decoded::Sample {
+                    sample,
+                    paused,
+                    ground,
+                }) => {
                     self.latest = Some((sample, Instant::now()));
                     self.paused = paused;
+                    self.ground = ground;
                     self.samples_in += 1;
                 }
                 Ok(Decoded::Nothing) => {}
@@ -215,6 +224,11 @@ impl LiveInput {
         self.paused
     }
 
+    /// What the latest sample said of the ground (nothing, for a protocol that does not say).
+    pub fn ground(&self) -> &GroundSignal {
+        &self.ground
+    }
+
     /// Says goodbye to the simulator (X-Plane: stop sending).
     pub fn close(&mut self) {
         if let Some(peer) = self.peer {
@@ -225,8 +239,13 @@ impl LiveInput {
     }
 }
 
-/// Refuses samples no aircraft flies: non-finite or beyond the trace files' bounds.
-fn check(d: Decoded) -> Result<Decoded, String> {
+/// Refuses samples no aircraft flies: non-finite or beyond the trace files' bounds. A height
+/// or ground speed that is not a finite number is dropped (the phase is then kept).
+fn check(mut d: Decoded) -> Result<Decoded, String> {
+    if let Decoded::Sample { ground, .. } = &mut d {
+        ground.height_agl_m = ground.height_agl_m.filter(|h| h.is_finite());
+        ground.ground_speed_mps = ground.ground_speed_mps.filter(|v| v.is_finite());
+    }
     if let Decoded::Sample { sample, .. } = &d {
         let f = &sample.specific_force_mps2;
         let w = &sample.angular_velocity_radps;

@@ -112,6 +112,8 @@ impl Decoder for XPlane {
                 attitude_rad: nalgebra::Vector3::new(v[6], v[7], v[8]) * deg,
             },
             paused: v[9] != 0.0,
+            // No dataref of the ground is subscribed (docs/live.md, *Air and ground*).
+            ground: hexcue_core::ground::GroundSignal::default(),
         })
     }
 
@@ -175,7 +177,7 @@ mod tests {
             (9, 0.0),
             (42, 7.0),
         ];
-        let Decoded::Sample { sample, paused } = x.decode(&reply(&all)).unwrap() else {
+        let Decoded::Sample { sample, paused, .. } = x.decode(&reply(&all)).unwrap() else {
             panic!()
         };
         assert!(!paused);

@@ -71,6 +71,9 @@ pub struct LiveConfig {
     /// The loaded profile's file: with it, the parameter panel (`p`) tunes the session and
     /// writes the values in force there (`w`, `W`).
     pub profile_file: Option<params::ProfileFile>,
+    /// The parameters, when another side tunes them too (`--foxglove`'s Parameters): the
+    /// panel then shares them. Without it, the panel makes its own.
+    pub tuning: Option<crate::tuning::TuningHandle>,
 }
 
 impl LiveConfig {
@@ -100,6 +103,7 @@ impl LiveConfig {
             sinks: Vec::new(),
             ground: Default::default(),
             profile_file: None,
+            tuning: None,
         }
     }
 }
@@ -137,15 +141,19 @@ pub fn run_live(cfg: LiveConfig, sink_factory: SinkFactory) -> anyhow::Result<Ou
     engine
         .set_ground(cfg.ground, cfg.profile.safety.fade_in_s)
         .context("the profile's [ground] tuning")?;
-    let (tuning, panel) = match cfg.profile_file {
-        Some(file) => {
-            let tuner = crate::tuning::Tuner::new(&cfg.profile, &cfg.algorithms)
-                .context("the parameters")?;
-            let tuning = crate::tuning::Shared::handle(tuner);
+    let (tuning, panel) = match (cfg.profile_file, cfg.tuning) {
+        (Some(file), tuning) => {
+            let tuning = match tuning {
+                Some(t) => t,
+                None => crate::tuning::Shared::handle(
+                    crate::tuning::Tuner::new(&cfg.profile, &cfg.algorithms)
+                        .context("the parameters")?,
+                ),
+            };
             let panel = params::ParamPanel::new(tuning.clone(), file);
             (Some(tuning), Some(panel))
         }
-        None => (None, None),
+        (None, tuning) => (tuning, None),
     };
     let source = crate::tuning::played::TunedEngine::new(engine, tuning.clone());
     let info = cfg.info;

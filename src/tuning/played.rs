@@ -46,13 +46,27 @@ impl TunedEngine {
 
 /// The event of a change of phase at session time `t_s`.
 pub fn ground_event(t_s: f64, on_ground: bool, blend_s: f64) -> Event {
+    ground_event_on(t_s, on_ground, blend_s, None)
+}
+
+/// [`ground_event`], saying what the change rests on (a live simulator's weight on wheels, or
+/// height and speed).
+pub fn ground_event_on(
+    t_s: f64,
+    on_ground: bool,
+    blend_s: f64,
+    basis: Option<hexcue_core::ground::GroundBasis>,
+) -> Event {
+    let by = basis.map_or(String::new(), |b| format!(" ({})", b.words()));
     Event {
         t_s,
         level: EventLevel::Info,
         text: if on_ground {
-            format!("on the ground: the profile's [ground] tuning blends in within {blend_s:.2} s")
+            format!(
+                "on the ground{by}: the profile's [ground] tuning blends in within {blend_s:.2} s"
+            )
         } else {
-            format!("in the air: the air tuning blends back in within {blend_s:.2} s")
+            format!("in the air{by}: the air tuning blends back in within {blend_s:.2} s")
         },
     }
 }

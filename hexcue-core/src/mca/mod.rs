@@ -306,6 +306,22 @@ pub trait MotionCueing: Send {
     fn inherit(&mut self, snapshot: &AlgorithmSnapshot) -> bool {
         self.restore(snapshot)
     }
+    /// [`MotionCueing::inherit`] straight from `other`, the same algorithm tuned otherwise,
+    /// without a snapshot in between: the CWF and the MPCs copy into the buffers they hold
+    /// and allocate nothing, so that a live session's change of phase (air ↔ ground, issue
+    /// 36) is made on its stepping thread, which must not allocate. Others go through a
+    /// snapshot.
+    fn inherit_from(&mut self, other: &dyn MotionCueing) -> bool {
+        match other.snapshot() {
+            Some(s) => self.inherit(&s),
+            None => false,
+        }
+    }
+    /// The algorithm as [`std::any::Any`], for [`MotionCueing::inherit_from`]'s downcast;
+    /// `None` where it has no use for it.
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
+        None
+    }
     /// Whether the algorithm may hand part of a step to rayon's pool (true by default). A
     /// live session says no: its stepping thread runs at real-time priority and the pool's
     /// threads do not, so the step would wait behind whatever else the machine runs.

@@ -295,6 +295,27 @@ impl MotionCueing for Smpc {
         true
     }
 
+    fn inherit_from(&mut self, other: &dyn super::MotionCueing) -> bool {
+        let Some(old) = other.as_any().and_then(|a| a.downcast_ref::<Smpc>()) else {
+            return false;
+        };
+        if !(self.cotc.inherit_running(&old.cotc) && self.free.inherit_running(&old.free)) {
+            return false;
+        }
+        self.supervisor.clone_from(&old.supervisor);
+        self.mixer.clone_from(&old.mixer);
+        self.regulator.clone_from(&old.regulator);
+        self.outgoing = old.outgoing;
+        self.mode = old.mode;
+        self.time_in_mode_s = old.time_in_mode_s;
+        self.reports = old.reports;
+        true
+    }
+
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
+        Some(self)
+    }
+
     fn reset(&mut self) {
         self.cotc.reset_state();
         self.free.reset_state();

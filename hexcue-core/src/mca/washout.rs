@@ -291,6 +291,16 @@ impl TiltCoordination {
         })
     }
 
+    /// The low-passes' states, the trackers and the target of `old`, this one's tuning (its
+    /// low-pass and limits) kept; no allocation.
+    pub fn inherit_state(&mut self, old: &TiltCoordination) {
+        for (new, old) in self.lowpass.iter_mut().zip(&old.lowpass) {
+            new.inherit_state(old);
+        }
+        self.tracker.clone_from(&old.tracker);
+        self.target_rad = old.target_rad;
+    }
+
     /// Back to level at rest, the filters' states cleared.
     pub fn reset(&mut self) {
         self.lowpass.iter_mut().for_each(LtiFilter::reset);
@@ -360,6 +370,25 @@ impl Washout {
             last_rot_rate: Vector3::zeros(),
             running_s: 0.0,
         }
+    }
+}
+
+impl Washout {
+    /// [`MotionCueing::inherit`] from `old`: copies into this washout's own buffers, no
+    /// allocation.
+    fn inherit_washout(&mut self, old: &Washout) -> bool {
+        let filters = self
+            .translational
+            .iter_mut()
+            .zip(&old.translational)
+            .chain(self.rotational.iter_mut().zip(&old.rotational));
+        for (new, old) in filters {
+            new.inherit_state(old);
+        }
+        self.tilt.inherit_state(&old.tilt);
+        self.last_rot_rate = old.last_rot_rate;
+        self.running_s = old.running_s;
+        true
     }
 }
 
@@ -443,23 +472,21 @@ impl MotionCueing for Washout {
     /// a changed tilt low-pass frequency moves the tilt target (its output is ω² x₁), which
     /// the engine's blend from the old washout covers.
     fn inherit(&mut self, snapshot: &AlgorithmSnapshot) -> bool {
-        let Some(old) = snapshot.get::<Washout>() else {
-            return false;
-        };
-        let filters = self
-            .translational
-            .iter_mut()
-            .zip(&old.translational)
-            .chain(self.rotational.iter_mut().zip(&old.rotational))
-            .chain(self.tilt.lowpass.iter_mut().zip(&old.tilt.lowpass));
-        for (new, old) in filters {
-            new.inherit_state(old);
+        match snapshot.get::<Washout>() {
+            Some(old) => self.inherit_washout(old),
+            None => false,
         }
-        self.tilt.tracker.clone_from(&old.tilt.tracker);
-        self.tilt.target_rad = old.tilt.target_rad;
-        self.last_rot_rate = old.last_rot_rate;
-        self.running_s = old.running_s;
-        true
+    }
+
+    fn inherit_from(&mut self, other: &dyn MotionCueing) -> bool {
+        match other.as_any().and_then(|a| a.downcast_ref::<Washout>()) {
+            Some(old) => self.inherit_washout(old),
+            None => false,
+        }
+    }
+
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
+        Some(self)
     }
 
     fn reset(&mut self) {

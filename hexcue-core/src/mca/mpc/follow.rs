@@ -86,6 +86,16 @@ impl Follow {
         }
     }
 
+    /// The running state of `old` (the tilt's and the rotational channels'), this one's
+    /// tuning kept; no allocation.
+    pub(super) fn inherit_state(&mut self, old: &Follow) {
+        self.tilt.inherit_state(&old.tilt);
+        for (new, old) in self.rotation.iter_mut().zip(&old.rotation) {
+            new.inherit_state(old);
+        }
+        self.rotation_now = old.rotation_now;
+    }
+
     pub(super) fn reset(&mut self) {
         self.tilt.reset();
         self.rotation.iter_mut().for_each(LtiFilter::reset);

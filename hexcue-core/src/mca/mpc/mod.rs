@@ -318,7 +318,7 @@ impl Mpc {
                 sustained_df_mps2: Vector3::zeros(),
                 terminal_tilt_rad: [0.0; 2],
                 last_command: PlatformCommand::default(),
-                plan: Plan::default(),
+                plan: Plan::with_capacity(grid.len()),
                 report: SolverReport {
                     name: terminal.qp_name(),
                     status: SolveStatus::Unsolved,
@@ -765,6 +765,23 @@ impl Mpc {
         self.run.report.solve_time_us = 0.0;
     }
 
+    /// Takes over `old`'s running state, as restoring its snapshot does, into this MPC's own
+    /// buffers (its tuning kept, the plan copied without allocating once this MPC has held
+    /// one as long: [`Plan`]'s `clone_from`): a live session's change of phase (issue 36)
+    /// does it on the stepping thread. False when the two MPCs' states differ in size.
+    pub fn inherit_running(&mut self, old: &Mpc) -> bool {
+        if self.run.x.len() != old.run.x.len() || self.run.u_last.len() != old.run.u_last.len() {
+            return false;
+        }
+        self.follow(old);
+        self.run.follow.inherit_state(&old.run.follow);
+        self.run.report = old.run.report;
+        self.run.mode = old.run.mode;
+        self.run.time_in_mode_s = old.run.time_in_mode_s;
+        self.set_washout_gain(old.washout_gain);
+        true
+    }
+
     /// Back to rest at neutral: every running state cleared, the QP's structure kept.
     pub fn reset_state(&mut self) {
         if let Some(c) = self.condensed.as_mut() {
@@ -782,7 +799,8 @@ impl Mpc {
         self.run.onset.clear();
         self.run.started = false;
         self.run.last_command = PlatformCommand::default();
-        self.run.plan = Plan::default();
+        // Emptied, its room kept: the next plan is written without allocating.
+        self.run.plan.clear();
         self.run.mode = self.solved_mode();
         self.run.time_in_mode_s = 0.0;
         self.run.report.status = SolveStatus::Unsolved;
@@ -879,6 +897,17 @@ impl MotionCueing for Mpc {
             }
             None => false,
         }
+    }
+
+    fn inherit_from(&mut self, other: &dyn MotionCueing) -> bool {
+        match other.as_any().and_then(|a| a.downcast_ref::<Mpc>()) {
+            Some(old) => self.inherit_running(old),
+            None => false,
+        }
+    }
+
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
+        Some(self)
     }
 }
 

@@ -43,6 +43,26 @@ impl Clone for Plan {
 }
 
 impl Plan {
+    /// An empty plan with room for `intervals` intervals: a plan of that many is then
+    /// written, or copied, without allocating.
+    pub fn with_capacity(intervals: usize) -> Self {
+        Plan {
+            interval_s: Vec::with_capacity(intervals),
+            inputs: Vec::with_capacity(intervals),
+            poses: Vec::with_capacity(intervals),
+            ..Plan::default()
+        }
+    }
+
+    /// No plan, the room kept.
+    pub fn clear(&mut self) {
+        self.interval_s.clear();
+        self.inputs.clear();
+        self.poses.clear();
+        self.start_pose = Vector6::zeros();
+        self.elapsed_s = 0.0;
+    }
+
     /// Input the plan holds `t_s` after it was made; `None` beyond its horizon.
     pub fn input_at(&self, t_s: f64) -> Option<[f64; NU]> {
         let mut end = 0.0;
