@@ -1314,3 +1314,50 @@ fn clarabel_solves_cotc_with_the_onset_rows_at_the_shipped_tolerance() {
         );
     }
 }
+
+/// #35: the 737 rejected take-off's braking with preview, where COTC answered a surge onset
+/// with 3.2 m/s² of sway on a flight without any. The QP's onset rows, taken at the pose
+/// (pitched 0.17 rad, rolled 0.0009, yawed 0.0054), gave the next command's surge a gain of
+/// 1.2 m·sin φ·cos θ/dt = 0.106 per rad/s of yaw rate; the mirror-symmetric problem must
+/// have rows that are symmetric too (`onset::gain_pose`).
+#[test]
+fn the_onset_rows_do_not_couple_surge_with_yaw_through_a_tiny_roll() {
+    let p = full_flight();
+    assert!(
+        p.mpc.onset_weight.iter().all(|w| *w > 0.0),
+        "shipped with the rows"
+    );
+    let mpc = Mpc::new(&p.cotc_params(), &p.setting(), Terminal::Cotc).unwrap();
+    let mut x0 = DVector::zeros(NX);
+    x0[state::POS] = -1.6;
+    x0[state::POS + 2] = 0.09;
+    x0[state::ROLL] = 0.0009;
+    x0[state::PITCH] = 0.17;
+    x0[state::YAW] = 0.0054;
+    x0[state::VEL] = 0.77;
+    x0[state::VEL + 2] = 0.68;
+    let u_prev = DVector::zeros(NU);
+    let d = mpc.step_data(&x0, &u_prev, [0.0; 2], (Vec::new(), Vec::new()));
+    let g = &d.onset_gain;
+    let yaw = input::ROT_YAW_RATE;
+    let dt = p.dt_s();
+    // Surge, heave and pitch take nothing from sway, roll or yaw (before: surge 0.106 per
+    // rad/s of yaw rate, and 0.0054 per m/s² of sway from the yaw's rotation).
+    for c in [0, 2, 4] {
+        for k in [
+            input::ACCEL_X + 1,
+            input::TILT_ROLL_RATE,
+            input::ROT_ROLL_RATE,
+            yaw,
+        ] {
+            assert!(
+                g[(c, k)].abs() < 1e-9,
+                "channel {c} input {k}: {}",
+                g[(c, k)]
+            );
+        }
+    }
+    // The yaw's sideways force at the pitched head is kept: 1.2·sin 0.17/dt per rad/s.
+    let eye = p.setting().eye_point_m.norm();
+    assert!((g[(1, yaw)].abs() - eye * 0.17f64.sin() / dt).abs() < 1e-6 * eye / dt);
+}
