@@ -851,11 +851,8 @@ impl Mpc {
         let velocity =
             nalgebra::Vector3::new(x0[state::VEL], x0[state::VEL + 1], x0[state::VEL + 2]);
         let prev_rates = total_rates(u_prev.as_slice());
-        // The gain is taken with the platform level in roll and yaw (`onset::gain_pose`).
-        let level = super::onset::gain_pose(&pose0);
         let (s0, onset_gain) = super::onset::linearise(
             |u| super::onset::command_of(&pose0, &velocity, &prev_rates, u, dt),
-            |u| super::onset::command_of(&level, &velocity, &prev_rates, u, dt),
             &u_lin,
             self.run.onset.eye_m(),
         );

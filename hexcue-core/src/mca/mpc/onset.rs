@@ -209,17 +209,12 @@ const RATE_INPUTS: [usize; 5] = [
 /// neither (docs/mpc.md, "Preview against causal"). Frozen, the error is their change over one
 /// step, of the order of (|ω₀| + |ω_lin|)·|ω₀ − ω_lin|·|r|, and the first move's rate change is
 /// bounded by the angular-acceleration limit × one step.
-///
-/// `gain_command` issues the command from which the gain is taken: the same as `command` but
-/// for the pose, levelled in roll and yaw ([`gain_pose`]).
 pub(super) fn linearise(
     command: impl Fn(&[f64; NU]) -> PlatformCommand,
-    gain_command: impl Fn(&[f64; NU]) -> PlatformCommand,
     u_lin: &[f64; NU],
     eye_m: &Vector3<f64>,
 ) -> (HeadSignal, nalgebra::SMatrix<f64, 6, NU>) {
     let s0 = head_signal(&command(u_lin), eye_m);
-    let command = gain_command;
     let mut at = *u_lin;
     for k in RATE_INPUTS {
         at[k] = 0.0;
@@ -241,40 +236,6 @@ pub(super) fn linearise(
     }
     (s0, jac)
 }
-
-/// The pose the onset rows' gain is taken at: the platform's, with its roll and yaw taken
-/// [`GAIN_LEVEL_RAD`] nearer to level (zero below it).
-///
-/// At a roll φ or yaw ψ the head signal couples the channels that are mirror images of each
-/// other (sway, roll, yaw) with those that are their own (surge, heave, pitch) by products of
-/// those angles with the lever arm over one step: ∂f_x/∂ψ̇ = 1.2 m·sin φ·cos θ / dt, 0.11 per
-/// rad/s at the 0.0009 rad of roll that the 737 rejected take-off had at its braking. Where a
-/// surge or heave onset row binds with a large multiplier (the braking, which the preview sees
-/// coming), that coupling, tiny as it is, made a yaw and roll acceleration at the limit and a
-/// 3.5 m/s² sideways push worth their almost nothing in COTC's cost (a rotation about the
-/// head, below the canals' threshold, which neither the otoliths nor COTC's washout price), on
-/// a flight with no sway, and the rows then held the motion they had bought (docs/mpc.md,
-/// "Preview against causal: the cause"). Level, the gain has no such coupling (a level pose
-/// is symmetric under the mirror y → −y), so a symmetric problem gets symmetric rows; pitch,
-/// which couples within each group only (yaw and sway at the pitched head), is kept. The
-/// exact head signal at the true pose is still the rows' constant.
-pub(super) fn gain_pose(pose: &Vector6<f64>) -> Vector6<f64> {
-    let mut level = *pose;
-    for k in [3, 5] {
-        let a = pose[k];
-        level[k] = a.signum() * (a.abs() - GAIN_LEVEL_RAD).max(0.0);
-    }
-    level
-}
-
-/// How far the onset rows' gain levels the roll and yaw (rad): each is taken 1° nearer to
-/// zero, and below 1° as zero. Levelled entirely, the gain lost the couplings of a taxi turn's
-/// 21° of yaw and 12° of roll (the translation's rotation into the head's frame), and the
-/// free MPC's rough taxi score rose from 8.76 to 16.59. 1° costs at most the lever arm times
-/// the angular-acceleration limit times sin 1° (1.2 m · 3.49 rad/s² · 0.0175 = 0.07 m/s²) on
-/// a rate's column, inside the fifth of the onset threshold that `ONSET_BAND_SHARE` leaves
-/// for the linearisation; continuous in the angle, so the rows do not jump as it crosses 1°.
-pub(super) const GAIN_LEVEL_RAD: f64 = 1.0 * std::f64::consts::PI / 180.0;
 
 /// The command an input issues from a state: pose and translational velocity as the state has
 /// them, the input's rates and accelerations, the change of rate over `dt_s` from `prev_rates`
@@ -341,10 +302,8 @@ mod tests {
         let prev = Vector3::new(0.05, -0.1, 0.02);
         let dt = 0.01;
         let command = |u: &[f64; NU]| command_of(&pose, &vel, &prev, u, dt);
-        let level = gain_pose(&pose);
-        let gain_command = |u: &[f64; NU]| command_of(&level, &vel, &prev, u, dt);
         let u_lin = [0.5, -1.0, 0.2, 0.01, -0.02, 0.03, -0.07, 0.02];
-        let (s0, jac) = linearise(command, gain_command, &u_lin, &s.eye_point_m);
+        let (s0, jac) = linearise(command, &u_lin, &s.eye_point_m);
         let mut u = u_lin;
         for (k, d) in [0.3, -0.2, 0.1, 0.002, 0.004, -0.003, 0.005, -0.004]
             .iter()
@@ -360,15 +319,7 @@ mod tests {
         // most (|η̇₀| + |η̇₁|)·|Δη̇|·|r| near level (|E| ≈ 1), and with the rate change's own
         // square, three of it bound the error; the rest is linear in the input.
         let (w0, w1) = (total_rates(&u_lin), total_rates(&u));
-        let r = s.eye_point_m.norm();
-        let bound = 3.0 * (w0.norm() + w1.norm()) * (w1 - w0).norm() * r
-            // The gain is taken level in roll and yaw (`gain_pose`): the translation's gain
-            // is rotated by at most |φ| + |ψ|, and the angular acceleration's lever arm
-            // (r/dt per rad/s) and the rates' own gain likewise; each is off by at most that
-            // angle's sine times the input's change.
-            + (pose[3].abs() + pose[5].abs())
-                * ((0..3).map(|k| (u[k] - u_lin[k]).abs()).sum::<f64>()
-                    + (w1 - w0).norm() * (r / dt + 1.0));
+        let bound = 3.0 * (w0.norm() + w1.norm()) * (w1 - w0).norm() * s.eye_point_m.norm();
         for c in 0..6 {
             assert!(
                 (s0[c] + lin[c] - exact[c]).abs() <= bound + 1e-9,
@@ -403,7 +354,7 @@ mod tests {
         let command = |u: &[f64; NU]| command_of(&pose, &vel, &prev, u, dt);
         let mut u_lin = [0.0; NU];
         u_lin[input::ROT_YAW_RATE] = 0.6;
-        let (s0, jac) = linearise(command, command, &u_lin, &eye);
+        let (s0, jac) = linearise(command, &u_lin, &eye);
         let yaw = input::ROT_YAW_RATE;
         assert!(
             jac[(0, yaw)].abs() < 1e-6,
@@ -415,67 +366,6 @@ mod tests {
         // yaw acceleration's 0.6/dt·0.5 of sway.
         assert!((s0[0] + 0.18).abs() < 1e-9, "{s0:?}");
         assert!((s0[1] - 0.6 / dt * 0.5).abs() < 1e-9, "{s0:?}");
-    }
-
-    #[test]
-    fn a_small_roll_does_not_let_the_yaw_buy_a_surge_onset() {
-        // The rejected take-off's braking (#35): pitched 0.17 rad, rolled 0.0009 rad. By hand,
-        // a yaw acceleration ψ̈ at roll φ and pitch θ has the body angular acceleration
-        // (−sin θ, sin φ cos θ, cos φ cos θ)·ψ̈; crossed with the eye at (0, 0, 1.2 m) above the
-        // centre, its surge at the head is 1.2·sin φ·cos θ·ψ̈ and its sway 1.2·sin θ·ψ̈. Per
-        // rad/s of yaw rate changed within dt = 0.01 s the exact gradient's surge is
-        // 1.2·0.0009·cos 0.17/0.01 = 0.106 (the body frame turns with the yaw, so the yaw
-        // angle itself adds nothing there); levelled in roll and yaw it is 0, and the sway
-        // (a coupling within the mirror-antisymmetric channels) is kept: 1.2·sin 0.17/0.01.
-        let eye = Vector3::new(0.0, 0.0, 1.2);
-        let pose = Vector6::new(-1.6, -0.0013, 0.09, 0.0009, 0.17, 0.0054);
-        let (vel, prev, dt) = (Vector3::new(0.77, 0.0, 0.68), Vector3::zeros(), 0.01);
-        let command = |u: &[f64; NU]| command_of(&pose, &vel, &prev, u, dt);
-        let yaw = input::ROT_YAW_RATE;
-        let (_, exact) = linearise(command, command, &[0.0; NU], &eye);
-        let tilted_surge = 1.2 * 0.0009f64.sin() * 0.17f64.cos() / dt;
-        assert!(
-            (exact[(0, yaw)].abs() - tilted_surge).abs() < 1e-6,
-            "exact surge per yaw rate {} against {tilted_surge}",
-            exact[(0, yaw)]
-        );
-        let level = gain_pose(&pose);
-        let (_, jac) = linearise(
-            command,
-            |u: &[f64; NU]| command_of(&level, &vel, &prev, u, dt),
-            &[0.0; NU],
-            &eye,
-        );
-        // Level: surge, heave and pitch do not move with sway, roll or yaw, nor the other way.
-        for c in [0, 2, 4] {
-            for k in [
-                input::ACCEL_X + 1,
-                input::TILT_ROLL_RATE,
-                input::ROT_ROLL_RATE,
-                input::ROT_YAW_RATE,
-            ] {
-                assert!(
-                    jac[(c, k)].abs() < 1e-9,
-                    "channel {c} input {k}: {}",
-                    jac[(c, k)]
-                );
-            }
-        }
-        for c in [1, 3, 5] {
-            for k in [
-                input::ACCEL_X,
-                input::ACCEL_X + 2,
-                input::TILT_PITCH_RATE,
-                input::ROT_PITCH_RATE,
-            ] {
-                assert!(
-                    jac[(c, k)].abs() < 1e-9,
-                    "channel {c} input {k}: {}",
-                    jac[(c, k)]
-                );
-            }
-        }
-        assert!((jac[(1, yaw)].abs() - 1.2 * 0.17f64.sin() / dt).abs() < 1e-6);
     }
 
     #[test]
