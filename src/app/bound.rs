@@ -8,8 +8,9 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use crate::app::common::{channel_list, inputs, print_stdout};
+use crate::app::common::{inputs, print_stdout};
 use crate::cli::{parse_algorithms, parse_channels, BoundArgs};
+use crate::compare::channel_list;
 use crate::formats::profile::load_profile;
 use crate::formats::trace::load_trace_within;
 use crate::outputs::check_output_of;

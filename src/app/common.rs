@@ -220,7 +220,10 @@ fn bound_lines(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
         if b.dominance.binding.is_empty() {
             String::new()
         } else {
-            format!(" (binding: {})", channel_list(&b.dominance.binding))
+            format!(
+                " (binding: {})",
+                crate::compare::channel_list(&b.dominance.binding)
+            )
         }
     );
     out.push_str(&format!("{:<6} {:>8}", "cueable", "total"));
@@ -437,12 +440,6 @@ pub fn check_folder_outputs(
         );
     }
     Ok(())
-}
-
-/// Channels' keys joined for a report line: "fx, wz".
-pub fn channel_list(channels: &[Channel]) -> String {
-    let keys: Vec<&str> = channels.iter().map(|c| c.key()).collect();
-    keys.join(", ")
 }
 
 #[cfg(test)]

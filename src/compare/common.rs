@@ -45,3 +45,9 @@ pub(crate) fn metric(
 pub(crate) fn channel_name(ch: Channel) -> &'static str {
     ch.label()
 }
+
+/// Channels' keys joined for a report line: "fx, wz".
+pub fn channel_list(channels: &[Channel]) -> String {
+    let keys: Vec<&str> = channels.iter().map(|c| c.key()).collect();
+    keys.join(", ")
+}

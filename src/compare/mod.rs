@@ -7,7 +7,7 @@ mod discussion;
 mod tables;
 mod verdict;
 
-pub use self::common::TraceResult;
+pub use self::common::{channel_list, TraceResult};
 pub use self::tables::render_markdown;
 
 #[cfg(test)]

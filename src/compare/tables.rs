@@ -314,7 +314,7 @@ pub fn bound_table(s: &Summary, b: &hexcue_core::bound::Bound) -> String {
         if d.binding.is_empty() {
             String::new()
         } else {
-            format!(" (binding: {})", crate::app::common::channel_list(&d.binding))
+            format!(" (binding: {})", super::common::channel_list(&d.binding))
         },
         100.0 * b.achieved.limiter_fraction,
         b.achieved.leg_violations
