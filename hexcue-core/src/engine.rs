@@ -25,7 +25,10 @@ use crate::trace::{AircraftSample, Trace};
 pub const PREVIEW_HORIZON_S: f64 = 5.0;
 
 mod frame;
+mod phases;
 pub use frame::{Frame, LaneFrame, Lanes, Legs, MAX_LANES};
+pub use phases::Retune;
+use phases::{phase_spares, PhaseSet};
 
 struct Lane {
     algorithm: Box<dyn MotionCueing>,
@@ -131,88 +134,6 @@ impl Lane {
     }
 }
 
-/// Whether the two profiles tune algorithm `id` alike (`[mpc]` tunes the MPC and the S-MPC,
-/// `[smpc]` the S-MPC).
-fn tunes_alike(a: &Profile, b: &Profile, id: AlgorithmId) -> bool {
-    match id {
-        AlgorithmId::Cwf => a.cwf == b.cwf,
-        AlgorithmId::Mpc => a.mpc == b.mpc,
-        AlgorithmId::Smpc => a.mpc == b.mpc && a.smpc == b.smpc,
-    }
-}
-
-/// Algorithm `id` built ahead for both phases ([`Spares`]); none when `air` and `ground`
-/// tune it alike.
-fn phase_spares(air: &Profile, ground: &Profile, id: AlgorithmId) -> Result<Spares, BuildError> {
-    if tunes_alike(air, ground, id) {
-        return Ok(Default::default());
-    }
-    let built = |p: &Profile| p.algorithm(id).map(|a| Some(warmed(a, p.dt_s())));
-    Ok([[built(air)?, built(air)?], [built(ground)?, built(ground)?]])
-}
-
-/// Steps taken by a spare before it is put aside ([`warmed`]).
-const WARM_UP_STEPS: usize = 50;
-
-/// `algorithm` stepped [`WARM_UP_STEPS`] on a gentle manoeuvre, then reset to rest: an
-/// algorithm sizes some of its buffers in its first steps (the MPC's prediction of the tilt it
-/// follows, its solver's), which must not happen on a live session's stepping thread when the
-/// spare is taken. A reset restores every running state, so the warm-up leaves no trace in
-/// the commands.
-fn warmed(mut algorithm: Box<dyn MotionCueing>, dt_s: f64) -> Box<dyn MotionCueing> {
-    let mut applied = PlatformCommand::default();
-    for k in 0..WARM_UP_STEPS {
-        let t_s = k as f64 * dt_s;
-        let sample = CueSample {
-            delta_f_mps2: Vector3::new(1.5 * (2.0 * t_s).sin(), 0.5, -0.5),
-            angular_velocity_radps: Vector3::new(0.05, 0.02 * t_s.cos(), 0.03),
-        };
-        applied = algorithm.step(&CueInput {
-            k,
-            t_s,
-            dt_s,
-            sample,
-            preview: &[],
-            applied: &applied,
-            deadline: None,
-        });
-    }
-    algorithm.reset();
-    algorithm
-}
-
-/// A retune's algorithm for a profile with `[ground]`: its new tuning for each phase.
-struct PhaseSet {
-    id: AlgorithmId,
-    /// The one algorithm when the two phases tune it alike.
-    single: Option<Box<dyn MotionCueing>>,
-    spares: Spares,
-}
-
-impl PhaseSet {
-    fn build(air: &Profile, ground: &Profile, id: AlgorithmId) -> Result<Self, BuildError> {
-        let alike = tunes_alike(air, ground, id);
-        Ok(PhaseSet {
-            id,
-            single: if alike {
-                Some(air.algorithm(id)?)
-            } else {
-                None
-            },
-            spares: phase_spares(air, ground, id)?,
-        })
-    }
-
-    /// The algorithm to run in phase `on_ground`, out of the set.
-    fn take_for(&mut self, on_ground: bool) -> Option<Box<dyn MotionCueing>> {
-        self.single.take().or_else(|| {
-            self.spares[on_ground as usize]
-                .iter_mut()
-                .find_map(Option::take)
-        })
-    }
-}
-
 /// A lane taken out of one engine with everything it runs on (the algorithm's state, its
 /// limiter, its perception model, a retune's blend under way), to go on in another engine
 /// stepping the same samples ([`Engine::take_lane`], [`Engine::put_lane`]): a live session
@@ -250,70 +171,6 @@ struct Fade {
     /// The phase whose tuning `algorithm` runs, when it goes back to the lane's spares once
     /// blended out (a change of phase); `None`: an outdated tuning, dropped.
     spare_of: Option<bool>,
-}
-
-/// Algorithms rebuilt for a new tuning, ready for [`Engine::retune`]: built apart from the
-/// engine so that a live session builds them off its stepping thread (an MPC's set-up takes
-/// longer than a step).
-pub struct Retune {
-    profile: Profile,
-    algorithms: Vec<Box<dyn MotionCueing>>,
-    /// With `[ground]`: the new ground profile and each changed algorithm for both phases.
-    phased: Option<PhasedRetune>,
-}
-
-struct PhasedRetune {
-    ground: Profile,
-    sets: Vec<PhaseSet>,
-}
-
-impl Retune {
-    /// The algorithms among `ids` whose section differs between `old` and `new`, built as
-    /// `new` tunes them (`[mpc]` rebuilds the MPC and the S-MPC, `[smpc]` the S-MPC). With
-    /// a `[ground]` table, those whose tuning differs in either phase, built for both
-    /// phases, so that the engine changes phase afterwards without building anything.
-    pub fn build(old: &Profile, new: &Profile, ids: &[AlgorithmId]) -> Result<Self, BuildError> {
-        if new.ground.is_some() {
-            let on_ground = |p: &Profile| {
-                p.on_ground().map_err(|e| BuildError::Setup {
-                    algorithm: ids.first().copied().unwrap_or(AlgorithmId::Cwf),
-                    reason: e.to_string(),
-                })
-            };
-            let (old_ground, new_ground) = (on_ground(old)?, on_ground(new)?);
-            let sets = ids
-                .iter()
-                .filter(|id| {
-                    !tunes_alike(old, new, **id) || !tunes_alike(&old_ground, &new_ground, **id)
-                })
-                .map(|id| PhaseSet::build(new, &new_ground, *id))
-                .collect::<Result<Vec<_>, _>>()?;
-            return Ok(Retune {
-                profile: new.clone(),
-                algorithms: Vec::new(),
-                phased: Some(PhasedRetune {
-                    ground: new_ground,
-                    sets,
-                }),
-            });
-        }
-        let algorithms = ids
-            .iter()
-            .filter(|id| !tunes_alike(old, new, **id))
-            .map(|id| new.algorithm(*id))
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(Retune {
-            profile: new.clone(),
-            algorithms,
-            phased: None,
-        })
-    }
-
-    /// The algorithms it changes.
-    pub fn algorithms(&self) -> Vec<AlgorithmId> {
-        let sets = self.phased.iter().flat_map(|p| p.sets.iter().map(|s| s.id));
-        self.algorithms.iter().map(|a| a.id()).chain(sets).collect()
-    }
 }
 
 /// What every lane's step shares.
