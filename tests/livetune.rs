@@ -67,6 +67,40 @@ fn send(socket: &mut Socket, v: Value) {
 }
 
 /// The value of `name` in a `parameterValues` message.
+/// Every parameter the server offers (`getParameters` with no names), with `motion_gain` at 1.
+fn parameters_listed(socket: &mut Socket) -> Value {
+    send(
+        socket,
+        json!({"op": "getParameters", "parameterNames": [], "id": "list"}),
+    );
+    let (list, _) = read_until(socket, |v| {
+        v["op"] == "parameterValues" && v["id"] == "list"
+    });
+    assert_eq!(parameter(&list, "motion_gain"), Some(1.0), "{list}");
+    list
+}
+
+/// `motion_gain` = 2 is refused with a status naming the key and its range, and the value
+/// answered is still 1.
+fn refuses_a_gain_of_two(socket: &mut Socket) {
+    send(
+        socket,
+        json!({"op": "setParameters", "id": "bad",
+               "parameters": [{"name": "motion_gain", "value": 2.0, "type": "float64"}]}),
+    );
+    let (answer, before) = read_until(socket, |v| v["op"] == "parameterValues" && v["id"] == "bad");
+    assert_eq!(parameter(&answer, "motion_gain"), Some(1.0), "{answer}");
+    let refusal = before
+        .iter()
+        .find(|v| v["op"] == "status")
+        .unwrap_or_else(|| panic!("no status: {before:?}"));
+    let message = refusal["message"].as_str().unwrap();
+    assert!(
+        message.contains("motion_gain") && message.contains("[0, 1]"),
+        "{message}"
+    );
+}
+
 fn parameter(msg: &Value, name: &str) -> Option<f64> {
     msg["parameters"]
         .as_array()?
@@ -221,34 +255,11 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
     );
     let socket = &mut flight.socket;
 
-    send(
-        socket,
-        json!({"op": "getParameters", "parameterNames": [], "id": "list"}),
-    );
-    let (list, _) = read_until(socket, |v| {
-        v["op"] == "parameterValues" && v["id"] == "list"
-    });
-    assert_eq!(parameter(&list, "motion_gain"), Some(1.0), "{list}");
+    let list = parameters_listed(socket);
     assert!(parameter(&list, "cwf.specific_force_scale[0]").is_some());
     assert!(parameter(&list, "gain.roll").is_some());
 
-    // 2.0 is refused, with the range, and changes nothing.
-    send(
-        socket,
-        json!({"op": "setParameters", "id": "bad",
-               "parameters": [{"name": "motion_gain", "value": 2.0, "type": "float64"}]}),
-    );
-    let (answer, before) = read_until(socket, |v| v["op"] == "parameterValues" && v["id"] == "bad");
-    assert_eq!(parameter(&answer, "motion_gain"), Some(1.0), "{answer}");
-    let refusal = before
-        .iter()
-        .find(|v| v["op"] == "status")
-        .unwrap_or_else(|| panic!("no status: {before:?}"));
-    let message = refusal["message"].as_str().unwrap();
-    assert!(
-        message.contains("motion_gain") && message.contains("[0, 1]"),
-        "{message}"
-    );
+    refuses_a_gain_of_two(socket);
 
     // Mid-flight: the gain to 0.
     let k0 = flight.commands.lock().unwrap().len();
@@ -552,35 +563,13 @@ fn motion_gain_set_from_foxglove_tunes_a_played_flight() {
             flown += usize::from(data.first() == Some(&1));
         }
     }
-    send(
-        socket,
-        json!({"op": "getParameters", "parameterNames": [], "id": "list"}),
-    );
-    let (list, _) = read_until(socket, |v| {
-        v["op"] == "parameterValues" && v["id"] == "list"
-    });
-    assert_eq!(parameter(&list, "motion_gain"), Some(1.0), "{list}");
+    let list = parameters_listed(socket);
     assert_eq!(
         parameter(&list, "drive"),
         None,
         "play drives nothing: {list}"
     );
-    send(
-        socket,
-        json!({"op": "setParameters", "id": "bad",
-               "parameters": [{"name": "motion_gain", "value": 2.0, "type": "float64"}]}),
-    );
-    let (answer, before) = read_until(socket, |v| v["op"] == "parameterValues" && v["id"] == "bad");
-    assert_eq!(parameter(&answer, "motion_gain"), Some(1.0), "{answer}");
-    let refusal = before
-        .iter()
-        .find(|v| v["op"] == "status")
-        .unwrap_or_else(|| panic!("no status: {before:?}"));
-    let message = refusal["message"].as_str().unwrap();
-    assert!(
-        message.contains("motion_gain") && message.contains("[0, 1]"),
-        "{message}"
-    );
+    refuses_a_gain_of_two(socket);
     send(
         socket,
         json!({"op": "setParameters", "id": "half",
