@@ -12,7 +12,6 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::*;
-use hexcue::formats::recording::Recording;
 
 const AXIS_MPS2: f64 = 2.0;
 /// The recording's pose resolution (1 µm, 1 µrad: docs/recordings.md), twice: a recorded
@@ -24,15 +23,7 @@ const DT_S: f64 = 0.01;
 type Poses = Vec<(f64, [f64; 6])>;
 
 fn poses(path: &Path) -> Poses {
-    Recording::open(path)
-        .unwrap()
-        .frames()
-        .unwrap()
-        .map(|f| {
-            let f = f.unwrap();
-            (f.t_s, std::array::from_fn(|i| f.lanes[0].command.pose[i]))
-        })
-        .collect()
+    recorded_poses(path)
 }
 
 /// `play --headless` of the CWF on a shipped trace with `profile`: the recorded poses and

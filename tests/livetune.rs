@@ -9,7 +9,6 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
@@ -141,15 +140,7 @@ fn spawn(
         .stderr(Stdio::piped())
         .spawn()
         .expect("the hexcue binary runs");
-    let (tx, rx) = mpsc::channel();
-    let err = child.stderr.take().unwrap();
-    std::thread::spawn(move || {
-        for line in BufReader::new(err).lines().map_while(Result::ok) {
-            if tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
+    let rx = stderr_lines(&mut child);
     (child, rx)
 }
 
@@ -478,19 +469,6 @@ fn wait_child(child: &mut Child) -> std::process::ExitStatus {
     }
 }
 
-/// The commanded poses of a `play` recording's only lane, with their times.
-fn recorded_poses(path: &std::path::Path) -> Vec<(f64, [f64; 6])> {
-    hexcue::formats::recording::Recording::open(path)
-        .unwrap()
-        .frames()
-        .unwrap()
-        .map(|f| {
-            let f = f.unwrap();
-            (f.t_s, std::array::from_fn(|i| f.lanes[0].command.pose[i]))
-        })
-        .collect()
-}
-
 /// `hexcue play --headless --foxglove` (issue 36): Foxglove's Parameters tune a played
 /// flight as they tune a live one. The CWF on the steep turn at ×4: a WebSocket client lists
 /// the parameters and finds `motion_gain`, is refused 2.0 with the range (nothing changed),
@@ -517,15 +495,7 @@ fn motion_gain_set_from_foxglove_tunes_a_played_flight() {
         .stderr(Stdio::piped())
         .spawn()
         .expect("the hexcue binary runs");
-    let (tx, err_lines) = mpsc::channel();
-    let err = child.stderr.take().unwrap();
-    std::thread::spawn(move || {
-        for line in BufReader::new(err).lines().map_while(Result::ok) {
-            if tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
+    let err_lines = stderr_lines(&mut child);
     let mut lines = Vec::new();
     let addr = serving(&err_lines, &mut lines);
     let socket = &mut connect(&addr);

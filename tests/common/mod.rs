@@ -439,6 +439,34 @@ pub fn python_venv(name: &str, packages: &[&str], import: &str) -> Option<PathBu
     }
 }
 
+/// The commanded poses of a recording's first lane, with their times (s; m and rad).
+pub fn recorded_poses(path: &Path) -> Vec<(f64, [f64; 6])> {
+    hexcue::formats::recording::Recording::open(path)
+        .unwrap()
+        .frames()
+        .unwrap()
+        .map(|f| {
+            let f = f.unwrap();
+            (f.t_s, std::array::from_fn(|i| f.lanes[0].command.pose[i]))
+        })
+        .collect()
+}
+
+/// A running child's stderr, line by line as it comes, on a channel (ends with the child).
+pub fn stderr_lines(child: &mut std::process::Child) -> std::sync::mpsc::Receiver<String> {
+    use std::io::BufRead;
+    let (tx, rx) = std::sync::mpsc::channel();
+    let err = child.stderr.take().expect("the child's stderr is piped");
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(err).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    rx
+}
+
 /// The texts of the `/events` messages (`foxglove.Log`) of a recording.
 pub fn recorded_events(path: &Path) -> Vec<String> {
     use prost::Message;
