@@ -79,23 +79,25 @@ fn parameters_listed(socket: &mut Socket) -> Value {
     list
 }
 
-/// `motion_gain` = 2 is refused with a status naming the key and its range, and the value
-/// answered is still 1.
-fn refuses_a_gain_of_two(socket: &mut Socket) {
+/// `name` = `value` is refused: the answer still says `kept`, and a status message names the
+/// parameter and carries each of `words` (its range or choices).
+fn refused(socket: &mut Socket, name: &str, value: f64, kept: f64, words: &[&str]) {
     send(
         socket,
-        json!({"op": "setParameters", "id": "bad",
-               "parameters": [{"name": "motion_gain", "value": 2.0, "type": "float64"}]}),
+        json!({"op": "setParameters", "id": "refused",
+               "parameters": [{"name": name, "value": value, "type": "float64"}]}),
     );
-    let (answer, before) = read_until(socket, |v| v["op"] == "parameterValues" && v["id"] == "bad");
-    assert_eq!(parameter(&answer, "motion_gain"), Some(1.0), "{answer}");
+    let (answer, before) = read_until(socket, |v| {
+        v["op"] == "parameterValues" && v["id"] == "refused"
+    });
+    assert_eq!(parameter(&answer, name), Some(kept), "{answer}");
     let refusal = before
         .iter()
         .find(|v| v["op"] == "status")
         .unwrap_or_else(|| panic!("no status: {before:?}"));
     let message = refusal["message"].as_str().unwrap();
     assert!(
-        message.contains("motion_gain") && message.contains("[0, 1]"),
+        message.contains(name) && words.iter().all(|w| message.contains(w)),
         "{message}"
     );
 }
@@ -250,7 +252,7 @@ fn motion_gain_to_zero_from_foxglove_mid_flight_reaches_neutral_without_a_jolt()
     assert!(parameter(&list, "cwf.specific_force_scale[0]").is_some());
     assert!(parameter(&list, "gain.roll").is_some());
 
-    refuses_a_gain_of_two(socket);
+    refused(socket, "motion_gain", 2.0, 1.0, &["[0, 1]"]);
 
     // Mid-flight: the gain to 0.
     let k0 = flight.commands.lock().unwrap().len();
@@ -351,24 +353,7 @@ fn the_drive_switched_from_foxglove_mid_flight_blends_within_the_hand_over_bound
     );
     let (now, _) = read_until(socket, |v| v["op"] == "parameterValues" && v["id"] == "now");
     assert_eq!(parameter(&now, "drive"), Some(1.0), "{now}");
-    send(
-        socket,
-        json!({"op": "setParameters", "id": "smpc",
-               "parameters": [{"name": "drive", "value": 2.0, "type": "float64"}]}),
-    );
-    let (answer, before) = read_until(socket, |v| {
-        v["op"] == "parameterValues" && v["id"] == "smpc"
-    });
-    assert_eq!(parameter(&answer, "drive"), Some(1.0), "{answer}");
-    let refusal = before
-        .iter()
-        .find(|v| v["op"] == "status")
-        .unwrap_or_else(|| panic!("no status: {before:?}"));
-    let message = refusal["message"].as_str().unwrap();
-    assert!(
-        message.contains("drive") && message.contains("mpc, cwf"),
-        "{message}"
-    );
+    refused(socket, "drive", 2.0, 1.0, &["mpc, cwf"]);
 
     let k0 = flight.commands.lock().unwrap().len();
     send(
@@ -539,7 +524,7 @@ fn motion_gain_set_from_foxglove_tunes_a_played_flight() {
         None,
         "play drives nothing: {list}"
     );
-    refuses_a_gain_of_two(socket);
+    refused(socket, "motion_gain", 2.0, 1.0, &["[0, 1]"]);
     send(
         socket,
         json!({"op": "setParameters", "id": "half",
