@@ -366,6 +366,46 @@ mod tests {
         }
     }
 
+    /// The regulator's multiplier as a caller stepping the S-MPC in its own loop sees it: 1
+    /// at rest, raised at once while a sustained surge pushes the legs past
+    /// `awr_usage_start`, never above `awr_max_scale`, and relaxed back once the platform
+    /// is home.
+    #[test]
+    fn the_washout_scale_rises_with_leg_usage_and_relaxes_at_rest() {
+        use crate::mca::{CueInput, CueSample, MotionCueing, PlatformCommand};
+        let profile = full_flight();
+        let mut smpc = profile.smpc().unwrap();
+        let max_scale = profile.smpc.awr_max_scale;
+        let mut applied = PlatformCommand::default();
+        let (mut peak, mut at_end) = (1.0_f64, f64::NAN);
+        for sample in &sustained_surge().samples {
+            let k = (sample.t_s * 100.0).round() as usize;
+            let input = CueInput {
+                k,
+                t_s: sample.t_s,
+                dt_s: 0.01,
+                sample: CueSample {
+                    delta_f_mps2: sample.specific_force_mps2 + Vector3::new(0.0, 0.0, G_MPS2),
+                    angular_velocity_radps: Vector3::zeros(),
+                },
+                preview: &[],
+                applied: &applied,
+                deadline: None,
+            };
+            if k == 0 {
+                assert_eq!(smpc.washout_scale(), 1.0);
+            }
+            applied = smpc.step(&input);
+            peak = peak.max(smpc.washout_scale());
+            at_end = smpc.washout_scale();
+        }
+        assert!(peak > 1.5 && peak <= max_scale, "peak {peak}");
+        assert!(
+            at_end < 1.0 + 0.1 * (peak - 1.0),
+            "still {at_end} of {peak} at rest"
+        );
+    }
+
     #[test]
     fn both_controllers_share_one_prediction_cache() {
         let profile = full_flight();

@@ -402,11 +402,6 @@ impl Mpc {
         self.run.mode
     }
 
-    /// Sets the reference over the horizon from the next step on.
-    pub fn set_reference_mode(&mut self, mode: ReferenceMode) {
-        self.params.reference = mode;
-    }
-
     /// Scales every washout weight (the S-MPC's adaptive weight regulator). Values are
     /// written into the solver in place; the COTC terminal weight keeps its nominal washout.
     pub fn set_washout_gain(&mut self, gain: f64) {
