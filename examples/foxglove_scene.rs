@@ -275,7 +275,7 @@ fn main() -> Result<()> {
     root.fill(&WHITE)?;
     let (left, right) = root.split_horizontally(900);
     let title = format!(
-        "t = {:.2} s: hexcue's rendering of its /ALG/tf and /ALG/scene messages (not a Foxglove screenshot)",
+        "t = {:.2} s: hexcue's rendering of its /tf and /scene messages (not a Foxglove screenshot)",
         args.at_s
     );
     let (head, body) = left.split_vertically(40);

@@ -179,8 +179,8 @@ fn a_websocket_client_sees_the_channels_and_receives_messages() {
     let mut socket = connect(&addr);
     let channels = advertised(&mut socket, &cwf_channels());
     for (topic, schema, encoding) in [
-        ("/cwf/tf", "foxglove.FrameTransforms", "protobuf"),
-        ("/cwf/scene", "foxglove.SceneUpdate", "protobuf"),
+        ("/tf", "foxglove.FrameTransforms", "protobuf"),
+        ("/scene", "foxglove.SceneUpdate", "protobuf"),
         ("/events", "foxglove.Log", "protobuf"),
         ("/cwf/platform", "hexcue.Platform", "json"),
         ("/aircraft", "hexcue.Aircraft", "json"),
@@ -198,7 +198,7 @@ fn a_websocket_client_sees_the_channels_and_receives_messages() {
         assert_eq!(c.schema_encoding, schema_encoding, "{topic}");
     }
 
-    let subscriptions = [(1u32, "/cwf/tf"), (2, "/cwf/platform"), (3, "/cwf/scene")];
+    let subscriptions = [(1u32, "/tf"), (2, "/cwf/platform"), (3, "/scene")];
     let subscribe = serde_json::json!({
         "op": "subscribe",
         "subscriptions": subscriptions
@@ -381,7 +381,7 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
         "op": "subscribe",
         "subscriptions": [
             {"id": 1, "channelId": channels["/events"].id},
-            {"id": 2, "channelId": channels["/cwf/tf"].id},
+            {"id": 2, "channelId": channels["/tf"].id},
             {"id": 3, "channelId": channels["/cwf/platform"].id},
         ],
     });
@@ -443,7 +443,7 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
             }
             2 => {
                 transforms += 1;
-                "/cwf/tf"
+                "/tf"
             }
             3 => "/cwf/platform",
             other => panic!("a message for subscription {other}"),
@@ -520,12 +520,12 @@ fn a_live_session_serves_its_channels_and_events_to_foxglove() {
                 *same.entry(topic).or_default() += 1;
             }
             None => assert_eq!(
-                *topic, "/cwf/tf",
+                *topic, "/tf",
                 "{topic} served at {t}, a log time the recording does not have"
             ),
         }
     }
-    for topic in ["/events", "/cwf/tf", "/cwf/platform"] {
+    for topic in ["/events", "/tf", "/cwf/platform"] {
         assert!(
             same.get(topic).is_some_and(|n| *n > 0),
             "no {topic} message both served and recorded: {same:?}"
@@ -623,7 +623,9 @@ fn a_client_subscribed_to_everything_decodes_every_documented_channel() {
     let mut documented = documented_topics("docs/recordings.md");
     documented.extend(documented_topics("docs/foxglove.md"));
     documented.insert("/events".into(), "foxglove.Log".into());
-    assert!(documented.len() >= 21, "{documented:#?}");
+    // The aircraft, its perception, the events, each algorithm's four JSON topics, and
+    // every rig's one `/tf` and `/scene`.
+    assert!(documented.len() >= 17, "{documented:#?}");
 
     // The default profile with 5 cm of surge, so that every algorithm's limiter acts within
     // the first seconds of the stall and `/events` has its `limiter acting` warnings.
@@ -723,13 +725,17 @@ fn a_client_subscribed_to_everything_decodes_every_documented_channel() {
                     let tf = FrameTransforms::decode(payload).unwrap();
                     assert_eq!(
                         tf.transforms.len(),
-                        3,
-                        "{topic}: world → base → platform → eye"
+                        9,
+                        "{topic}: world → base → platform → eye of each of the three"
                     );
                 }
                 "foxglove.SceneUpdate" => {
                     let scene = SceneUpdate::decode(payload).unwrap();
-                    assert_eq!(scene.entities.len(), 3, "{topic}: base, platform, legs");
+                    assert_eq!(
+                        scene.entities.len(),
+                        9,
+                        "{topic}: base, platform, legs of each of the three"
+                    );
                 }
                 "foxglove.Log" => {
                     events.push(::foxglove::messages::Log::decode(payload).unwrap().message)

@@ -87,7 +87,8 @@ def main() -> None:
                 far=5000.0,
             ),
             topics={
-                **{f"/{a}/scene": fl.BaseRendererSceneUpdateTopicSettings(visible=True) for a in ALGORITHMS},
+                # Every algorithm's rig is on the one /scene topic (docs/foxglove.md).
+                "/scene": fl.BaseRendererSceneUpdateTopicSettings(visible=True),
             },
         ),
     )

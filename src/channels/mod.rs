@@ -33,9 +33,10 @@ pub enum Kind {
     Actuators,
     /// `/ALG/controller`: the algorithm's state and solvers.
     Controller,
-    /// `/ALG/tf`: where the rig stands and how its platform is placed.
+    /// `/tf`: where each rig stands and how its platform is placed (every algorithm's
+    /// frames in one message: docs/recordings.md, "One /tf and one /scene").
     Tf,
-    /// `/ALG/scene`: what the rig looks like.
+    /// `/scene`: what the rigs look like (every algorithm's entities in one message).
     Scene,
     /// `/events`: what happened, from every algorithm and the session.
     Events,
@@ -59,8 +60,6 @@ impl Kind {
         Kind::Actuators,
         Kind::Controller,
     ];
-    /// Each algorithm's Foxglove topics, in the order a step writes them.
-    pub const LANE_SCENE: [Kind; 2] = [Kind::Tf, Kind::Scene];
 
     pub fn is_json(self) -> bool {
         !matches!(self, Kind::Tf | Kind::Scene | Kind::Events)
@@ -73,9 +72,9 @@ impl Kind {
             Kind::Platform => "platform",
             Kind::Actuators => "actuators",
             Kind::Controller => "controller",
-            Kind::Tf => "tf",
-            Kind::Scene => "scene",
-            Kind::Aircraft | Kind::Reference | Kind::Events => return None,
+            Kind::Aircraft | Kind::Reference | Kind::Events | Kind::Tf | Kind::Scene => {
+                return None
+            }
         })
     }
 
@@ -153,6 +152,14 @@ impl Channel {
         kind: Kind::Events,
         lane: None,
     };
+    pub const TF: Channel = Channel {
+        kind: Kind::Tf,
+        lane: None,
+    };
+    pub const SCENE: Channel = Channel {
+        kind: Kind::Scene,
+        lane: None,
+    };
 
     /// An algorithm's channel of `kind`.
     pub fn lane(kind: Kind, id: AlgorithmId) -> Channel {
@@ -167,6 +174,8 @@ impl Channel {
             (Kind::Aircraft, _) => AIRCRAFT_TOPIC.to_string(),
             (Kind::Reference, _) => REFERENCE_TOPIC.to_string(),
             (Kind::Events, _) => EVENTS_TOPIC.to_string(),
+            (Kind::Tf, _) => TF_TOPIC.to_string(),
+            (Kind::Scene, _) => SCENE_TOPIC.to_string(),
             (kind, lane) => format!(
                 "/{}/{}",
                 lane.map_or("?", |id| id.key()),
@@ -185,7 +194,6 @@ impl Channel {
         }
         let kind = Kind::LANE_JSON
             .into_iter()
-            .chain(Kind::LANE_SCENE)
             .find(|k| k.lane_suffix() == Some(suffix))?;
         Some((kind, AlgorithmId::from_key(alg).ok_or(alg)))
     }
@@ -195,18 +203,22 @@ pub const AIRCRAFT_TOPIC: &str = "/aircraft";
 pub const REFERENCE_TOPIC: &str = "/aircraft/perceived";
 /// Where events go, from every algorithm and from the session.
 pub const EVENTS_TOPIC: &str = "/events";
+/// Every rig's transforms: recordings of format 2 and before had one `/ALG/tf` each.
+pub const TF_TOPIC: &str = "/tf";
+/// Every rig's scene entities: recordings of format 2 and before had one `/ALG/scene` each.
+pub const SCENE_TOPIC: &str = "/scene";
 
 /// Every channel of a session of `algorithms`, in the order a recording adds them: hexcue's
 /// JSON topics (the aircraft, the reference, each algorithm's four), then Foxglove's (the
-/// events, each algorithm's transforms and scene).
+/// events, every algorithm's transforms and every algorithm's scene).
 pub fn session(algorithms: &[AlgorithmId]) -> Vec<Channel> {
     let mut out = vec![Channel::AIRCRAFT, Channel::REFERENCE];
     for &id in algorithms {
         out.extend(Kind::LANE_JSON.map(|k| Channel::lane(k, id)));
     }
     out.push(Channel::EVENTS);
-    for &id in algorithms {
-        out.extend(Kind::LANE_SCENE.map(|k| Channel::lane(k, id)));
+    if !algorithms.is_empty() {
+        out.extend([Channel::TF, Channel::SCENE]);
     }
     out
 }
@@ -280,25 +292,19 @@ impl SceneMessage<'_> {
 }
 
 impl scene::StepMessages {
-    /// The step's messages by channel: each lane's transforms and scene when they were drawn,
-    /// then the events.
+    /// The step's messages by channel: every lane's transforms and scene when they were
+    /// drawn, then the events.
     pub fn by_channel(&self) -> impl Iterator<Item = (Channel, SceneMessage<'_>)> {
-        let lanes = self.lanes.iter().flat_map(|lane| {
+        let drawn = self.drawn.iter().flat_map(|d| {
             [
-                (
-                    Channel::lane(Kind::Tf, lane.id),
-                    SceneMessage::Tf(&lane.transforms),
-                ),
-                (
-                    Channel::lane(Kind::Scene, lane.id),
-                    SceneMessage::Scene(&lane.scene),
-                ),
+                (Channel::TF, SceneMessage::Tf(&d.transforms)),
+                (Channel::SCENE, SceneMessage::Scene(&d.scene)),
             ]
         });
         let events = self
             .events
             .iter()
             .map(|e| (Channel::EVENTS, SceneMessage::Log(e)));
-        lanes.chain(events)
+        drawn.chain(events)
     }
 }

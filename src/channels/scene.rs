@@ -235,10 +235,12 @@ struct LaneMemory {
     limiter_since_s: f64,
 }
 
-/// One algorithm's messages at one step.
+/// Every algorithm's rig at one step: one message for all the transforms and one for all
+/// the entities, not one of each per algorithm. Each message costs a 16-byte index and a
+/// record header that zstd cannot remove, and joining them keeps the busiest flight's
+/// recording under 5 MB a minute (docs/recordings.md, "One /tf and one /scene").
 #[derive(Clone, Debug, PartialEq)]
-pub struct LaneMessages {
-    pub id: AlgorithmId,
+pub struct DrawnRigs {
     pub transforms: FrameTransforms,
     pub scene: SceneUpdate,
 }
@@ -246,7 +248,8 @@ pub struct LaneMessages {
 /// Everything a step adds in Foxglove's messages.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StepMessages {
-    pub lanes: Vec<LaneMessages>,
+    /// The rigs, when drawn at this step.
+    pub drawn: Option<DrawnRigs>,
     pub events: Vec<Log>,
 }
 
@@ -307,27 +310,29 @@ impl SceneBuilder {
     }
 
     /// The messages of one frame, stamped `log_time_ns`: the events every step (a change is
-    /// never skipped), each lane's transforms and scene only when `draw` (a recording writes
+    /// never skipped), the lanes' transforms and scenes only when `draw` (a recording writes
     /// them every few steps, and building them was most of a skipped step's cost).
     pub fn step(&mut self, frame: &Frame, log_time_ns: u64, draw: bool) -> StepMessages {
         let mut events = Vec::new();
         for lane in &frame.lanes {
             self.note_changes(lane, frame.t_s, log_time_ns, &mut events);
         }
-        let lanes = if draw {
-            frame
-                .lanes
-                .iter()
-                .map(|lane| LaneMessages {
-                    id: lane.id,
-                    transforms: self.transforms(lane, log_time_ns),
-                    scene: self.scene(lane, log_time_ns),
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
-        StepMessages { lanes, events }
+        let drawn = draw.then(|| {
+            let mut rigs = DrawnRigs {
+                transforms: FrameTransforms::default(),
+                scene: SceneUpdate::default(),
+            };
+            for lane in &frame.lanes {
+                rigs.transforms
+                    .transforms
+                    .extend(self.transforms(lane, log_time_ns).transforms);
+                rigs.scene
+                    .entities
+                    .extend(self.scene(lane, log_time_ns).entities);
+            }
+            rigs
+        });
+        StepMessages { drawn, events }
     }
 
     /// world → base → platform → eye for one lane.
@@ -390,10 +395,11 @@ impl SceneBuilder {
             f64::from(c.1) / 255.0,
             f64::from(c.2) / 255.0,
         );
+        // Ids are unique within the one `/scene` topic every rig shares: `ALG/base`, ….
         let entity = |frame_id: String, name: &str, frame_locked: bool| SceneEntity {
             timestamp: Some(timestamp(t_ns)),
             frame_id,
-            id: name.to_string(),
+            id: format!("{}/{name}", id.key()),
             lifetime: None,
             frame_locked,
             ..Default::default()
@@ -603,7 +609,7 @@ mod tests {
         lane.legs.margin_m[2] = 0.001;
         lane.legs.margin_m[4] = b.legs.warn_m * 0.5 + b.legs.crit_m * 0.5;
         let scene = b.scene(lane, 1);
-        let legs = scene.entities.iter().find(|e| e.id == "legs").unwrap();
+        let legs = scene.entities.iter().find(|e| e.id == "cwf/legs").unwrap();
         assert_eq!(legs.frame_id, "cwf/base");
         assert_eq!(legs.lines.len(), 6);
         for (i, line) in legs.lines.iter().enumerate() {
@@ -660,9 +666,48 @@ mod tests {
             "a rewind is no change"
         );
         assert!(
-            b.step(&frame, 6, false).lanes.is_empty(),
+            b.step(&frame, 6, false).drawn.is_none(),
             "not drawn, not built"
         );
-        assert_eq!(b.step(&frame, 7, true).lanes.len(), 1);
+        assert!(b.step(&frame, 7, true).drawn.is_some());
+    }
+
+    /// Every rig in the one `/tf` and `/scene` message of a step, each with its own frames
+    /// and entity ids, so that nothing of the three per-algorithm messages is lost.
+    #[test]
+    fn one_message_carries_every_rig() {
+        let profile = full_flight();
+        let algorithms = [AlgorithmId::Smpc, AlgorithmId::Mpc, AlgorithmId::Cwf];
+        let mut b = SceneBuilder::new(&profile, &algorithms);
+        let mut frame = first_cwf_frame(&profile);
+        let lane = frame.lanes[0].clone();
+        frame.lanes = algorithms
+            .iter()
+            .map(|&id| {
+                let mut l = lane.clone();
+                l.id = id;
+                l
+            })
+            .collect();
+        let drawn = b.step(&frame, 9, true).drawn.unwrap();
+        for (k, &id) in algorithms.iter().enumerate() {
+            let alone = b.transforms(&frame.lanes[k], 9).transforms;
+            assert_eq!(drawn.transforms.transforms[3 * k..3 * k + 3], alone[..]);
+            let entities = b.scene(&frame.lanes[k], 9).entities;
+            assert_eq!(drawn.scene.entities[3 * k..3 * k + 3], entities[..]);
+            let ids: Vec<&str> = entities.iter().map(|e| e.id.as_str()).collect();
+            let key = id.key();
+            assert_eq!(
+                ids,
+                [
+                    format!("{key}/base"),
+                    format!("{key}/platform"),
+                    format!("{key}/legs")
+                ]
+            );
+        }
+        let unique: std::collections::BTreeSet<&str> =
+            drawn.scene.entities.iter().map(|e| e.id.as_str()).collect();
+        assert_eq!(unique.len(), 9);
     }
 }

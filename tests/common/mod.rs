@@ -86,8 +86,8 @@ pub const CWF_TOPICS: &[&str] = &[
     "/cwf/platform",
     "/cwf/actuators",
     "/cwf/controller",
-    "/cwf/tf",
-    "/cwf/scene",
+    "/tf",
+    "/scene",
 ];
 
 /// A UDP port on 127.0.0.1 that was free a moment ago.
@@ -487,18 +487,24 @@ pub fn recorded_events(path: &Path) -> Vec<String> {
 /// more, with no gap over 1/30 s, so that Foxglove's 3D panel plays them back smoothly.
 /// `name` heads the messages.
 pub fn assert_transforms_at_30_hz(bytes: &[u8], name: &str) {
+    use ::foxglove::messages::FrameTransforms;
+    use ::foxglove::Decode;
+    // Each platform's transform times, by its frame in the one `/tf` topic.
     let mut tf_times: std::collections::BTreeMap<String, Vec<u64>> = Default::default();
     for m in mcap::MessageStream::new(bytes).unwrap() {
         let m = m.unwrap();
-        if m.channel.topic.ends_with("/tf") {
-            tf_times
-                .entry(m.channel.topic.clone())
-                .or_default()
-                .push(m.log_time);
+        if m.channel.topic == "/tf" {
+            let tf = FrameTransforms::decode(&m.data[..]).unwrap();
+            for t in tf.transforms {
+                tf_times
+                    .entry(t.child_frame_id)
+                    .or_default()
+                    .push(m.log_time);
+            }
         }
     }
     for alg in ["smpc", "mpc", "cwf"] {
-        let times = &tf_times[&format!("/{alg}/tf")];
+        let times = &tf_times[&format!("{alg}/platform")];
         let span_s = (times[times.len() - 1] - times[0]) as f64 * 1e-9;
         let rate_hz = (times.len() - 1) as f64 / span_s;
         let widest_s = times.windows(2).map(|w| w[1] - w[0]).max().unwrap() as f64 * 1e-9;

@@ -47,8 +47,11 @@ pub const TRACE_ZSTD_ATTACHMENT: &str = "trace.csv.zst";
 pub const SIDECAR_ATTACHMENT: &str = "trace.json";
 /// Version of the topic layout below; bumped when a field changes meaning. 2: the leg
 /// margins are no longer written in `/ALG/actuators` (readers compute them from the lengths)
-/// and a chunk's messages are grouped by topic (readers restore log-time order).
-pub const FORMAT_VERSION: &str = "2";
+/// and a chunk's messages are grouped by topic (readers restore log-time order). 3: every
+/// algorithm's Foxglove transforms in one `/tf` and its scene entities in one `/scene`
+/// (ids `ALG/base`, …), instead of `/ALG/tf` and `/ALG/scene` each; hexcue's own topics
+/// are unchanged, and `review` reads all three formats.
+pub const FORMAT_VERSION: &str = "3";
 
 #[derive(Debug, thiserror::Error)]
 pub enum RecordingError {

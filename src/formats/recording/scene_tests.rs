@@ -1,5 +1,5 @@
-//! Foxglove's well-known messages in a recording: the recorder's channels `/ALG/tf`,
-//! `/ALG/scene` and `/events`, protobuf-encoded with the schemas the `foxglove` crate carries
+//! Foxglove's well-known messages in a recording: the recorder's channels `/tf`, `/scene`
+//! (every algorithm's rig in one message each) and `/events`, protobuf-encoded with the schemas the `foxglove` crate carries
 //! (the ones the Foxglove app knows).
 
 use std::collections::BTreeMap;
@@ -67,8 +67,8 @@ fn rotate(q: &::foxglove::messages::Quaternion, v: &Vector3<f64>) -> Vector3<f64
 fn the_platform_transform_follows_the_recorded_pose() {
     let (frames, bytes) = recorded();
     let topics = by_topic(bytes);
-    for alg in ["cwf", "mpc"] {
-        let tfs = &topics[&format!("/{alg}/tf")];
+    let tfs = &topics["/tf"];
+    for (k, alg) in ["cwf", "mpc"].into_iter().enumerate() {
         let platforms: BTreeMap<u64, &Vec<u8>> = topics[&format!("/{alg}/platform")]
             .iter()
             .map(|(t, p)| (*t, p))
@@ -82,7 +82,12 @@ fn the_platform_transform_follows_the_recorded_pose() {
             let platform = platforms
                 .get(t_tf)
                 .expect("a transform at a step's log time");
-            let tf = FrameTransforms::decode(&tf[..]).unwrap();
+            let all = FrameTransforms::decode(&tf[..]).unwrap();
+            // The algorithms' frames in the session's order, three each.
+            assert_eq!(all.transforms.len(), 6);
+            let tf = FrameTransforms {
+                transforms: all.transforms[3 * k..3 * k + 3].to_vec(),
+            };
             let pose: Vec<f64> = serde_json::from_slice::<serde_json::Value>(platform).unwrap()
                 ["pose"]
                 .as_array()
@@ -168,29 +173,19 @@ fn the_schemas_are_foxglove_well_known_ones() {
             );
         }
     };
-    for alg in ["cwf", "mpc"] {
-        expect(
-            &format!("/{alg}/tf"),
-            "foxglove.FrameTransforms",
-            &["transforms"],
-        );
-        expect(
-            &format!("/{alg}/scene"),
-            "foxglove.SceneUpdate",
-            &["deletions", "entities"],
-        );
-    }
+    expect("/tf", "foxglove.FrameTransforms", &["transforms"]);
+    expect("/scene", "foxglove.SceneUpdate", &["deletions", "entities"]);
     expect(
         "/events",
         "foxglove.Log",
         &["timestamp", "level", "message", "name"],
     );
-    assert_eq!(seen.len(), 5, "{seen:?}");
+    assert_eq!(seen.len(), 3, "{seen:?}");
     // And exactly the crate's own descriptors, which the Foxglove app ships too.
     let tf = summary
         .channels
         .values()
-        .find(|c| c.topic == "/cwf/tf")
+        .find(|c| c.topic == "/tf")
         .unwrap();
     let data = &tf.schema.as_ref().unwrap().data;
     assert_eq!(data[..], FrameTransforms::get_schema().unwrap().data[..]);
@@ -201,10 +196,24 @@ fn the_schemas_are_foxglove_well_known_ones() {
 fn the_scene_draws_plates_and_six_legs_for_each_algorithm() {
     let (frames, bytes) = recorded();
     let topics = by_topic(bytes);
-    let scenes = &topics["/mpc/scene"];
-    let last = SceneUpdate::decode(&scenes[scenes.len() - 1].1[..]).unwrap();
-    let ids: Vec<&str> = last.entities.iter().map(|e| e.id.as_str()).collect();
-    assert_eq!(ids, ["base", "platform", "legs"]);
+    let scenes = &topics["/scene"];
+    let all = SceneUpdate::decode(&scenes[scenes.len() - 1].1[..]).unwrap();
+    let ids: Vec<&str> = all.entities.iter().map(|e| e.id.as_str()).collect();
+    assert_eq!(
+        ids,
+        [
+            "cwf/base",
+            "cwf/platform",
+            "cwf/legs",
+            "mpc/base",
+            "mpc/platform",
+            "mpc/legs"
+        ]
+    );
+    let last = SceneUpdate {
+        deletions: Vec::new(),
+        entities: all.entities[3..].to_vec(),
+    };
     let legs = &last.entities[2];
     assert_eq!(legs.frame_id, "mpc/base");
     // Drawn every n-th step (3 at 100 Hz): the last scene is that of step n × (count − 1).

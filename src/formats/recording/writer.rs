@@ -60,6 +60,24 @@ pub(super) fn scene_every_steps(rate_hz: f64) -> u64 {
 /// take a headless run under 25× real time. Level 19 on the trace alone cost 0.15 s a run
 /// (a CWF-only run takes 0.1 s) for 12 KB on the landing.
 const ZSTD_LEVEL: u32 = 9;
+/// zstd level of a played trace's attachment: level 16's optimal parser takes a third off
+/// the text of a busy trace (the turbulent cruise's 824 KB: 319,718 → 247,221 B) where levels
+/// 10–15 take under 1 %, for about 0.4 µs of CPU a byte (0.3 s for that trace; Python's
+/// `zstandard`, the same C library, on a loaded machine): what keeps the busiest shipped
+/// flight's recording under 5 MB a minute (docs/recordings.md, "One /tf and one /scene").
+const TRACE_ZSTD_LEVEL: i32 = 16;
+/// Above this much trace text (about half an hour at 100 Hz) the attachment is compressed at
+/// [`ZSTD_LEVEL`]: level 16 would keep a 10-hour trace's run waiting two minutes before its
+/// first step, for a file whose size per minute the trace hardly changes.
+const TRACE_OPTIMAL_MAX_BYTES: u64 = 16 << 20;
+
+/// The zstd level for a trace attachment of `text_bytes` (unknown: the chunks' level).
+fn trace_level(text_bytes: Option<u64>) -> i32 {
+    match text_bytes {
+        Some(n) if n <= TRACE_OPTIMAL_MAX_BYTES => TRACE_ZSTD_LEVEL,
+        _ => ZSTD_LEVEL as i32,
+    }
+}
 const ZSTD_MEDIA_TYPE: &str = "application/zstd";
 fn encode_error(path: &Path, e: EncodeError) -> RecordingError {
     RecordingError::Io {
@@ -201,7 +219,8 @@ impl Recorder {
             action: "compress the trace for the recording",
             error,
         };
-        let mut copy = TraceCopy::beside(path)?;
+        let text_bytes = std::fs::metadata(trace).ok().map(|m| m.len());
+        let mut copy = TraceCopy::beside(path, text_bytes)?;
         File::open(trace)
             .and_then(|mut file| io::copy(&mut file, &mut copy))
             .map_err(failed)?;
@@ -280,13 +299,15 @@ impl Recorder {
             .map_err(wr)?;
         let trace = match trace_zst {
             Some(_) => Vec::new(),
-            None => zstd::bulk::compress(meta.trace_csv.as_bytes(), ZSTD_LEVEL as i32).map_err(
-                |error| RecordingError::Io {
-                    path: shown(path),
-                    action: "compress the trace attachment",
-                    error,
-                },
-            )?,
+            None => zstd::bulk::compress(
+                meta.trace_csv.as_bytes(),
+                trace_level(Some(meta.trace_csv.len() as u64)),
+            )
+            .map_err(|error| RecordingError::Io {
+                path: shown(path),
+                action: "compress the trace attachment",
+                error,
+            })?,
         };
         // The profile and the sidecar stay text: a few KB, readable with any MCAP tool.
         let mut attachments = vec![(
@@ -654,7 +675,9 @@ impl Recorder {
         // attachment's length comes before its bytes, and an hour's log need not fit in memory.
         let mut zst_name = trace_csv.as_os_str().to_owned();
         zst_name.push(".zst");
-        let mut copy = TraceCopy::to(PathBuf::from(zst_name))?;
+        // A live log may be hours long and the session's end should not wait: the chunks'
+        // level.
+        let mut copy = TraceCopy::to(PathBuf::from(zst_name), None)?;
         File::open(trace_csv)
             .and_then(|mut file| io::copy(&mut file, &mut copy))
             .map_err(|e| failed("compress the input log", e))?;
@@ -774,17 +797,19 @@ pub struct TraceCopy {
 }
 
 impl TraceCopy {
-    /// A scratch file beside the recording at `recording` (its name + `.trace.zst`).
-    pub fn beside(recording: &Path) -> Result<Self, RecordingError> {
+    /// A scratch file beside the recording at `recording` (its name + `.trace.zst`), for a
+    /// trace of `text_bytes` when known (which sets the zstd level).
+    pub fn beside(recording: &Path, text_bytes: Option<u64>) -> Result<Self, RecordingError> {
         let mut name = recording.as_os_str().to_owned();
         name.push(".trace.zst");
-        Self::to(PathBuf::from(name))
+        Self::to(PathBuf::from(name), text_bytes)
     }
 
     /// A scratch file at `path`.
-    pub fn to(path: PathBuf) -> Result<Self, RecordingError> {
+    pub fn to(path: PathBuf, text_bytes: Option<u64>) -> Result<Self, RecordingError> {
+        let level = trace_level(text_bytes);
         let out = File::create(&path)
-            .and_then(|file| zstd::stream::Encoder::new(BufWriter::new(file), ZSTD_LEVEL as i32));
+            .and_then(|file| zstd::stream::Encoder::new(BufWriter::new(file), level));
         match out {
             Ok(out) => Ok(TraceCopy {
                 path,
