@@ -18,210 +18,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use common::flightgear::{datagram, parse_xml, protocol};
 use common::*;
 use hexcue_core::engine::Frame;
-
-// ---------------------------------------------------------------------------------------------
-// A reader of the XML FlightGear's protocol files use (elements, text, comments, the XML
-// declaration; attributes are read past), small enough to check by eye.
-
-#[derive(Debug)]
-struct Element {
-    name: String,
-    text: String,
-    children: Vec<Element>,
-}
-
-impl Element {
-    fn child(&self, name: &str) -> Option<&Element> {
-        self.children.iter().find(|c| c.name == name)
-    }
-    fn children<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a Element> + 'a {
-        self.children.iter().filter(move |c| c.name == name)
-    }
-    /// The text of a child, trimmed, as SGPropertyNode::getStringValue gives it.
-    fn value(&self, name: &str) -> Option<&str> {
-        self.child(name).map(|c| c.text.trim())
-    }
-}
-
-fn parse_xml(text: &str) -> Element {
-    let mut rest = text;
-    let mut stack = vec![Element {
-        name: String::new(),
-        text: String::new(),
-        children: Vec::new(),
-    }];
-    while !rest.is_empty() {
-        if let Some(r) = rest.strip_prefix("<!--") {
-            rest = &r[r.find("-->").expect("a closed comment") + 3..];
-        } else if let Some(r) = rest.strip_prefix("<?") {
-            rest = &r[r.find("?>").expect("a closed declaration") + 2..];
-        } else if let Some(r) = rest.strip_prefix("</") {
-            let end = r.find('>').expect("a closed end tag");
-            let done = stack.pop().expect("an open element");
-            assert_eq!(done.name, r[..end].trim(), "mismatched end tag");
-            stack.last_mut().expect("a parent").children.push(done);
-            rest = &r[end + 1..];
-        } else if let Some(r) = rest.strip_prefix('<') {
-            let end = r.find('>').expect("a closed tag");
-            let tag = &r[..end];
-            let empty = tag.ends_with('/');
-            let name = tag
-                .trim_end_matches('/')
-                .split_whitespace()
-                .next()
-                .expect("a tag name")
-                .to_string();
-            let e = Element {
-                name,
-                text: String::new(),
-                children: Vec::new(),
-            };
-            if empty {
-                stack.last_mut().unwrap().children.push(e);
-            } else {
-                stack.push(e);
-            }
-            rest = &r[end + 1..];
-        } else {
-            let end = rest.find('<').unwrap_or(rest.len());
-            let t = &rest[..end];
-            assert!(!t.contains('&'), "entities are not used in protocol files");
-            stack.last_mut().unwrap().text.push_str(t);
-            rest = &rest[end..];
-        }
-    }
-    assert_eq!(stack.len(), 1, "unclosed elements");
-    stack.pop().unwrap()
-}
-
-// ---------------------------------------------------------------------------------------------
-// FlightGear's generic protocol, output side, binary mode: generic.cxx `read_config` (what a
-// chunk's type, factor and offset default to, the byte order) and `gen_message_binary` (how
-// each type is written).
-
-enum ChunkType {
-    Bool,
-    Int,
-    Float,
-    Double,
-    Fixed,
-    Byte,
-    Word,
-}
-
-struct Chunk {
-    node: String,
-    kind: ChunkType,
-    factor: f64,
-    offset: f64,
-}
-
-struct Protocol {
-    big_endian: bool,
-    footer: Option<i32>,
-    chunks: Vec<Chunk>,
-}
-
-fn protocol(xml: &Element) -> Protocol {
-    let output = xml
-        .child("PropertyList")
-        .and_then(|p| p.child("generic"))
-        .and_then(|g| g.child("output"))
-        .expect("PropertyList/generic/output");
-    // getBoolValue: "true" or a non-zero number.
-    let binary = matches!(output.value("binary_mode"), Some("true" | "1"));
-    assert!(binary, "hexcue's decoder reads FlightGear's binary mode");
-    // Default network order; "host" is this machine's (little-endian) order.
-    let big_endian = match output.value("byte_order") {
-        None | Some("network") => true,
-        Some("host") => cfg!(target_endian = "big"),
-        Some(other) => panic!("byte_order {other}: FlightGear falls back to host order"),
-    };
-    let footer = match output.value("binary_footer") {
-        None | Some("none") => None,
-        Some(f) => panic!("binary_footer {f}: hexcue's decoder expects none"),
-    };
-    assert!(output.child("record_length").is_none());
-    let chunks = output
-        .children("chunk")
-        .map(|c| {
-            assert!(c.child("const").is_none(), "a const chunk");
-            let kind = match c.value("type").unwrap_or("") {
-                "bool" | "boolean" => ChunkType::Bool,
-                "float" => ChunkType::Float,
-                "double" => ChunkType::Double,
-                "fixed" => ChunkType::Fixed,
-                "byte" => ChunkType::Byte,
-                "word" => ChunkType::Word,
-                "string" => panic!("a string chunk"),
-                // Anything else, and no type at all, is an int.
-                _ => ChunkType::Int,
-            };
-            let number = |key: &str, default: f64| {
-                c.value(key)
-                    .map_or(default, |v| v.parse().expect("a number"))
-            };
-            Chunk {
-                node: c.value("node").unwrap_or("/null").to_string(),
-                kind,
-                factor: number("factor", 1.0),
-                offset: number("offset", 0.0),
-            }
-        })
-        .collect();
-    Protocol {
-        big_endian,
-        footer,
-        chunks,
-    }
-}
-
-/// One datagram, from FlightGear's property values (the property tree's own units).
-fn datagram(p: &Protocol, props: &HashMap<&str, f64>) -> Vec<u8> {
-    let mut b = Vec::new();
-    let be = p.big_endian;
-    for c in &p.chunks {
-        let raw = *props.get(c.node.as_str()).unwrap_or_else(|| {
-            panic!(
-                "the protocol sends {}, which this test does not model",
-                c.node
-            )
-        });
-        // getFloatValue (a float) for every type but double.
-        let val = |single: bool| {
-            let v = if single { f64::from(raw as f32) } else { raw };
-            c.offset + v * c.factor
-        };
-        match c.kind {
-            ChunkType::Bool => b.push(u8::from(raw != 0.0)),
-            ChunkType::Int => {
-                let v = val(true) as i32;
-                b.extend(if be { v.to_be_bytes() } else { v.to_le_bytes() });
-            }
-            ChunkType::Fixed => {
-                let v = (val(true) * 65536.0) as i32;
-                b.extend(if be { v.to_be_bytes() } else { v.to_le_bytes() });
-            }
-            ChunkType::Float => {
-                let v = val(true) as f32;
-                b.extend(if be { v.to_be_bytes() } else { v.to_le_bytes() });
-            }
-            ChunkType::Double => {
-                let v = val(false);
-                b.extend(if be { v.to_be_bytes() } else { v.to_le_bytes() });
-            }
-            // Never byte-swapped by FlightGear.
-            ChunkType::Byte => b.push(val(true) as i8 as u8),
-            ChunkType::Word => b.extend((val(true) as i16).to_ne_bytes()),
-        }
-    }
-    if let Some(f) = p.footer {
-        b.extend(if be { f.to_be_bytes() } else { f.to_le_bytes() });
-    }
-    b
-}
 
 // ---------------------------------------------------------------------------------------------
 
@@ -298,6 +97,13 @@ fn flightgear_datagrams_built_from_the_shipped_protocol_are_recorded_as_sent() {
         ("/orientation/roll-deg", 24.5),
         ("/orientation/pitch-deg", 3.5),
         ("/orientation/heading-deg", 271.0),
+        // For a profile's `[ground]`: at 3000 ft, 100 kt, no wheel on the ground.
+        ("/position/altitude-agl-ft", 3000.0),
+        ("/velocities/groundspeed-kt", 100.0),
+        ("/gear/gear[0]/wow", 0.0),
+        ("/gear/gear[1]/wow", 0.0),
+        ("/gear/gear[2]/wow", 0.0),
+        ("/gear/gear[3]/wow", 0.0),
     ]);
     let mut paused = flying.clone();
     paused.insert("/sim/freeze/master", 1.0);
@@ -556,7 +362,7 @@ fn malformed_input_is_reported_as_it_happens() {
     let port = free_udp_port();
     let child = live(&format!("flightgear://127.0.0.1:{port}"), 7.0, dir.path());
     let stop = Arc::new(AtomicBool::new(false));
-    // 43 bytes: one short of the protocol's datagram.
+    // 43 bytes: one short of the shortest layout (the motion alone, 44).
     let sender = send_until(port, 50.0, stop.clone(), |_| vec![0u8; 43]);
     let out = child.wait_with_output().unwrap();
     stop.store(true, Ordering::Relaxed);
@@ -570,7 +376,7 @@ fn malformed_input_is_reported_as_it_happens() {
     assert!(reports.len() >= 2, "{err}");
     assert!(reports[0].0 < 1.0, "{reports:?}");
     assert!(
-        reports[0].1.contains("43 bytes; expected 44"),
+        reports[0].1.contains("43 bytes; expected 56"),
         "the reason: {reports:?}"
     );
     let silence = timed_lines(&err)

@@ -5,6 +5,8 @@
 //! does ([`crate::engine::Engine::set_ground`]). No I/O: the application says when the
 //! aircraft is on the ground ([`GroundSchedule`]).
 
+use serde::{Deserialize, Serialize};
+
 use crate::profile::{Profile, ProfileError};
 
 /// What `[ground]` may override: what tunes the motion, nothing of the platform, its limits
@@ -223,10 +225,11 @@ impl GroundBasis {
 }
 
 /// On the ground by height and speed, the fallback where a simulator sends no weight on
-/// wheels: on the ground once below [`ON_GROUND_BELOW_M`] and [`ON_GROUND_SLOWER_MPS`]; in the
-/// air again once above [`IN_AIR_ABOVE_M`] or faster than [`IN_AIR_FASTER_MPS`]. The gap
-/// between each pair is the hysteresis: a bounce of a metre, or speed hovering about one
-/// threshold, does not make the phase chatter.
+/// wheels, by default: on the ground once below [`ON_GROUND_BELOW_M`] and
+/// [`ON_GROUND_SLOWER_MPS`]; in the air again once above [`IN_AIR_ABOVE_M`] or faster than
+/// [`IN_AIR_FASTER_MPS`]. The gap between each pair is the hysteresis: a bounce of a metre, or
+/// speed hovering about one threshold, does not make the phase chatter. A profile's
+/// `[ground_detection]` sets others ([`GroundDetection`]).
 pub const ON_GROUND_BELOW_M: f64 = 3.0;
 /// See [`ON_GROUND_BELOW_M`].
 pub const IN_AIR_ABOVE_M: f64 = 6.0;
@@ -235,16 +238,130 @@ pub const ON_GROUND_SLOWER_MPS: f64 = 30.0;
 /// See [`ON_GROUND_BELOW_M`] (36 m/s: 70 kt).
 pub const IN_AIR_FASTER_MPS: f64 = 36.0;
 
+/// The height-and-speed fallback's thresholds, a profile's `[ground_detection]` (every key
+/// optional, the defaults above). A table of its own rather than keys of `[ground]`: every
+/// key of `[ground]` overrides the key of the same path while on the ground, and these have
+/// no air value to override; they say when the ground is, not how it is cued. They hold
+/// whatever the phase, and the live panel does not change them.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GroundDetection {
+    /// On the ground once below this height above ground (m) ...
+    pub on_ground_below_m: f64,
+    /// ... and slower than this over the ground (m/s).
+    pub on_ground_slower_mps: f64,
+    /// In the air again once above this height above ground (m) ...
+    pub in_air_above_m: f64,
+    /// ... or faster than this over the ground (m/s).
+    pub in_air_faster_mps: f64,
+}
+
+impl Default for GroundDetection {
+    fn default() -> Self {
+        GroundDetection {
+            on_ground_below_m: ON_GROUND_BELOW_M,
+            on_ground_slower_mps: ON_GROUND_SLOWER_MPS,
+            in_air_above_m: IN_AIR_ABOVE_M,
+            in_air_faster_mps: IN_AIR_FASTER_MPS,
+        }
+    }
+}
+
+impl GroundDetection {
+    /// The defaults: a profile without `[ground_detection]` is written back without it.
+    pub fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+
+    /// Each threshold finite and above 0, each air threshold above its ground threshold
+    /// (the gap is the hysteresis); an error names the key under `ground_detection.` and
+    /// the range expected.
+    ///
+    /// ```
+    /// use hexcue_core::ground::GroundDetection;
+    ///
+    /// let low = GroundDetection { in_air_above_m: 2.0, ..GroundDetection::default() };
+    /// let e = low.validate().unwrap_err();
+    /// assert_eq!(e.key, "ground_detection.in_air_above_m");
+    /// assert!(e.reason.starts_with("2 m: expected a height above ground_detection.on_ground_below_m (3 m)"));
+    /// ```
+    pub fn validate(&self) -> Result<(), ProfileError> {
+        let refuse = |key: &str, reason: String| {
+            Err(ProfileError {
+                key: format!("ground_detection.{key}"),
+                reason,
+            })
+        };
+        for (key, v, unit, what) in [
+            ("on_ground_below_m", self.on_ground_below_m, "m", "height"),
+            (
+                "on_ground_slower_mps",
+                self.on_ground_slower_mps,
+                "m/s",
+                "speed",
+            ),
+            ("in_air_above_m", self.in_air_above_m, "m", "height"),
+            ("in_air_faster_mps", self.in_air_faster_mps, "m/s", "speed"),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return refuse(
+                    key,
+                    format!("{v} {unit}: expected a finite {what} greater than 0 {unit}"),
+                );
+            }
+        }
+        for (air, air_v, ground, ground_v, unit, what) in [
+            (
+                "in_air_above_m",
+                self.in_air_above_m,
+                "on_ground_below_m",
+                self.on_ground_below_m,
+                "m",
+                "height",
+            ),
+            (
+                "in_air_faster_mps",
+                self.in_air_faster_mps,
+                "on_ground_slower_mps",
+                self.on_ground_slower_mps,
+                "m/s",
+                "speed",
+            ),
+        ] {
+            if air_v <= ground_v {
+                return refuse(
+                    air,
+                    format!(
+                        "{air_v} {unit}: expected a {what} above ground_detection.{ground} \
+                         ({ground_v} {unit}): the gap between them is the \
+                         hysteresis that keeps the phase from chattering"
+                    ),
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Says from a live simulator's samples whether the aircraft is on the ground: its weight on
 /// wheels where it sends it, else height above ground and ground speed with hysteresis
-/// ([`ON_GROUND_BELOW_M`]); in the air while it says neither. No I/O, no allocation: the live
+/// ([`GroundDetection`]); in the air while it says neither. No I/O, no allocation: the live
 /// stepping thread asks it every step.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct GroundDetector {
     on_ground: bool,
+    thresholds: GroundDetection,
 }
 
 impl GroundDetector {
+    /// In the air, deciding by height and speed with `thresholds` (validated by the profile).
+    pub fn new(thresholds: GroundDetection) -> Self {
+        GroundDetector {
+            on_ground: false,
+            thresholds,
+        }
+    }
+
     /// The phase after `signal`, and what it rests on (`None`: the signal says nothing, the
     /// phase is kept).
     pub fn update(&mut self, signal: &GroundSignal) -> (bool, Option<GroundBasis>) {
@@ -255,10 +372,11 @@ impl GroundDetector {
         let (Some(h), Some(v)) = (signal.height_agl_m, signal.ground_speed_mps) else {
             return (self.on_ground, None);
         };
+        let t = &self.thresholds;
         self.on_ground = if self.on_ground {
-            h <= IN_AIR_ABOVE_M && v <= IN_AIR_FASTER_MPS
+            h <= t.in_air_above_m && v <= t.in_air_faster_mps
         } else {
-            h < ON_GROUND_BELOW_M && v < ON_GROUND_SLOWER_MPS
+            h < t.on_ground_below_m && v < t.on_ground_slower_mps
         };
         (self.on_ground, Some(GroundBasis::HeightAndSpeed))
     }
@@ -466,5 +584,125 @@ mod tests {
         assert!(!at(&mut d, 6.5, 10.0), "above 6 m: lifted off");
         assert!(at(&mut d, 1.0, 10.0));
         assert!(!at(&mut d, 6.5, 10.0), "above 6 m: lifted off");
+    }
+
+    fn with_detection(table: &str) -> Result<Profile, ProfileLoadError> {
+        parse_profile(
+            &format!("{DEFAULT_PROFILE_TOML}\n[ground_detection]\n{table}\n"),
+            "detection.toml",
+        )
+    }
+
+    #[test]
+    fn the_fallbacks_thresholds_are_profile_keys_with_unchanged_defaults() {
+        let shipped = parse_profile(DEFAULT_PROFILE_TOML, "default.toml").unwrap();
+        assert_eq!(shipped.ground_detection, GroundDetection::default());
+        assert_eq!(
+            (
+                shipped.ground_detection.on_ground_below_m,
+                shipped.ground_detection.on_ground_slower_mps,
+                shipped.ground_detection.in_air_above_m,
+                shipped.ground_detection.in_air_faster_mps
+            ),
+            (3.0, 30.0, 6.0, 36.0)
+        );
+        // Written back without the table while it holds the defaults.
+        assert!(!toml::to_string(&shipped)
+            .unwrap()
+            .contains("ground_detection"));
+        // Each key optional; the others keep their defaults.
+        let p = with_detection("on_ground_below_m = 0.5\nin_air_above_m = 1.5").unwrap();
+        assert_eq!(
+            p.ground_detection,
+            GroundDetection {
+                on_ground_below_m: 0.5,
+                in_air_above_m: 1.5,
+                ..GroundDetection::default()
+            }
+        );
+        let back = parse_profile(&toml::to_string(&p).unwrap(), "back.toml").unwrap();
+        assert_eq!(back.ground_detection, p.ground_detection);
+    }
+
+    #[test]
+    fn a_bad_threshold_is_refused_with_its_key_and_the_range_expected() {
+        let refused = |table: &str| match with_detection(table) {
+            Err(ProfileLoadError::Invalid { error, .. }) => (error.key, error.reason),
+            other => panic!("{table}: expected a refusal, got {other:?}"),
+        };
+        let (key, reason) = refused("on_ground_below_m = 0.0");
+        assert_eq!(key, "ground_detection.on_ground_below_m");
+        assert_eq!(reason, "0 m: expected a finite height greater than 0 m");
+        let (key, reason) = refused("on_ground_slower_mps = -5.0");
+        assert_eq!(key, "ground_detection.on_ground_slower_mps");
+        assert_eq!(reason, "-5 m/s: expected a finite speed greater than 0 m/s");
+        let (key, reason) = refused("in_air_faster_mps = inf");
+        assert_eq!(key, "ground_detection.in_air_faster_mps");
+        assert_eq!(
+            reason,
+            "inf m/s: expected a finite speed greater than 0 m/s"
+        );
+        let (key, reason) = refused("in_air_above_m = nan");
+        assert_eq!(key, "ground_detection.in_air_above_m");
+        assert!(
+            reason.starts_with("NaN m: expected a finite height"),
+            "{reason}"
+        );
+        // The air's threshold at or below the ground's: no hysteresis, refused.
+        let (key, reason) = refused("on_ground_below_m = 6.0");
+        assert_eq!(key, "ground_detection.in_air_above_m");
+        assert!(
+            reason.starts_with(
+                "6 m: expected a height above ground_detection.on_ground_below_m (6 m)"
+            ),
+            "{reason}"
+        );
+        let (key, reason) = refused("in_air_faster_mps = 20.0");
+        assert_eq!(key, "ground_detection.in_air_faster_mps");
+        assert!(
+            reason.starts_with(
+                "20 m/s: expected a speed above ground_detection.on_ground_slower_mps (30 m/s)"
+            ),
+            "{reason}"
+        );
+        match with_detection("on_ground_below = 3.0") {
+            Err(ProfileLoadError::Syntax { message, .. }) => assert!(
+                message.contains("`ground_detection.on_ground_below`")
+                    && message.contains("on_ground_below_m"),
+                "{message}"
+            ),
+            other => panic!("an unknown key: {other:?}"),
+        }
+        // Not a key `[ground]` may override: the thresholds do not change with the phase.
+        let (key, _) = refusal("ground_detection.in_air_above_m = 9.0");
+        assert_eq!(key, "ground.ground_detection");
+    }
+
+    /// A seaplane's or a helicopter's thresholds: on the ground below 0.5 m and 5 m/s, in the
+    /// air above 1.5 m or 10 m/s. The same samples as the defaults' test decide otherwise.
+    #[test]
+    fn the_detector_decides_on_the_profiles_thresholds() {
+        let mut d = GroundDetector::new(GroundDetection {
+            on_ground_below_m: 0.5,
+            on_ground_slower_mps: 5.0,
+            in_air_above_m: 1.5,
+            in_air_faster_mps: 10.0,
+        });
+        let mut defaults = GroundDetector::default();
+        let mut at = |h: f64, v: f64| {
+            let s = GroundSignal {
+                weight_on_wheels: None,
+                height_agl_m: Some(h),
+                ground_speed_mps: Some(v),
+            };
+            (d.update(&s).0, defaults.update(&s).0)
+        };
+        assert_eq!(at(2.0, 25.0), (false, true), "the defaults' ground");
+        assert_eq!(at(0.4, 4.0), (true, true));
+        assert_eq!(at(1.2, 9.0), (true, true), "between the thresholds: held");
+        assert_eq!(at(1.6, 9.0), (false, true), "above 1.5 m: lifted off");
+        assert_eq!(at(0.4, 6.0), (false, true), "not below 5 m/s: still air");
+        assert_eq!(at(0.4, 4.9), (true, true));
+        assert_eq!(at(0.4, 10.5), (false, true), "faster than 10 m/s");
     }
 }

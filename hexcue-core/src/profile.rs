@@ -103,6 +103,13 @@ pub struct Profile {
     /// [`crate::ground`]); absent: one tuning throughout.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ground: Option<toml::Table>,
+    /// When a live session is on the ground by height and speed, where the simulator sends
+    /// no weight on wheels (`[ground_detection]`, [`crate::ground::GroundDetection`]).
+    #[serde(
+        default,
+        skip_serializing_if = "crate::ground::GroundDetection::is_default"
+    )]
+    pub ground_detection: crate::ground::GroundDetection,
 }
 
 fn unity() -> f64 {
@@ -553,6 +560,7 @@ impl Profile {
                 ),
             );
         }
+        self.ground_detection.validate()?;
         if self.ground.is_some() {
             self.on_ground()?;
         }

@@ -234,7 +234,7 @@ impl LiveSession {
             retune_blend_s: profile.safety.fade_in_s,
             drives: DriveSwitch::new(drive),
             moving,
-            ground: GroundDetector::default(),
+            ground: GroundDetector::new(profile.ground_detection),
             ground_basis: None,
             engine,
             comparison,

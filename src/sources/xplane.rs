@@ -8,13 +8,19 @@
 //! a body-axis accelerometer's (`g_nrml` = +1 in level flight), so f = −g_load × 9.80665 on
 //! x forward, y right, z down, as HIL plugins that feed autopilots from them do; `P`, `Q`, `R`
 //! body rates (deg/s); `phi`, `theta`, `psi` attitude (deg); `sim/time/paused` 0 or 1.
+//!
+//! For a profile's `[ground]` (docs/live.md, *Air and ground*), three more: the user
+//! aircraft's `onground_any` (1 when any of its gear is on the ground), `y_agl` (m above the
+//! ground) and `groundspeed` (m/s), as X-Plane 12's `DataRefs.txt` gives them. RREF sends
+//! every value as a float, an int dataref's too. A sample waits only for the motion's ten:
+//! the ground's are said from the reply that brings them on.
 
 use super::decode::{Decoded, Decoder};
 use hexcue_core::trace::AircraftSample;
 use hexcue_core::G_MPS2;
 
-/// The datarefs, in index order.
-pub const DATAREFS: [&str; 10] = [
+/// The datarefs, in index order: the motion's ten ([`MOTION_DATAREFS`]), then the ground's.
+pub const DATAREFS: [&str; 13] = [
     "sim/flightmodel/forces/g_axil",
     "sim/flightmodel/forces/g_side",
     "sim/flightmodel/forces/g_nrml",
@@ -25,7 +31,15 @@ pub const DATAREFS: [&str; 10] = [
     "sim/flightmodel/position/theta",
     "sim/flightmodel/position/psi",
     "sim/time/paused",
+    "sim/flightmodel/failures/onground_any",
+    "sim/flightmodel/position/y_agl",
+    "sim/flightmodel/position/groundspeed",
 ];
+/// The datarefs every sample needs: fx … ψ and the pause flag.
+pub const MOTION_DATAREFS: usize = 10;
+const ON_GROUND: usize = 10;
+const HEIGHT_AGL: usize = 11;
+const GROUND_SPEED: usize = 12;
 
 /// Replies asked for per second (X-Plane sends at most once a frame).
 pub const RATE_HZ: i32 = 100;
@@ -57,14 +71,14 @@ pub fn reply(pairs: &[(i32, f32)]) -> Vec<u8> {
 }
 
 pub struct XPlane {
-    values: [Option<f32>; 10],
+    values: [Option<f32>; DATAREFS.len()],
     last_request_s: Option<f64>,
 }
 
 impl XPlane {
     pub fn new() -> Self {
         XPlane {
-            values: [None; 10],
+            values: [None; DATAREFS.len()],
             last_request_s: None,
         }
     }
@@ -99,10 +113,13 @@ impl Decoder for XPlane {
                 *slot = Some(value);
             }
         }
-        let Some(v) = self.values.iter().copied().collect::<Option<Vec<f32>>>() else {
+        if self.values[..MOTION_DATAREFS].iter().any(Option::is_none) {
             return Ok(Decoded::Nothing);
-        };
-        let v: Vec<f64> = v.into_iter().map(f64::from).collect();
+        }
+        // No allocation: the live stepping thread decodes.
+        let v: [f64; DATAREFS.len()] =
+            std::array::from_fn(|i| self.values[i].map_or(f64::NAN, f64::from));
+        let said = |i: usize| self.values[i].map(f64::from);
         let deg = std::f64::consts::PI / 180.0;
         Ok(Decoded::Sample {
             sample: AircraftSample {
@@ -112,8 +129,12 @@ impl Decoder for XPlane {
                 attitude_rad: nalgebra::Vector3::new(v[6], v[7], v[8]) * deg,
             },
             paused: v[9] != 0.0,
-            // No dataref of the ground is subscribed (docs/live.md, *Air and ground*).
-            ground: hexcue_core::ground::GroundSignal::default(),
+            ground: hexcue_core::ground::GroundSignal {
+                // An int dataref, 0 or 1, sent as a float.
+                weight_on_wheels: said(ON_GROUND).map(|w| w >= 0.5),
+                height_agl_m: said(HEIGHT_AGL),
+                ground_speed_mps: said(GROUND_SPEED),
+            },
         })
     }
 
@@ -193,13 +214,54 @@ mod tests {
         assert!(paused);
     }
 
+    fn ground(d: Decoded) -> hexcue_core::ground::GroundSignal {
+        match d {
+            Decoded::Sample { ground, .. } => ground,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    /// The ground's three datarefs, subscribed after the motion's at indices 10, 11 and 12,
+    /// and answered as X-Plane answers an int and two floats: each as a float.
+    #[test]
+    fn on_the_ground_height_and_ground_speed_once_sent() {
+        let mut x = XPlane::new();
+        let requests = x.requests(0.0, false);
+        for (i, name) in [
+            (10, "sim/flightmodel/failures/onground_any"),
+            (11, "sim/flightmodel/position/y_agl"),
+            (12, "sim/flightmodel/position/groundspeed"),
+        ] {
+            assert_eq!(requests[i], request(RATE_HZ, i as i32, name));
+        }
+        let level: Vec<(i32, f32)> = (0..10)
+            .map(|i| (i, if i == 2 { 1.0 } else { 0.0 }))
+            .collect();
+        // Before the ground's values come in, the motion alone: nothing said of the ground.
+        assert_eq!(
+            ground(x.decode(&reply(&level)).unwrap()),
+            hexcue_core::ground::GroundSignal::default()
+        );
+        let mut taxiing = level.clone();
+        taxiing.extend([(10, 1.0), (11, 1.1), (12, 7.5)]);
+        let g = ground(x.decode(&reply(&taxiing)).unwrap());
+        assert_eq!(g.weight_on_wheels, Some(true));
+        assert_eq!(g.height_agl_m, Some(f64::from(1.1f32)));
+        assert_eq!(g.ground_speed_mps, Some(7.5));
+        // A reply with only some values updates those, the rest kept.
+        let g = ground(x.decode(&reply(&[(10, 0.0), (11, 35.0)])).unwrap());
+        assert_eq!(g.weight_on_wheels, Some(false));
+        assert_eq!(g.height_agl_m, Some(35.0));
+        assert_eq!(g.ground_speed_mps, Some(7.5));
+    }
+
     #[test]
     fn it_subscribes_at_once_and_again_only_when_nothing_comes() {
         let mut x = XPlane::new();
-        assert_eq!(x.requests(0.0, false).len(), 10);
+        assert_eq!(x.requests(0.0, false).len(), 13);
         assert!(x.requests(1.0, false).is_empty());
         assert!(x.requests(5.0, true).is_empty());
-        assert_eq!(x.requests(5.0, false).len(), 10);
+        assert_eq!(x.requests(5.0, false).len(), 13);
         assert!(x.farewell().iter().all(|r| r[5..9] == [0, 0, 0, 0]));
     }
 

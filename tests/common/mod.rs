@@ -4,7 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
+pub mod flightgear;
+pub mod foxglove_client;
 pub mod pty;
+pub mod xplane;
 use std::process::{Command, Output};
 
 pub fn repo() -> PathBuf {
