@@ -14,10 +14,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 
+use common::foxglove_client::{connect, parameter, read_until, send, Socket};
 use common::*;
 use serde_json::{json, Value};
-use tungstenite::client::IntoClientRequest;
-use tungstenite::stream::MaybeTlsStream;
 use tungstenite::Message;
 
 const DT_S: f64 = 0.01;
@@ -25,47 +24,10 @@ const PATIENCE: Duration = Duration::from_secs(60);
 const AXIS_MPS2: f64 = 2.0;
 const ANGLE_DPS2: f64 = 30.0;
 
-type Socket = tungstenite::WebSocket<MaybeTlsStream<std::net::TcpStream>>;
-
 fn vec6(c: &Value, key: &str) -> [f64; 6] {
     std::array::from_fn(|i| c[key][i].as_f64().unwrap_or_else(|| panic!("{key}: {c}")))
 }
 
-fn connect(addr: &str) -> Socket {
-    let mut request = format!("ws://{addr}").into_client_request().unwrap();
-    request
-        .headers_mut()
-        .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
-    let (socket, _) = tungstenite::connect(request).expect("the server accepts a client");
-    if let MaybeTlsStream::Plain(tcp) = socket.get_ref() {
-        tcp.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
-    }
-    socket
-}
-
-/// Reads the server's text messages until one satisfies `wanted`; returns it and every text
-/// message read before it.
-fn read_until(socket: &mut Socket, wanted: impl Fn(&Value) -> bool) -> (Value, Vec<Value>) {
-    let until = Instant::now() + PATIENCE;
-    let mut before = Vec::new();
-    loop {
-        assert!(Instant::now() < until, "not answered: {before:?}");
-        let Message::Text(text) = socket.read().expect("the server talks") else {
-            continue;
-        };
-        let v: Value = serde_json::from_str(&text).unwrap();
-        if wanted(&v) {
-            return (v, before);
-        }
-        before.push(v);
-    }
-}
-
-fn send(socket: &mut Socket, v: Value) {
-    socket.send(Message::Text(v.to_string().into())).unwrap();
-}
-
-/// The value of `name` in a `parameterValues` message.
 /// Every parameter the server offers (`getParameters` with no names), with `motion_gain` at 1.
 fn parameters_listed(socket: &mut Socket) -> Value {
     send(
@@ -100,14 +62,6 @@ fn refused(socket: &mut Socket, name: &str, value: f64, kept: f64, words: &[&str
         message.contains(name) && words.iter().all(|w| message.contains(w)),
         "{message}"
     );
-}
-
-fn parameter(msg: &Value, name: &str) -> Option<f64> {
-    msg["parameters"]
-        .as_array()?
-        .iter()
-        .find(|p| p["name"] == name)
-        .and_then(|p| p["value"].as_f64())
 }
 
 fn spawn(
