@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Prices the Foxglove 3D topics of a recording (issue 38, item 12; docs/recordings.md, "3D
+"""Prices the Foxglove 3D topics of a recording (`/tf` and `/scene` of format 3, `/ALG/tf` and
+`/ALG/scene` of format 2) (issue 38, item 12; docs/recordings.md, "3D
 topics at 33 Hz"): re-chunks the recording's messages as hexcue's writer lays them out (one
 chunk a second of log time, zstd level 9, 16 bytes of message index a message) under
 variants, and prints the bytes of chunks and indexes of each, without rebuilding hexcue.
@@ -72,7 +73,7 @@ def tf_moving_only(m):
 def scene_legs_only(m):
     if m[0].endswith('/scene'):
         su=SceneUpdate(); su.ParseFromString(m[4])
-        keep=[e for e in su.entities if e.id=='legs']
+        keep=[e for e in su.entities if e.id.split('/')[-1]=='legs']  # 'legs' (format 2), 'ALG/legs' (3)
         del su.entities[:]; su.entities.extend(keep)
         return m[:4]+(su.SerializeToString(),)
     return m
@@ -111,13 +112,6 @@ def coarse(pbits, rbits):
     return f
 
 
-def without_margin(m):
-    if m[0].endswith('/actuators'):
-        a, _ = m[4].decode().split(',"margin":[')
-        return m[:4] + ((a + '}').encode(),)
-    return m
-
-
 print('%-44s %10s' % ('variant', 'bytes'))
 rows = [
     ('as recorded', msgs),
@@ -129,8 +123,6 @@ rows = [
     ('tf base -> platform + scene legs only', variant(msgs, lambda m: tf_moving_only(scene_legs_only(m)))),
     ('drawn at 2^-12 m, 2^-16', variant(msgs, coarse(12, 16))),
     ('drawn at 2^-12 m, 2^-16, tf + legs only', variant(msgs, lambda m: coarse(12, 16)(tf_moving_only(scene_legs_only(m))))),
-    ('no leg margin on /ALG/actuators', variant(msgs, without_margin)),
-    ('no leg margin, drawn at 2^-12 m, 2^-16', variant(msgs, lambda m: without_margin(coarse(12, 16)(m)))),
 ]
 for name, ms in rows:
     print('%-44s %10d' % (name, sum(chunked(ms))))
