@@ -232,6 +232,43 @@ impl Mpc {
         self.n_intervals()
             * (NU + NX + self.false_cue_channels.len() + self.dead_zone_channels.len())
             + self.onset_channels.len()
+            + self.tilt_heave_points()
+    }
+
+    /// The grid points whose heave error is a slack tied to the prediction with the tilt's
+    /// loss of vertical force (`tilt_heave_loss`): every stage point, which for COTC leaves
+    /// out the last (its Riccati weight prices the heave there, without the term).
+    pub(super) fn tilt_heave_points(&self) -> usize {
+        match (&self.tilt_heave, self.terminal_weight.is_some()) {
+            (None, _) => 0,
+            (Some(_), false) => self.n_intervals(),
+            (Some(_), true) => self.n_intervals() - 1,
+        }
+    }
+
+    /// Column of the heave-error slack at the end of interval i (`tilt_heave_loss`); these
+    /// come after the onset slacks.
+    pub(super) fn tilt_heave_col(&self, i: usize) -> usize {
+        self.onset_col(self.onset_channels.len()) + i
+    }
+
+    /// The angles each grid point's tilt loss is linearised about: where the last solved plan
+    /// put the platform at that time (as the leg rows are), else the present angles.
+    pub(super) fn update_tilt_linearisation(&mut self) {
+        if self.tilt_heave.is_none() {
+            return;
+        }
+        let now = [self.run.x[state::ROLL], self.run.x[state::PITCH]];
+        let fresh = self.run.plan.elapsed_s < 1e-12 && !self.run.plan.poses.is_empty();
+        let mut t_end = 0.0;
+        for i in 0..self.grid.len() {
+            t_end += self.grid[i];
+            // The plan was made one step ago.
+            self.tilt_lin_rad[i] = match self.run.plan.pose_at(t_end + self.trace_model.dt_s) {
+                Some(p) if fresh && p[3].is_finite() && p[4].is_finite() => [p[3], p[4]],
+                _ => now,
+            };
+        }
     }
 
     /// Column of the onset slack of the `j`-th onset channel (the next command's only); these
@@ -274,7 +311,12 @@ impl Mpc {
             // Fixed with the tuning: once.
             let c = (&sc.c_t, &mut sc.c_t_q);
             self.stage_hessian_with([1.0; 3], [1.0; 3], [[1.0; 3]; 4], 1.0, c, &mut sc.structure);
-            let (q_f, q_w) = self.params.output_weights(&self.thresholds);
+            let (mut q_f, q_w) = self.params.output_weights(&self.thresholds);
+            if self.tilt_heave.is_some() {
+                // The heave error is priced on its slack (`tilt_heave_points`); COTC's last
+                // point keeps it in the Riccati weight.
+                q_f[2] = 0.0;
+            }
             self.perceived_hessian(q_f, q_w, (&sc.c_t, &mut sc.c_t_q), &mut sc.perceived);
             sc.hessians_ready = true;
         }
@@ -331,6 +373,12 @@ impl Mpc {
             let col = self.onset_col(j);
             t.push(col, col, 2.0 * self.params.onset_weight[c]);
         }
+        // The heave error with the tilt's loss, priced as the stage prices heave.
+        let q_z = self.params.output_weights(&self.thresholds).0[2];
+        for i in 0..self.tilt_heave_points() {
+            let col = self.tilt_heave_col(i);
+            t.push(col, col, 2.0 * self.stage_weight(i) * q_z);
+        }
         self.p_trip = t;
         self.scratch = sc;
     }
@@ -348,6 +396,7 @@ impl Mpc {
         for k in 0..NU {
             self.q[Self::u_col(0) + k] = -2.0 * r[k] * u_prev[k];
         }
+        let slack_points = self.tilt_heave_points();
         for i in 0..n {
             let w = self.stage_weight(i);
             for a in 0..3 {
@@ -358,6 +407,10 @@ impl Mpc {
                 };
                 qy[a] = q_f[a] * y;
                 qy[3 + a] = q_w[a] * self.y_ref[i][3 + a];
+            }
+            if i < slack_points {
+                // Its reference is in the slack's row.
+                qy[2] = 0.0;
             }
             let lin = &mut sc.lin;
             self.cache.perceived_c.tr_mul_to(qy, lin);
@@ -454,6 +507,37 @@ impl Mpc {
             for (k, s) in [state::ROLL, state::PITCH].into_iter().enumerate() {
                 t.push(row, xc + s, 1.0);
                 b.push(d.terminal_tilt_rad[k]);
+                row += 1;
+            }
+        }
+        // The heave error with the tilt's loss of vertical force (`tilt_heave_loss`):
+        // σ_i = ŷ_z,i + Σ_k m_ik h_k − ŷref_i, with h_0 the loss now and h_k (k ≥ 1, at the end
+        // of interval k − 1) linearised about the previous plan's angles ā_k:
+        // h_k ≈ h(ā_k) + ∇h(ā_k)·(a_k − ā_k). Written σ_i − C_z x_i − Σ_k m_ik ∇h_k·a_k =
+        // m_i0 h_0 + Σ_k m_ik (h(ā_k) − ∇h_k·ā_k) − ŷref_i. Every entry is pushed, zero or not,
+        // so that the pattern stays fixed.
+        if let Some(th) = self.tilt_heave.as_ref() {
+            let h_now = super::tilt_heave::loss_mps2(d.x0[state::ROLL], d.x0[state::PITCH]);
+            for i in 0..self.tilt_heave_points() {
+                let mut rhs = th.gain(i, 0) * h_now
+                    - finite_or_zero(self.y_heave.get(i).copied().unwrap_or(0.0));
+                t.push(row, self.tilt_heave_col(i), 1.0);
+                for &(k, v) in &sc.perceived_c_entries[2] {
+                    t.push(row, Self::x_col(i) + k, -v);
+                }
+                for k in 1..=i + 1 {
+                    let [roll, pitch] = self.tilt_lin_rad[k - 1];
+                    let grad = super::tilt_heave::loss_gradient(roll, pitch);
+                    let m = th.gain(i, k);
+                    let xc = Self::x_col(k - 1);
+                    t.push(row, xc + state::ROLL, -m * grad[0]);
+                    t.push(row, xc + state::PITCH, -m * grad[1]);
+                    rhs += m
+                        * (super::tilt_heave::loss_mps2(roll, pitch)
+                            - grad[0] * roll
+                            - grad[1] * pitch);
+                }
+                b.push(rhs);
                 row += 1;
             }
         }

@@ -104,7 +104,8 @@ impl Mpc {
         }
         // The false-cue slacks are decision variables like the inputs: nothing eliminates them.
         let n_slack = n * (self.false_cue_channels.len() + self.dead_zone_channels.len())
-            + self.onset_channels.len();
+            + self.onset_channels.len()
+            + self.tilt_heave_points();
         vars.extend((0..n_slack).map(|k| Var::Input(n * NU + k)));
         let gain = self.washout_gain;
         let p_at = |mpc: &mut Self, g: f64| {
@@ -167,6 +168,7 @@ impl Mpc {
         let mut u_prev = std::mem::replace(&mut self.scratch.u_prev, DVector::zeros(0));
         x0.copy_from(&self.run.x);
         u_prev.copy_from(&self.run.u_last);
+        self.update_tilt_linearisation();
         let legs = (
             std::mem::take(&mut self.scratch.leg_offset),
             std::mem::take(&mut self.scratch.leg_jacobian),

@@ -24,6 +24,7 @@ pub mod qp;
 pub mod reference;
 pub mod riccati;
 mod scratch;
+pub mod tilt_heave;
 
 use scratch::Scratch;
 use std::sync::Arc;
@@ -188,6 +189,11 @@ pub struct Mpc {
     leg_lo_m: f64,
     leg_hi_m: f64,
     terminal_weight: Option<DMatrix<f64>>,
+    /// With `tilt_heave_loss`: the grid's map from the tilt's loss of vertical force at the
+    /// grid points to the perceived heave, and the angles each grid point is linearised about
+    /// (the previous plan's, at the end of each interval).
+    tilt_heave: Option<tilt_heave::TiltHeave>,
+    tilt_lin_rad: Vec<[f64; 2]>,
     washout_gain: f64,
     /// What changes from step to step: all that a snapshot for seeking keeps, with the
     /// washout gain.
@@ -275,6 +281,9 @@ impl Mpc {
         let thresholds = setting.vestibular.canal_threshold_radps();
         let margin = setting.platform.leg_margin_m;
         let limits = setting.platform.limits;
+        let tilt_heave = params
+            .tilt_heave_loss
+            .then(|| tilt_heave::TiltHeave::new(&cache.model, &grid, dt_s));
         let mut mpc = Mpc {
             params: params.clone(),
             terminal,
@@ -304,6 +313,8 @@ impl Mpc {
             leg_lo_m: setting.platform.stewart.leg_min_m + margin + LEG_PLAN_ALLOWANCE_M,
             leg_hi_m: setting.platform.stewart.leg_max_m - margin - LEG_PLAN_ALLOWANCE_M,
             terminal_weight: None,
+            tilt_heave,
+            tilt_lin_rad: vec![[0.0; 2]; grid.len()],
             washout_gain: 1.0,
             run: Running {
                 x: DVector::zeros(NX),
@@ -491,8 +502,22 @@ impl Mpc {
             s.ax.gemv(1.0, &self.trace_model.a, &self.run.x, 0.0);
             s.bu.gemv(1.0, &self.trace_model.b, &self.run.u_last, 0.0);
             s.ej.gemv(1.0, &self.trace_e, &s.jump, 0.0);
+            let before = [self.run.x[state::ROLL], self.run.x[state::PITCH]];
             for (i, x) in self.run.x.iter_mut().enumerate() {
                 *x = s.ax[i] + s.bu[i] + s.ej[i];
+            }
+            if let Some(th) = self.tilt_heave.as_mut() {
+                if (th.trace_dt_s - dt_s).abs() > 1e-12 {
+                    th.trace = tilt_heave::held_linearly(&self.cache.model, dt_s);
+                    th.trace_dt_s = dt_s;
+                }
+                // The tilt's loss of vertical force over the step, held first order between
+                // the angles at its ends (the rates are held over the step).
+                let h0 = tilt_heave::loss_mps2(before[0], before[1]);
+                let h1 = tilt_heave::loss_mps2(self.run.x[state::ROLL], self.run.x[state::PITCH]);
+                for (r, &s) in tilt_heave::HEAVE_OTOLITH.iter().enumerate() {
+                    self.run.x[s] += th.trace.start[r] * h0 + th.trace.end[r] * h1;
+                }
             }
         }
         self.run.u_before.copy_from(&self.run.u_last);

@@ -130,6 +130,14 @@ pub struct MpcParams {
     /// cannot see (docs/mpc.md, "False cues").
     #[serde(default = "default_true")]
     pub heave_tilt_guard: bool,
+    /// Put the tilt's loss of vertical force at the head, g·(1 − cos φ cos θ), into the
+    /// prediction of the perceived heave: linearised at each grid point about the angles the
+    /// previous plan gave it (as the leg rows are), carried through the heave otolith over
+    /// the horizon, and integrated exactly into the MPC's own state at every step. The heave
+    /// error the cost prices is then a slack per grid point tied to that prediction by an
+    /// equality row (docs/mpc.md, "Tilt's loss of vertical force").
+    #[serde(default)]
+    pub tilt_heave_loss: bool,
     /// Keep the platform's total roll and pitch rate (tilt plus rotational channel) within
     /// the canals' threshold of the aircraft's own rate over the horizon, on the side of zero:
     /// between min(0, ω_aircraft) − th and max(0, ω_aircraft) + th. Without it only the tilt

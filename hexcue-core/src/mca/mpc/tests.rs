@@ -4,6 +4,7 @@ use super::*;
 use crate::mca::limiter::WorkspaceLimiter;
 use crate::profile::Profile;
 use crate::testing::full_flight;
+use crate::G_MPS2;
 use clarabel::solver::{IPSolver, SolverStatus};
 use nalgebra::Vector6;
 
@@ -1311,6 +1312,140 @@ fn clarabel_solves_cotc_with_the_onset_rows_at_the_shipped_tolerance() {
             counts.get("Solved"),
             Some(&300),
             "tolerance {tol}: {counts:?}"
+        );
+    }
+}
+
+fn with_tilt_heave_loss() -> Profile {
+    let mut p = full_flight();
+    p.mpc.tilt_heave_loss = true;
+    p
+}
+
+/// A platform held at 10° of pitch: the MPC's own heave otolith is driven by exactly
+/// g(1 − cos 10°) = 0.1490 m/s² (the same filter driven by that acceleration), the QP's heave
+/// slacks are the plan's heave with the loss through the otolith to within the linearisation's
+/// error, and the rows' angle coefficients are the finite differences of that loss.
+#[test]
+fn a_held_pitch_loses_vertical_force_in_the_state_and_the_prediction() {
+    use crate::model::lti::LtiFilter;
+    use crate::model::vestibular::{integrated_model, output};
+    let p = with_tilt_heave_loss();
+    let mut on = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
+    let mut off = Mpc::new(&full_flight().mpc, &p.setting(), Terminal::Free).unwrap();
+    assert_eq!(on.qp_size().0, off.qp_size().0 + 6);
+    assert_eq!(on.qp_size().1, off.qp_size().1 + 6);
+    let pitch = 10f64.to_radians();
+    let loss = G_MPS2 * (1.0 - pitch.cos());
+    assert!((loss - 0.149).abs() < 1e-3, "{loss}");
+    let mut applied = PlatformCommand::default();
+    applied.pose[4] = pitch;
+    let mut otolith = LtiFilter::new(integrated_model(&p.vestibular).discretise_zoh(0.01));
+    let c_z = integrated_model(&p.vestibular)
+        .c
+        .row(output::F_Z)
+        .into_owned();
+    let mut a_z = [0.0; 8];
+    a_z[input::ACCEL_Z] = loss;
+    let level = sample([0.0; 3], [0.0; 3]);
+    for k in 0..200 {
+        let y_on = step(&mut on, k, level, &applied).perceived_f_mps2.z;
+        let y_off = step(&mut off, k, level, &applied).perceived_f_mps2.z;
+        let want = (&c_z * otolith.state())[0];
+        assert!(
+            (y_on - y_off - want).abs() < 1e-12,
+            "step {k}: {} against {want}",
+            y_on - y_off
+        );
+        otolith.step(&a_z);
+    }
+    assert!((&c_z * otolith.state())[0] > 0.5 * 0.4 * loss);
+    // The prediction: σ_i = C_z x_i + Σ_k m_ik h(a_k) − ŷref_i, h at the plan's own angles.
+    assert_eq!(on.report().status.as_str(), "solved");
+    let z = last_solution(&on);
+    let th = on.tilt_heave.clone().unwrap();
+    let a = dense_a(&on);
+    let (mut largest, mut gained) = (0.0f64, 0.0f64);
+    for i in 0..on.n_intervals() {
+        let angles = |k: usize| -> [f64; 2] {
+            if k == 0 {
+                [on.run.x[state::ROLL], on.run.x[state::PITCH]]
+            } else {
+                let xc = Mpc::x_col(k - 1);
+                [z[xc + state::ROLL], z[xc + state::PITCH]]
+            }
+        };
+        let x = DVector::from_column_slice(&z[Mpc::x_col(i)..Mpc::x_col(i) + NX]);
+        let linear = (&on.cache.perceived_c * x)[2] - on.y_heave[i];
+        let mut exact = 0.0;
+        let mut bound = 1e-9;
+        for k in 0..=i + 1 {
+            let [roll, pitch] = angles(k);
+            exact += th.gain(i, k) * tilt_heave::loss_mps2(roll, pitch);
+            if k > 0 {
+                let [r0, p0] = on.tilt_lin_rad[k - 1];
+                bound += th.gain(i, k).abs()
+                    * 0.5
+                    * G_MPS2
+                    * ((roll - r0).powi(2) + (pitch - p0).powi(2));
+            }
+        }
+        let slack = z[on.tilt_heave_col(i)];
+        largest = largest.max((slack - linear - exact).abs());
+        assert!(
+            (slack - linear - exact).abs() <= bound,
+            "interval {i}: slack {slack}, plan's heave {linear} + loss {exact}, bound {bound}"
+        );
+        gained = gained.max(exact);
+        // The row's angle coefficients: −m_ik ∂h/∂a at the linearisation, by finite difference.
+        let row = (0..on.n_eq)
+            .find(|&r| a[(r, on.tilt_heave_col(i))] == 1.0)
+            .expect("the slack's row");
+        for k in 1..=i + 1 {
+            let [r0, p0] = on.tilt_lin_rad[k - 1];
+            let eps = 1e-6;
+            let d_roll = (tilt_heave::loss_mps2(r0 + eps, p0)
+                - tilt_heave::loss_mps2(r0 - eps, p0))
+                / (2.0 * eps);
+            let d_pitch = (tilt_heave::loss_mps2(r0, p0 + eps)
+                - tilt_heave::loss_mps2(r0, p0 - eps))
+                / (2.0 * eps);
+            let xc = Mpc::x_col(k - 1);
+            let m = th.gain(i, k);
+            assert!((a[(row, xc + state::ROLL)] + m * d_roll).abs() < 1e-8);
+            assert!((a[(row, xc + state::PITCH)] + m * d_pitch).abs() < 1e-8);
+        }
+    }
+    assert!(
+        gained > 0.05 * loss,
+        "the loss must reach the prediction: {gained}"
+    );
+    eprintln!("largest departure from the exact loss: {largest:.2e} m/s²; gained {gained:.4}");
+}
+
+#[test]
+fn active_set_and_clarabel_agree_with_the_tilt_heave_loss() {
+    let mut p = with_tilt_heave_loss();
+    p.mpc.tolerance = 1e-11;
+    p.mpc.max_iterations = 200;
+    // A sustained surge and sway that tilt the cabin, heave on top.
+    let samples: Vec<CueSample> = (0..300)
+        .map(|k| {
+            let t = k as f64 * 0.01;
+            sample(
+                [
+                    2.5 * (0.8 * t).sin(),
+                    1.5 * (0.5 * t).sin(),
+                    1.0 * (3.0 * t).sin(),
+                ],
+                [0.1 * (1.7 * t).sin(), 0.05, 0.0],
+            )
+        })
+        .collect();
+    for terminal in [Terminal::Free, Terminal::Cotc] {
+        eprintln!(
+            "{}",
+            agree_on_trace(&p, "tilt heave loss", &samples, terminal, 1)
         );
     }
 }
