@@ -429,6 +429,17 @@ fn preview_is_a_profile_option_the_summary_and_compare_name() {
     assert_eq!(seen, "preview");
     assert_eq!(causal, "decay");
     assert_ne!(rae_preview, rae_causal);
+    // `[mpc] forecast_s` without preview: the recorded flight replayed as if live, with the
+    // engine's forecast from the past samples only (docs/mpc.md, "Forecast").
+    let with_forecast = dir.path().join("forecast.toml");
+    std::fs::write(
+        &with_forecast,
+        shipped.replacen("forecast_s = 0.0", "forecast_s = 0.3", 1),
+    )
+    .unwrap();
+    let (forecast, rae_forecast) = reference(&with_forecast, "f.json");
+    assert_eq!(forecast, "forecast");
+    assert_ne!(rae_forecast, rae_causal);
     let folder = dir.path().join("flights");
     std::fs::create_dir(&folder).unwrap();
     std::fs::copy(&trace, folder.join("step.csv")).unwrap();

@@ -11,6 +11,7 @@ use std::time::Instant;
 use nalgebra::{Vector3, Vector6};
 
 use crate::bumpless::{Blend, GainStage};
+use crate::forecast::{ForecastParams, Forecaster};
 use crate::mca::limiter::WorkspaceLimiter;
 use crate::mca::{
     self, AlgorithmId, BuildError, CueInput, CueSample, MotionCueing, PlatformCommand,
@@ -260,6 +261,7 @@ pub fn perceive_command(
 pub struct EngineSnapshot {
     k: usize,
     reference: Vestibular,
+    forecaster: Forecaster,
     lanes: Vec<(mca::AlgorithmSnapshot, WorkspaceLimiter, Vestibular)>,
 }
 
@@ -318,6 +320,10 @@ pub struct Engine {
     eye_m: Vector3<f64>,
     window: Window,
     preview_len: usize,
+    /// The aircraft's forecast from its past samples (`[mpc] forecast_s`), the MPCs'
+    /// preview wherever the flight's future is not used: a live source, or a recorded
+    /// flight without `[mpc] preview` (replayed as if live).
+    forecaster: Forecaster,
     /// Scales the cue every algorithm sees (1 unless a live session fades it in or out).
     cue_gain: f64,
     reference: Vestibular,
@@ -413,6 +419,7 @@ impl Engine {
         Ok(Engine {
             profile: profile.clone(),
             preview_len,
+            forecaster: Forecaster::new(dt, preview_len),
             source,
             source_error: None,
             stewart,
@@ -724,6 +731,7 @@ impl Engine {
     pub fn reset(&mut self) {
         self.k = 0;
         self.reference.reset();
+        self.forecaster.reset();
         self.reset_lanes();
         self.window.aircraft.clear();
         self.window.cues.clear();
@@ -815,6 +823,7 @@ impl Engine {
         Some(EngineSnapshot {
             k: self.k,
             reference: self.reference.clone(),
+            forecaster: self.forecaster.clone(),
             lanes,
         })
     }
@@ -848,6 +857,7 @@ impl Engine {
             return false;
         }
         self.reference.clone_from(&s.reference);
+        self.forecaster.clone_from(&s.forecaster);
         self.k = s.k;
         true
     }
@@ -906,6 +916,16 @@ impl Engine {
             w.faded
                 .extend(preview.iter().map(|c| scaled(c, self.cue_gain)));
             preview = &w.faded;
+        }
+        // The flight's future only where the profile asks for it and the source has one;
+        // elsewhere the forecast, from the samples stepped so far only (the live code path,
+        // on a recorded flight too); else the future, which no MPC then reads.
+        let forecast = ForecastParams::of(&self.profile);
+        if forecast.forecast_s > 0.0 {
+            self.forecaster.push(&sample, &forecast);
+            if !(self.profile.mpc.preview && self.source.can_read_ahead()) {
+                preview = self.forecaster.forecast(self.preview_len, &forecast);
+            }
         }
         let reference = self
             .reference
@@ -1220,6 +1240,82 @@ pub(crate) mod tests {
         engine.reset();
         let t = engine.step().unwrap().lanes[0].state.time_in_mode_s;
         assert!((t - 0.01).abs() < 1e-12, "{t}");
+    }
+
+    /// A recorded flight that answers as a live simulator does: no reading ahead.
+    struct AsIfLive(TraceSamples);
+
+    impl SampleSource for AsIfLive {
+        fn name(&self) -> &str {
+            self.0.name()
+        }
+        fn known_len(&self) -> Option<usize> {
+            None
+        }
+        fn next_sample(&mut self) -> Result<Option<AircraftSample>, SourceError> {
+            self.0.next_sample()
+        }
+        fn rewind(&mut self) -> Result<(), SourceError> {
+            self.0.rewind()
+        }
+        fn can_read_ahead(&self) -> bool {
+            false
+        }
+    }
+
+    #[test]
+    fn a_live_source_runs_the_forecast_and_a_recorded_one_replays_it_as_if_live() {
+        let trace = Arc::new(manoeuvre());
+        let mut profile = full_flight();
+        // No wall-clock limit: the runs are compared to the bit.
+        profile.mpc.time_limit_ms = 1e4;
+        let run = |profile: &Profile, live: bool| {
+            let source: Box<dyn SampleSource> = if live {
+                Box::new(AsIfLive(TraceSamples::new(trace.clone())))
+            } else {
+                Box::new(TraceSamples::new(trace.clone()))
+            };
+            let mut engine = Engine::with_source(profile, source, &[AlgorithmId::Mpc]).unwrap();
+            // Through the manoeuvre's first pulses (its surge step starts at 2 s).
+            (0..600)
+                .map(|_| engine.step().unwrap().lanes[0].command)
+                .collect::<Vec<_>>()
+        };
+        let decay_live = run(&profile, true);
+        profile.mpc.forecast_s = 0.3;
+        let forecast_live = run(&profile, true);
+        assert_ne!(
+            forecast_live, decay_live,
+            "live, the forecast is what the MPC sees"
+        );
+        assert_eq!(
+            run(&profile, false),
+            forecast_live,
+            "a recorded flight without preview is the live code path"
+        );
+        profile.mpc.preview = true;
+        assert_eq!(
+            run(&profile, true),
+            forecast_live,
+            "live, no future to preview"
+        );
+        assert_ne!(
+            run(&profile, false),
+            forecast_live,
+            "recorded: the true future"
+        );
+        // The summary names what ran: a recorded flight's reference, and a live session's.
+        let summary = SummaryBuilder::new(&profile, "m");
+        assert_eq!(summary.finish().mpc_reference.as_deref(), Some("preview"));
+        assert_eq!(summary.causal_mpc_reference(), "forecast");
+        profile.mpc.preview = false;
+        let summary = SummaryBuilder::new(&profile, "m");
+        assert_eq!(summary.finish().mpc_reference.as_deref(), Some("forecast"));
+        profile.mpc.forecast_s = 0.0;
+        assert_eq!(
+            SummaryBuilder::new(&profile, "m").causal_mpc_reference(),
+            "decay"
+        );
     }
 
     #[test]

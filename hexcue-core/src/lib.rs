@@ -14,6 +14,7 @@ pub mod bound;
 pub mod bumpless;
 pub mod engine;
 pub mod events;
+pub mod forecast;
 pub mod ground;
 pub mod jolts;
 pub mod keyed;

@@ -144,7 +144,8 @@ pub struct Summary {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bound: Option<crate::bound::Bound>,
     /// The reference the MPCs predicted with: `preview` (the flight's true future over the
-    /// horizon, `[mpc] preview`), or the causal `hold` or `decay` (`[mpc] reference`). A live
+    /// horizon, `[mpc] preview`), `forecast` (the aircraft's own recent motion extrapolated,
+    /// `[mpc] forecast_s`), or the causal `hold` or `decay` (`[mpc] reference`). A live
     /// session, which has no future, never previews. Absent in summaries written before it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mpc_reference: Option<String>,
@@ -442,6 +443,20 @@ pub struct SummaryBuilder {
     mpc_reference: [&'static str; 2],
 }
 
+/// The MPCs' reference as the summary names it, on a source that reads ahead or not: the
+/// flight's future where `[mpc] preview` asks for it and the source has one, else the
+/// engine's forecast where `[mpc] forecast_s` is on (`crate::forecast`), else `[mpc]
+/// reference`.
+pub fn mpc_reference(profile: &Profile, reads_ahead: bool) -> &'static str {
+    if reads_ahead && profile.mpc.preview {
+        "preview"
+    } else if profile.mpc.forecast_s > 0.0 {
+        "forecast"
+    } else {
+        MpcParams::reference_word(profile.mpc.reference)
+    }
+}
+
 impl SummaryBuilder {
     /// An empty summary of `profile` over the source named `trace_name`.
     pub fn new(profile: &Profile, trace_name: &str) -> Self {
@@ -466,9 +481,7 @@ impl SummaryBuilder {
             onset_thresholds,
             onset_window,
             aircraft_onsets: AircraftOnsets::new(onset_thresholds, onset_window),
-            mpc_reference: [true, false].map(|future_known| {
-                MpcParams::reference_word(profile.mpc.reference_with(future_known))
-            }),
+            mpc_reference: [true, false].map(|reads_ahead| mpc_reference(profile, reads_ahead)),
         }
     }
 

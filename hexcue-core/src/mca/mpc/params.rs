@@ -105,6 +105,12 @@ pub struct MpcParams {
     /// `reference`. The summary says which ran (docs/mpc.md, "Preview").
     #[serde(default)]
     pub preview: bool,
+    /// Where no future is known (a live simulator; a recorded flight without `preview`), the
+    /// engine forecasts the aircraft from its recent motion (`crate::forecast`): the `decay`
+    /// reference plus the trend of the last 0.2 s, extrapolated this long (s) and then fading.
+    /// 0 (the default) leaves the MPC on `reference` (docs/mpc.md, "Forecast").
+    #[serde(default)]
+    pub forecast_s: f64,
     /// Weight of a false cue per channel (f̂x, f̂y, f̂z, ω̂x, ω̂y, ω̂z): the square of how far,
     /// in perception thresholds, the simulator's perceived motion at a grid point goes to the
     /// opposite side of a reference that is itself above the threshold. A soft constraint
@@ -224,10 +230,11 @@ impl MpcParams {
             .collect()
     }
 
-    /// The reference the MPC predicts with, given whether the input offers its future: the
-    /// preview where `preview` asks for it and there is one, else `reference`.
+    /// The reference the MPC predicts with, given whether the input offers a future: the
+    /// preview where `preview` or `forecast_s` asks for it and there is one (the flight's
+    /// own, or the engine's forecast: `crate::forecast`), else `reference`.
     pub fn reference_with(&self, future_known: bool) -> ReferenceMode {
-        if self.preview && future_known {
+        if (self.preview || self.forecast_s > 0.0) && future_known {
             ReferenceMode::Preview
         } else {
             self.reference
@@ -273,6 +280,15 @@ impl MpcParams {
                 reason,
             })
         };
+        if !(0.0..=1.0).contains(&self.forecast_s) {
+            return err(
+                "forecast_s",
+                format!(
+                    "{} s: expected from 0 (off) to 1 s (a short forecast)",
+                    self.forecast_s
+                ),
+            );
+        }
         positive("mpc.fine_step_s", self.fine_step_s)?;
         if self.fine_step_s > 1.0 {
             return err(
