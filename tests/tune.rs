@@ -517,7 +517,9 @@ fn tuning_the_mpc_checks_the_s_mpc() {
     let (text, err) = (stdout(&run), stderr(&run));
     assert!(run.status.success(), "{err}");
     assert!(
-        err.contains("checking the result: MPC and S-MPC on 2 flights"),
+        err.contains(
+            "checking the result: MPC and S-MPC on the 2 flights given and on each 2 times"
+        ),
         "{err}"
     );
     let rows: Vec<Vec<&str>> = text

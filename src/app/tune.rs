@@ -11,7 +11,7 @@ use toml_edit::DocumentMut;
 use crate::app::common::{progress_bar, progress_line, stop_flag};
 use crate::cli::TuneArgs;
 use crate::formats::trace::load_trace_within;
-use crate::tune::settle::{settle, Settled, MARGIN_SHARE, SHARES};
+use crate::tune::settle::{settle, strengthened, Settled, MARGIN_SHARE, SHARES, STRENGTH};
 use crate::tune::validate::{LIMITER_MARGIN, PER_FLIGHT_TOLERANCE};
 use crate::tune::{
     default_budget, default_step, keys, readers, tunable_keys, tune, Evaluator, GenerationRecord,
@@ -360,11 +360,12 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         mean(&settled.written[0][..n]),
         names(&evaluator)
     );
+    let given = n + validator.as_ref().map_or(0, |v| v.traces.len());
     if let (Some(v), Some(val)) = (&validator, &result.validation) {
         header.push_str(&format!(
             "; validation mean score {:.4} -> {:.4} on {}{}",
-            mean(&settled.base[0][n..]),
-            mean(&settled.written[0][n..]),
+            mean(&settled.base[0][n..given]),
+            mean(&settled.written[0][n..given]),
             names(v),
             if val.chosen.is_none() {
                 " (base kept: no candidate beat it there)"
@@ -391,7 +392,14 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         settled_words(&settled, &all)
     ));
     out.push_str(&settled_table(&all, &settled, &|i| {
-        if i < n { "training" } else { "validation" }.to_string()
+        if i < n {
+            "training"
+        } else if i < given {
+            "validation"
+        } else {
+            "stronger"
+        }
+        .to_string()
     }));
     if let (Some(_), Some(val)) = (&validator, &result.validation) {
         out.push_str(&match &val.chosen {
@@ -426,8 +434,9 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     Ok(())
 }
 
-/// An evaluator of every flight the tune was given (training, then validation), with plain
-/// scores and the readers of the tuned keys: what the written profile is checked on. After a
+/// An evaluator of every flight the tune was given (training, then validation), then each of
+/// them [`STRENGTH`] times as strong ([`strengthened`]), with plain scores and the readers of
+/// the tuned keys: what the written profile is checked on. After a
 /// signal stopped the search, the best found so far is checked all the same (a few runs), so
 /// that what is written after Ctrl-C keeps the same promise: that check has a stop flag of
 /// its own.
@@ -440,12 +449,19 @@ fn every_flight(
         algorithm: evaluator.algorithm,
         keys: evaluator.keys.clone(),
         base: evaluator.base.clone(),
-        traces: evaluator
-            .traces
-            .iter()
-            .chain(validator.map(|v| v.traces.as_slice()).unwrap_or_default())
-            .cloned()
-            .collect(),
+        traces: {
+            let given: Vec<Arc<Trace>> = evaluator
+                .traces
+                .iter()
+                .chain(validator.map(|v| v.traces.as_slice()).unwrap_or_default())
+                .cloned()
+                .collect();
+            let stronger: Vec<Arc<Trace>> = given
+                .iter()
+                .map(|t| Arc::new(strengthened(t, STRENGTH)))
+                .collect();
+            given.into_iter().chain(stronger).collect()
+        },
         floors: Vec::new(),
         readers: readers(evaluator.algorithm).to_vec(),
         stop: if interrupted {
@@ -459,11 +475,12 @@ fn every_flight(
 fn settling_line(all: &Evaluator) -> String {
     let algorithms: Vec<&str> = all.checked_algorithms().iter().map(|a| a.label()).collect();
     format!(
-        "checking the result: {} on {}, within {} % of the base's score and + {} % of the \
-         steps of limiter on each (half the promised tolerances), else taken part of the way \
-         from the base",
+        "checking the result: {} on the {} given and on each {STRENGTH} times as strong \
+         (NAME-x{STRENGTH}), within {} % of the base's score and + {} % of the steps of \
+         limiter on each (half the promised tolerances), else taken part of the way from the \
+         base",
         algorithms.join(" and "),
-        plural(all.traces.len() as u64, "flight"),
+        plural((all.traces.len() / 2) as u64, "flight"),
         100.0 * MARGIN_SHARE * PER_FLIGHT_TOLERANCE,
         100.0 * MARGIN_SHARE * LIMITER_MARGIN
     )
@@ -515,8 +532,10 @@ fn way(share: f64) -> String {
 
 /// Every flight's score and limiter share before and after, per checked algorithm, and,
 /// when the largest share tried was not written, its score ("tried"): what would have been
-/// written without the check. `role(i)` says what flight i was to the tune.
+/// written without the check. `role(i)` says what flight i was to the tune; the mean rows are
+/// over the flights given (the first half of `all`'s: the second is them made stronger).
 fn settled_table(all: &Evaluator, settled: &Settled, role: &dyn Fn(usize) -> String) -> String {
+    let given = all.traces.len() / 2;
     let first = settled.tried.first().filter(|t| t.refused.is_some());
     let tried_head = first.map_or(String::new(), |t| format!(" {:>10}", way_short(t.share)));
     let mut out = format!(
@@ -549,13 +568,13 @@ fn settled_table(all: &Evaluator, settled: &Settled, role: &dyn Fn(usize) -> Str
             id.key(),
             "mean",
             "",
-            mean(b),
-            mean(w),
+            mean(&b[..given]),
+            mean(&w[..given]),
             "",
             "",
             first.map_or(String::new(), |t| format!(
                 " {:>10.4}",
-                mean(&t.outcomes[a])
+                mean(&t.outcomes[a][..given])
             ))
         ));
     }
@@ -653,8 +672,8 @@ fn run_cross_validated(
         command_line(args, algorithm, budget, step),
         env!("CARGO_PKG_VERSION"),
         algorithm.label(),
-        mean(&settled.base[0]),
-        mean(&settled.written[0]),
+        mean(&settled.base[0][..names.len()]),
+        mean(&settled.written[0][..names.len()]),
         names.join(", "),
         cv.folds.len()
     );
@@ -674,7 +693,7 @@ fn run_cross_validated(
         cv.folds.len()
     );
     out.push_str(&settled_table(&all, &settled, &|i| {
-        fold_of(i).map_or("-".to_string(), |f| format!("fold {}", f + 1))
+        fold_of(i).map_or("stronger".to_string(), |f| format!("fold {}", f + 1))
     }));
     for (f, fold) in cv.folds.iter().enumerate() {
         let held: Vec<&str> = fold.held_out.iter().map(|&i| names[i]).collect();

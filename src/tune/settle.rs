@@ -24,6 +24,7 @@
 use anyhow::Result;
 
 use hexcue_core::mca::AlgorithmId;
+use hexcue_core::trace::Trace;
 
 use super::validate::{LIMITER_MARGIN, PER_FLIGHT_TOLERANCE};
 use super::{Evaluator, TraceOutcome};
@@ -35,6 +36,29 @@ pub const MARGIN_SHARE: f64 = 0.5;
 
 /// The shares of the way from the base to the search's result that are tried, largest first.
 pub const SHARES: [f64; 3] = [1.0, 0.5, 0.25];
+
+/// How much stronger the copies of the given flights are on which the written profile must
+/// hold too ([`strengthened`]).
+pub const STRENGTH: f64 = 2.0;
+
+/// `trace` made `gain` times as strong: its specific force's departure from level flight's
+/// (0, 0, −g) and its angular velocity scaled, its attitude kept; named `NAME-x2`. The
+/// flights a user tunes on seldom reach the workspace's edge, where the written profile is
+/// fragile (the 737 crosswind landing's braked rollout at the corner of surge and sway; the
+/// S-MPC's rough taxi), and where flights the user flies next will take it: the same flights
+/// twice as strong take the platform there (the base's limiter acts on 0.04–0.82 % of the
+/// shipped five's steps at ×2), and the written profile is checked on them as on the flights
+/// themselves (docs/tuning.md, "What the written profile must hold").
+pub fn strengthened(trace: &Trace, gain: f64) -> Trace {
+    let level = nalgebra::Vector3::new(0.0, 0.0, -hexcue_core::G_MPS2);
+    let mut t = trace.clone();
+    t.name = format!("{}-x{gain}", trace.name);
+    for s in &mut t.samples {
+        s.specific_force_mps2 = level + (s.specific_force_mps2 - level) * gain;
+        s.angular_velocity_radps *= gain;
+    }
+    t
+}
 
 /// Every algorithm's outcomes on every flight: the tuned algorithm first, then its readers, in
 /// the order of [`Evaluator::checked_algorithms`].
@@ -313,6 +337,22 @@ mod tests {
             assert!(w.limiter_fraction <= b.limiter_fraction + 0.005 + 1e-12);
             assert_eq!(w.leg_violations, 0);
         }
+    }
+
+    #[test]
+    fn a_strengthened_flight_departs_twice_as_far_from_level_flight() {
+        let t = hexcue_core::testing::manoeuvre();
+        let k = 200;
+        let x2 = strengthened(&t, STRENGTH);
+        assert_eq!(x2.name, format!("{}-x2", t.name));
+        assert_eq!(x2.samples.len(), t.samples.len());
+        let (a, b) = (&t.samples[k], &x2.samples[k]);
+        let g = hexcue_core::G_MPS2;
+        assert!((b.specific_force_mps2.x - 2.0 * a.specific_force_mps2.x).abs() < 1e-12);
+        assert!((b.specific_force_mps2.z + g - 2.0 * (a.specific_force_mps2.z + g)).abs() < 1e-12);
+        assert!((b.angular_velocity_radps - 2.0 * a.angular_velocity_radps).norm() < 1e-12);
+        assert_eq!(b.attitude_rad, a.attitude_rad);
+        assert_eq!(b.t_s, a.t_s);
     }
 
     #[test]
