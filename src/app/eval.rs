@@ -540,6 +540,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         traces: flights.iter().map(|f| f.trace.clone()).collect(),
         // eval reports plain scores; `tune --objective cueable` is tune's alone.
         floors: Vec::new(),
+        // eval scores the candidate for the algorithm it names; `tune` checks the readers.
+        readers: Vec::new(),
         stop: stop.clone(),
     };
     let interrupted = || anyhow::anyhow!("interrupted by a signal; nothing written");

@@ -11,9 +11,11 @@ use toml_edit::DocumentMut;
 use crate::app::common::{progress_bar, progress_line, stop_flag};
 use crate::cli::TuneArgs;
 use crate::formats::trace::load_trace_within;
+use crate::tune::settle::{settle, strengthened, Settled, MARGIN_SHARE, SHARES, STRENGTH};
+use crate::tune::validate::{LIMITER_MARGIN, PER_FLIGHT_TOLERANCE};
 use crate::tune::{
-    default_budget, default_step, keys, tunable_keys, tune, validate::PER_FLIGHT_TOLERANCE,
-    Evaluator, GenerationRecord, Progress, Validated, LIMITER_TOLERANCE,
+    default_budget, default_step, keys, readers, tunable_keys, tune, Evaluator, GenerationRecord,
+    Progress, LIMITER_TOLERANCE,
 };
 use hexcue_core::mca::AlgorithmId;
 use hexcue_core::profile::text::{
@@ -264,6 +266,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         base: base.clone(),
         traces: validation_traces,
         floors: validation_floors,
+        readers: Vec::new(),
         stop: stop.clone(),
     });
     let evaluator = Evaluator {
@@ -272,6 +275,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         base,
         traces,
         floors,
+        readers: readers(algorithm).to_vec(),
         stop: stop.clone(),
     };
     eprintln!(
@@ -321,16 +325,21 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         args.seed,
         &progress,
     )?;
-    progress.bar.finish_and_clear();
-    let wall = started.elapsed().as_secs_f64();
-
     let Some(best) = &result.best else {
+        progress.bar.finish_and_clear();
         bail!(
             "no candidate kept every leg in its stroke and the limiter within the base's share \
              of the steps + {} % on every trace; nothing written",
             100.0 * LIMITER_TOLERANCE
         );
     };
+    let all = every_flight(&evaluator, validator.as_ref(), result.interrupted);
+    progress_line(&progress.bar, settling_line(&all));
+    let settled = settle(&all, &result.base.values, Some(&best.values), &SHARES)?
+        .ok_or_else(|| anyhow!("interrupted before the result was checked; nothing written"))?;
+    progress.bar.finish_and_clear();
+    let wall = started.elapsed().as_secs_f64();
+
     let names = |e: &Evaluator| {
         e.traces
             .iter()
@@ -338,20 +347,25 @@ pub fn run(args: &TuneArgs) -> Result<()> {
             .collect::<Vec<_>>()
             .join(", ")
     };
+    let n = evaluator.traces.len();
+    let mean = |o: &[crate::tune::TraceOutcome]| {
+        o.iter().map(|o| o.score).sum::<f64>() / o.len().max(1) as f64
+    };
     let mut header = format!(
         "# tuned: `{}` (hexcue {}): {} mean score {:.4} -> {:.4} on {}",
         command_line(args, algorithm, budget, step),
         env!("CARGO_PKG_VERSION"),
         algorithm.label(),
-        result.base.mean_score(),
-        best.mean_score(),
+        mean(&settled.base[0][..n]),
+        mean(&settled.written[0][..n]),
         names(&evaluator)
     );
+    let given = n + validator.as_ref().map_or(0, |v| v.traces.len());
     if let (Some(v), Some(val)) = (&validator, &result.validation) {
         header.push_str(&format!(
             "; validation mean score {:.4} -> {:.4} on {}{}",
-            val.base_mean(),
-            val.chosen.as_ref().map_or(val.base_mean(), Validated::mean),
+            mean(&settled.base[0][n..given]),
+            mean(&settled.written[0][n..given]),
             names(v),
             if val.chosen.is_none() {
                 " (base kept: no candidate beat it there)"
@@ -360,17 +374,13 @@ pub fn run(args: &TuneArgs) -> Result<()> {
             }
         ));
     }
-    let tuned = add_header(&evaluator.document(&best.values)?, &header);
-    // The same loader and validation as any profile, then scored again from that text.
+    header.push_str(&format!("; {}", settled_words(&settled, &all)));
     let shown = args.out.display().to_string();
-    let written = parse_profile(&tuned, &shown)?.offline();
-    std::fs::write(&args.out, &tuned)
-        .with_context(|| format!("{shown}: cannot write the tuned profile"))?;
-    let after = evaluator.run(&written)?;
+    write_profile(&evaluator, &settled.values, &header, args)?;
 
     let mut out = String::new();
     out.push_str(&format!(
-        "{} tuned in {:.1} s: {}{}; wrote {shown}\n\n",
+        "{} tuned in {:.1} s: {}{}; wrote {shown}: {}\n\n",
         algorithm.label(),
         wall,
         plural(result.evaluations as u64, "candidate"),
@@ -378,55 +388,22 @@ pub fn run(args: &TuneArgs) -> Result<()> {
             " (interrupted: the best found so far)"
         } else {
             ""
+        },
+        settled_words(&settled, &all)
+    ));
+    out.push_str(&settled_table(&all, &settled, &|i| {
+        if i < n {
+            "training"
+        } else if i < given {
+            "validation"
+        } else {
+            "stronger"
         }
-    ));
-    out.push_str(&format!(
-        "{:<24} {:>10} {:>10}\n",
-        "trace", "before", "after"
-    ));
-    let after_scores: Vec<Option<f64>> = match &after {
-        Some(a) => a.iter().map(|o| Some(o.score)).collect(),
-        None => vec![None; evaluator.traces.len()],
-    };
-    for ((t, b), a) in evaluator
-        .traces
-        .iter()
-        .zip(&result.base.outcomes)
-        .zip(&after_scores)
-    {
-        out.push_str(&format!(
-            "{:<24} {:>10.4} {:>10}\n",
-            t.name,
-            b.score,
-            a.map_or("-".into(), |a| format!("{a:.4}"))
-        ));
-    }
-    out.push_str(&format!(
-        "{:<24} {:>10.4} {:>10.4}\n\n",
-        "mean",
-        result.base.mean_score(),
-        best.mean_score()
-    ));
-    if let (Some(v), Some(val)) = (&validator, &result.validation) {
-        out.push_str(&format!(
-            "{:<24} {:>10} {:>10}\n",
-            "validation trace", "before", "after"
-        ));
-        let after = val.chosen.as_ref().map_or(&val.base, |c| &c.validation);
-        for ((t, b), a) in v.traces.iter().zip(&val.base).zip(after) {
-            out.push_str(&format!(
-                "{:<24} {:>10.4} {:>10.4}\n",
-                t.name, b.score, a.score
-            ));
-        }
-        out.push_str(&format!(
-            "{:<24} {:>10.4} {:>10.4}\n",
-            "validation mean",
-            val.base_mean(),
-            val.chosen.as_ref().map_or(val.base_mean(), Validated::mean)
-        ));
+        .to_string()
+    }));
+    if let (Some(_), Some(val)) = (&validator, &result.validation) {
         out.push_str(&match &val.chosen {
-            Some(_) => "(the tuned profile: the best validation mean of the candidates not \
+            Some(_) => "(the search's result: the best validation mean of the candidates not \
                         worse than the base on any validation trace)\n\n"
                 .to_string(),
             None => match val.validated.len() {
@@ -440,12 +417,14 @@ pub fn run(args: &TuneArgs) -> Result<()> {
             },
         });
     }
-    out.push_str(&format!("{:<40} {:>10} {:>10}\n", "key", "base", "tuned"));
-    for ((k, b), v) in keys.iter().zip(&result.base.values).zip(&best.values) {
-        out.push_str(&format!("{:<40} {:>10} {:>10}\n", k.name(), b, v));
-    }
+    out.push_str(&keys_table(
+        &keys,
+        &result.base.values,
+        &best.values,
+        &settled.values,
+    ));
     print!("{out}");
-    if result.interrupted {
+    if result.interrupted || settled.interrupted {
         bail!(
             "interrupted by a signal after {} of {budget} candidates; {shown} holds the best \
              profile found so far",
@@ -453,6 +432,190 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// An evaluator of every flight the tune was given (training, then validation), then each of
+/// them [`STRENGTH`] times as strong ([`strengthened`]), with plain scores and the readers of
+/// the tuned keys: what the written profile is checked on. After a
+/// signal stopped the search, the best found so far is checked all the same (a few runs), so
+/// that what is written after Ctrl-C keeps the same promise: that check has a stop flag of
+/// its own.
+fn every_flight(
+    evaluator: &Evaluator,
+    validator: Option<&Evaluator>,
+    interrupted: bool,
+) -> Evaluator {
+    Evaluator {
+        algorithm: evaluator.algorithm,
+        keys: evaluator.keys.clone(),
+        base: evaluator.base.clone(),
+        traces: {
+            let given: Vec<Arc<Trace>> = evaluator
+                .traces
+                .iter()
+                .chain(validator.map(|v| v.traces.as_slice()).unwrap_or_default())
+                .cloned()
+                .collect();
+            let stronger: Vec<Arc<Trace>> = given
+                .iter()
+                .map(|t| Arc::new(strengthened(t, STRENGTH)))
+                .collect();
+            given.into_iter().chain(stronger).collect()
+        },
+        floors: Vec::new(),
+        readers: readers(evaluator.algorithm).to_vec(),
+        stop: if interrupted {
+            Arc::new(std::sync::atomic::AtomicBool::new(false))
+        } else {
+            evaluator.stop.clone()
+        },
+    }
+}
+
+fn settling_line(all: &Evaluator) -> String {
+    let algorithms: Vec<&str> = all.checked_algorithms().iter().map(|a| a.label()).collect();
+    format!(
+        "checking the result: {} on the {} given and on each {STRENGTH} times as strong \
+         (NAME-x{STRENGTH}), within {} % of the base's score and + {} % of the steps of \
+         limiter on each (half the promised tolerances), else taken part of the way from the \
+         base",
+        algorithms.join(" and "),
+        plural((all.traces.len() / 2) as u64, "flight"),
+        100.0 * MARGIN_SHARE * PER_FLIGHT_TOLERANCE,
+        100.0 * MARGIN_SHARE * LIMITER_MARGIN
+    )
+}
+
+/// What was written, in words: how much of the way from the base, and why not more.
+fn settled_words(settled: &Settled, all: &Evaluator) -> String {
+    let refused = |upto: usize| -> String {
+        settled.tried[..upto]
+            .iter()
+            .filter_map(|t| t.refused.as_ref().map(|w| format!("{}: {w}", way(t.share))))
+            .collect::<Vec<_>>()
+            .join("; ")
+    };
+    let checked: Vec<&str> = all.checked_algorithms().iter().map(|a| a.label()).collect();
+    match settled.share {
+        Some(s) if s >= 1.0 => format!(
+            "the result as found, within {} % on every flight for {}",
+            100.0 * MARGIN_SHARE * PER_FLIGHT_TOLERANCE,
+            checked.join(" and ")
+        ),
+        Some(s) => {
+            let why = refused(settled.tried.len() - 1);
+            format!(
+                "{} from the base to the result{}, within {} % on every flight for {}",
+                way(s),
+                if why.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({why})")
+                },
+                100.0 * MARGIN_SHARE * PER_FLIGHT_TOLERANCE,
+                checked.join(" and ")
+            )
+        }
+        None if settled.tried.is_empty() => "the base (the search found nothing better)".into(),
+        None => format!("base kept ({})", refused(settled.tried.len())),
+    }
+}
+
+/// "the whole way", "1/2 of the way".
+fn way(share: f64) -> String {
+    if share >= 1.0 {
+        "the whole way".to_string()
+    } else {
+        format!("1/{:.0} of the way", 1.0 / share)
+    }
+}
+
+/// Every flight's score and limiter share before and after, per checked algorithm, and,
+/// when the largest share tried was not written, its score ("tried"): what would have been
+/// written without the check. `role(i)` says what flight i was to the tune; the mean rows are
+/// over the flights given (the first half of `all`'s: the second is them made stronger).
+fn settled_table(all: &Evaluator, settled: &Settled, role: &dyn Fn(usize) -> String) -> String {
+    let given = all.traces.len() / 2;
+    let first = settled.tried.first().filter(|t| t.refused.is_some());
+    let tried_head = first.map_or(String::new(), |t| format!(" {:>10}", way_short(t.share)));
+    let mut out = format!(
+        "{:<8} {:<28} {:<10} {:>10} {:>10} {:>9} {:>9}{tried_head}\n",
+        "", "trace", "", "before", "after", "limiter", "before"
+    );
+    let mean = |o: &[crate::tune::TraceOutcome]| {
+        o.iter().map(|o| o.score).sum::<f64>() / o.len().max(1) as f64
+    };
+    for (a, id) in all.checked_algorithms().iter().enumerate() {
+        let (b, w) = (&settled.base[a], &settled.written[a]);
+        for (i, t) in all.traces.iter().enumerate() {
+            out.push_str(&format!(
+                "{:<8} {:<28} {:<10} {:>10.4} {:>10.4} {:>8.2}% {:>8.2}%{}\n",
+                id.key(),
+                t.name,
+                role(i),
+                b[i].score,
+                w[i].score,
+                100.0 * w[i].limiter_fraction,
+                100.0 * b[i].limiter_fraction,
+                first.map_or(String::new(), |t| format!(
+                    " {:>10.4}",
+                    t.outcomes[a][i].score
+                ))
+            ));
+        }
+        out.push_str(&format!(
+            "{:<8} {:<28} {:<10} {:>10.4} {:>10.4} {:>9} {:>9}{}\n",
+            id.key(),
+            "mean",
+            "",
+            mean(&b[..given]),
+            mean(&w[..given]),
+            "",
+            "",
+            first.map_or(String::new(), |t| format!(
+                " {:>10.4}",
+                mean(&t.outcomes[a][..given])
+            ))
+        ));
+    }
+    out.push('\n');
+    out
+}
+
+/// A table column's title for a share: "whole way", "1/2 way".
+fn way_short(share: f64) -> String {
+    if share >= 1.0 {
+        "whole way".to_string()
+    } else {
+        format!("1/{:.0} way", 1.0 / share)
+    }
+}
+
+/// Each key's base value, the search's result and what was written.
+fn keys_table(keys: &[keys::TunableKey], base: &[f64], found: &[f64], written: &[f64]) -> String {
+    let mut out = format!(
+        "{:<40} {:>10} {:>10} {:>10}\n",
+        "key", "base", "found", "written"
+    );
+    for (((k, b), f), w) in keys.iter().zip(base).zip(found).zip(written) {
+        out.push_str(&format!("{:<40} {:>10} {:>10} {:>10}\n", k.name(), b, f, w));
+    }
+    out
+}
+
+/// Writes the base file with `values` in place under `header`, read back first by the loader
+/// of every profile.
+fn write_profile(
+    evaluator: &Evaluator,
+    values: &[f64],
+    header: &str,
+    args: &TuneArgs,
+) -> Result<()> {
+    let tuned = add_header(&evaluator.document(values)?, header);
+    let shown = args.out.display().to_string();
+    parse_profile(&tuned, &shown)?;
+    std::fs::write(&args.out, &tuned)
+        .with_context(|| format!("{shown}: cannot write the tuned profile"))
 }
 
 /// `tune` without `--validate`: k-fold by flight over the training flights
@@ -468,22 +631,40 @@ fn run_cross_validated(
     started: std::time::Instant,
 ) -> Result<()> {
     let cv = crate::tune::cross_validated_tune(evaluator, budget, step, args.seed, &progress)?;
+    let all = every_flight(evaluator, None, cv.interrupted);
+    progress_line(&progress.bar, settling_line(&all));
+    // The folds trusted the search's move as far as `cv.share` of the way; the settling
+    // starts there and may go nearer the base.
+    let shares: Vec<f64> = SHARES.iter().map(|s| s * cv.share).collect();
+    let settled = settle(
+        &all,
+        &cv.base.values,
+        cv.chosen_fold.map(|_| cv.best.values.as_slice()),
+        &shares,
+    )?
+    .ok_or_else(|| anyhow!("interrupted before the result was checked; nothing written"))?;
     progress.bar.finish_and_clear();
     let wall = started.elapsed().as_secs_f64();
     let names: Vec<&str> = evaluator.traces.iter().map(|t| t.name.as_str()).collect();
     let fold_of = |i: usize| cv.folds.iter().position(|f| f.held_out.contains(&i));
     let verdict = match cv.chosen_fold {
         Some(f) => format!(
-            "the winner of fold {} (held out: {})",
+            "the training best of fold {} (held out: {}), trusted {} (the worst fold's), \
+             written: {}",
             f + 1,
             cv.folds[f]
                 .held_out
                 .iter()
                 .map(|&i| names[i])
                 .collect::<Vec<_>>()
-                .join(", ")
+                .join(", "),
+            way(cv.share),
+            settled_words(&settled, &all)
         ),
-        None => "base kept: no fold's winner passed its held-out flights' gate".to_string(),
+        None => "base kept: no fold's move held on its held-out flights".to_string(),
+    };
+    let mean = |o: &[crate::tune::TraceOutcome]| {
+        o.iter().map(|o| o.score).sum::<f64>() / o.len().max(1) as f64
     };
     let header = format!(
         "# tuned: `{}` (hexcue {}): {} mean score {:.4} -> {:.4} on {}; validated {}-fold by \
@@ -491,78 +672,67 @@ fn run_cross_validated(
         command_line(args, algorithm, budget, step),
         env!("CARGO_PKG_VERSION"),
         algorithm.label(),
-        cv.base.mean_score(),
-        cv.best.mean_score(),
+        mean(&settled.base[0][..names.len()]),
+        mean(&settled.written[0][..names.len()]),
         names.join(", "),
         cv.folds.len()
     );
-    let tuned = add_header(&evaluator.document(&cv.best.values)?, &header);
+    write_profile(evaluator, &settled.values, &header, args)?;
     let shown = args.out.display().to_string();
-    parse_profile(&tuned, &shown)?;
-    std::fs::write(&args.out, &tuned)
-        .with_context(|| format!("{shown}: cannot write the tuned profile"))?;
     let mut out = format!(
         "{} tuned in {:.1} s: {}{}, {}-fold cross-validated by flight (docs/tuning.md); \
          wrote {shown}: {verdict}\n\n",
         algorithm.label(),
         wall,
         plural(cv.evaluations as u64, "candidate"),
-        if cv.interrupted { " (interrupted)" } else { "" },
+        if cv.interrupted || settled.interrupted {
+            " (interrupted)"
+        } else {
+            ""
+        },
         cv.folds.len()
     );
-    out.push_str(&format!(
-        "{:<28} {:>5} {:>10} {:>10} {:>9} {:>9}\n",
-        "trace", "fold", "before", "after", "limiter", "before"
-    ));
-    for (i, name) in names.iter().enumerate() {
-        let (b, a) = (&cv.base.outcomes[i], &cv.best.outcomes[i]);
+    out.push_str(&settled_table(&all, &settled, &|i| {
+        fold_of(i).map_or("stronger".to_string(), |f| format!("fold {}", f + 1))
+    }));
+    for (f, fold) in cv.folds.iter().enumerate() {
+        let held: Vec<&str> = fold.held_out.iter().map(|&i| names[i]).collect();
+        let refused = |r: &[(f64, String)]| {
+            r.iter()
+                .map(|(s, why)| format!("{}: {why}", way(*s)))
+                .collect::<Vec<_>>()
+                .join("; ")
+        };
+        let line = match &cv.fold_shares[f] {
+            None => {
+                "its search found nothing better than the base on its training flights".to_string()
+            }
+            Some(s) if s.share <= 0.0 => format!(
+                "its training best held at no distance from the base ({})",
+                refused(&s.refused)
+            ),
+            Some(s) if s.refused.is_empty() => "its training best held the whole way".to_string(),
+            Some(s) => format!(
+                "its training best held {} ({})",
+                way(s.share),
+                refused(&s.refused)
+            ),
+        };
         out.push_str(&format!(
-            "{:<28} {:>5} {:>10.4} {:>10.4} {:>8.2}% {:>8.2}%\n",
-            name,
-            fold_of(i).map_or("-".to_string(), |f| (f + 1).to_string()),
-            b.score,
-            a.score,
-            100.0 * a.limiter_fraction,
-            100.0 * b.limiter_fraction
+            "fold {} (held out: {}): {line}\n",
+            f + 1,
+            held.join(", ")
         ));
     }
-    out.push_str(&format!(
-        "{:<28} {:>5} {:>10.4} {:>10.4}\n\n",
-        "mean",
-        "",
-        cv.base.mean_score(),
-        cv.best.mean_score()
-    ));
-    for (f, fold) in cv.folds.iter().enumerate() {
-        let line = match &fold.result.validation {
-            Some(v) => match &v.chosen {
-                Some(c) => format!(
-                    "held-out mean {:.4} -> {:.4} (accepted)",
-                    v.base_mean(),
-                    c.mean()
-                ),
-                None => format!(
-                    "held-out mean {:.4}: base kept ({} validated, none passed)",
-                    v.base_mean(),
-                    v.validated.len()
-                ),
-            },
-            None => "not validated".to_string(),
-        };
-        out.push_str(&format!("fold {}: {line}\n", f + 1));
-    }
     out.push('\n');
-    out.push_str(&format!("{:<40} {:>10} {:>10}\n", "key", "base", "tuned"));
-    for ((k, b), v) in evaluator
-        .keys
-        .iter()
-        .zip(&cv.base.values)
-        .zip(&cv.best.values)
-    {
-        out.push_str(&format!("{:<40} {:>10} {:>10}\n", k.name(), b, v));
-    }
+    out.push_str(&keys_table(
+        &evaluator.keys,
+        &cv.base.values,
+        &cv.best.values,
+        &settled.values,
+    ));
     print!("{out}");
-    if cv.interrupted {
+    if cv.interrupted || settled.interrupted {
         bail!("interrupted by a signal; {shown} holds the best profile the finished folds found");
     }
     Ok(())
