@@ -717,10 +717,15 @@ impl Safety {
             let (e0, e1) = (p0[i] - x1[i], p1[i] - x2[i]);
             let direct = (x0[i] - 2.0 * p0[i] + p1[i]) / (dt * dt);
             let tol = j_max * dt * dt * dt / 8.0;
+            // Through unchanged only with its acceleration field within the bounds too: an
+            // algorithm's own field need not match its poses (the CWF's on JSBSim's 120 Hz
+            // frames held on a 100 Hz clock said 134 °/s² where its poses said 0.8), and
+            // the platform gets the field.
             if algorithm.pose[i].is_finite()
                 && e0.abs() <= tol
                 && e1.abs() <= tol
                 && (lo..=hi).contains(&direct)
+                && (lo..=hi).contains(&algorithm.acceleration[i])
             {
                 continue;
             }
@@ -1398,6 +1403,37 @@ mod tests {
             (passed_from - smooth_from) as f64 * DT
         );
         assert!(passed_from - smooth_from <= 300, "{passed_from}");
+    }
+
+    /// A command whose poses the stage can follow but whose own acceleration field is beyond
+    /// the bound (one step of 2 rad/s², 115 °/s², in roll, the poses still) goes out with
+    /// the field of its poses, not its own: the platform never gets an acceleration beyond
+    /// the hand-over's bound. Found live (docs/parameters.md, *Measured*).
+    #[test]
+    fn an_acceleration_field_beyond_the_bound_is_not_passed_through() {
+        let p = params();
+        let mut s = Safety::new(p.clone());
+        let mut poses = vec![Vector6::zeros(); 3];
+        for k in 0..800 {
+            s.begin_step(true);
+            let mut wanted = PlatformCommand::default();
+            if k == 600 {
+                wanted.acceleration[3] = 2.0;
+            }
+            let out = s.command(&wanted);
+            s.sent(&out);
+            poses.push(out.pose);
+            for i in 0..6 {
+                let (a, _) = diffs(&poses, i);
+                assert!(
+                    out.acceleration[i].abs() <= p.handover_acceleration[i] * (1.0 + 1e-9),
+                    "k {k} dof {i}: field {}",
+                    out.acceleration[i]
+                );
+                assert!((out.acceleration[i] - a).abs() <= 1e-9, "k {k} dof {i}");
+                assert!(out.pose[i].abs() <= 1e-12, "k {k} dof {i}: {}", out.pose[i]);
+            }
+        }
     }
 
     /// The stop comes when the running command is at the hand-over's bound (a condition on

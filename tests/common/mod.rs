@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 pub mod flightgear;
 pub mod foxglove_client;
+pub mod livetune;
 pub mod pty;
 pub mod xplane;
 use std::process::{Command, Output};
