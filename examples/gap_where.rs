@@ -2,12 +2,16 @@
 //! the relaxed joint optimum as the linear model charges it against the achieved candidates
 //! through the exact head, each channel's error in windows of WINDOW seconds.
 //! `cargo run --example gap_where -- TRACE.csv [SECONDS] [WINDOW]` (GAP_WHERE_RELAXED=1: the
-//! relaxation only; GAP_WHERE_LIGHTENING=1: with the tilt's lightening in heave)
+//! relaxation only; GAP_WHERE_LIGHTENING=1: with the tilt's lightening in heave, and the achieved motion's
+//! sequence from the lightened relaxation, `LIGHTENED_SEQUENCE`)
 
 use std::path::Path;
 
 use hexcue::formats::trace::load_trace;
-use hexcue_core::bound::{achieved_with_legs, commands_of, model_input, relaxed, Setup};
+use hexcue_core::bound::{
+    achieved_with_sequences, commands_of, model_input, relaxed, Setup, ACHIEVED_SEQUENCES,
+    LIGHTENED_SEQUENCE,
+};
 use hexcue_core::engine::perceive_command;
 use hexcue_core::mca::PlatformCommand;
 use hexcue_core::model::vestibular::Vestibular;
@@ -82,6 +86,30 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "joint optimum per channel: {:?} total {:.4}",
         r.joint_error, r.total
     );
+    // With the lightening: where the relaxation takes lightness no tilt of its own gives (L
+    // above the true g(1 − cos θ cos φ) of its tilts), per window: what a branch and bound
+    // over the tilt would have to remove (docs/bound.md).
+    let window_steps = (window * profile.rate_hz) as usize;
+    for sol in r.joint.iter().filter(|s| !s.lightening_mps2.is_empty()) {
+        println!("free lightness of the relaxed optimum (L − g(1 − cos θ cos φ), m/s²):");
+        let free: Vec<f64> = (0..sol.pose.len())
+            .map(|k| {
+                let (phi, theta) = (sol.pose[k][3], sol.pose[k][4]);
+                let l = sol.lightening_mps2[k];
+                l[0] + l[1] - hexcue_core::G_MPS2 * (1.0 - theta.cos() * phi.cos())
+            })
+            .collect();
+        for (i, chunk) in free.chunks(window_steps).enumerate() {
+            let mean = chunk.iter().sum::<f64>() / chunk.len() as f64;
+            let over = chunk.iter().filter(|f| **f > 0.05).count();
+            let tilt = sol.pose[(i * window_steps).min(sol.pose.len() - 1)][4].to_degrees();
+            println!(
+                "  {:5.1}s mean {mean:.3}, max {:.3}, steps above 0.05: {over}, pitch at start {tilt:.1}°",
+                i as f64 * window,
+                chunk.iter().cloned().fold(f64::MIN, f64::max)
+            );
+        }
+    }
     let relaxed_cmds = commands_of(&r.joint, &setup.limits);
     let lin = hexcue_core::bound::linear_error(&setup, &relaxed_cmds);
     println!("relaxed, linear model: {lin:?}");
@@ -98,7 +126,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for (label, rep, _) in if only_relaxed {
         Vec::new()
     } else {
-        achieved_with_legs(&profile, &trace, &setup)
+        // With the lightening, also the sequence from the lightened relaxation.
+        let mut sequences = ACHIEVED_SEQUENCES.to_vec();
+        if setup.lightening {
+            sequences.push(LIGHTENED_SEQUENCE);
+        }
+        achieved_with_sequences(&profile, &trace, &setup, &sequences)
     } {
         println!(
             "{label}: {:.4} {:?}",
@@ -114,6 +147,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     let (label, _, cmds) = best.unwrap_or(("relaxed".into(), 0.0, relaxed_cmds.clone()));
+    // The best motion as the programmes' model charges it (with the lightening: M_L's error
+    // of a motion the platform makes, an upper end of M_L's optimum).
+    let model: f64 = hexcue_core::bound::linear_error(&setup, &cmds).iter().sum();
+    println!("best ({label}) under the programmes' model: {model:.4}");
     rows.push((format!("best: {label}"), errors(&profile, &setup, &cmds)));
     // The relaxed optimum per step through its linear model.
     let w = (window * profile.rate_hz) as usize;

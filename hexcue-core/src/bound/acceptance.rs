@@ -243,6 +243,7 @@ mod tests {
             iterations: 0,
             variables: 0,
             rows: 0,
+            lightening_mps2: Vec::new(),
         }
     }
 

@@ -295,6 +295,11 @@ pub struct Solution {
     pub variables: usize,
     /// Number of constraint rows of the programme.
     pub rows: usize,
+    /// With the lightening, per grid step the values of (L_θ, L_φ) (m/s²; 0 for a tilt that
+    /// does not move); empty without it. Against the true g(1 − cos θ), g·cos θ·(1 − cos φ)
+    /// of the answer's own tilts they show where the relaxation takes lightness no tilt gives
+    /// (docs/bound.md, "What would close the take-off's gap").
+    pub lightening_mps2: Vec<[f64; 2]>,
 }
 
 /// Sparse matrix rows under construction.
@@ -612,6 +617,19 @@ impl Programme<'_> {
             .filter(|&&(_, r)| sol.z[n_eq + r] > 1e-6)
             .map(|&(c, _)| c)
             .collect();
+        let lightening_mps2 = if light.is_empty() {
+            Vec::new()
+        } else {
+            (0..n)
+                .map(|k| {
+                    let mut l = [0.0; 2];
+                    for (i, &(d, _)) in light.iter().enumerate() {
+                        l[usize::from(d == 3)] = sol.x[light_col(k, i)];
+                    }
+                    l
+                })
+                .collect()
+        };
         Solution {
             status: sol.status,
             objective: sol.obj_val,
@@ -623,6 +641,7 @@ impl Programme<'_> {
             iterations: sol.iterations,
             variables: nvar,
             rows: n_rows,
+            lightening_mps2,
         }
     }
 }
