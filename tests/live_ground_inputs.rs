@@ -28,9 +28,10 @@ use common::xplane::FakeXPlane;
 use common::*;
 use hexcue::live::{run, Control, LaneOrders, LiveSession};
 use hexcue::sources::live::LiveInput;
-use hexcue_core::ground::{GroundDetection, GroundDetector, GroundSignal};
+use hexcue_core::ground::{GroundDetector, GroundSignal};
 use hexcue_core::mca::AlgorithmId;
 use hexcue_core::profile::text::{parse_profile, ProfileLoadError, DEFAULT_PROFILE_TOML};
+use hexcue_core::profile::GroundDetection;
 use hexcue_core::profile::Profile;
 use hexcue_core::summary::Summary;
 

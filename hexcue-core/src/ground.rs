@@ -5,9 +5,7 @@
 //! does ([`crate::engine::Engine::set_ground`]). No I/O: the application says when the
 //! aircraft is on the ground ([`GroundSchedule`]).
 
-use serde::{Deserialize, Serialize};
-
-use crate::profile::{Profile, ProfileError};
+use crate::profile::{GroundDetection, Profile, ProfileError};
 
 /// What `[ground]` may override: what tunes the motion, nothing of the platform, its limits
 /// or the perception model by which every tuning is judged.
@@ -221,125 +219,6 @@ impl GroundBasis {
             GroundBasis::WeightOnWheels => "the simulator's weight on wheels",
             GroundBasis::HeightAndSpeed => "height above ground and ground speed",
         }
-    }
-}
-
-/// On the ground by height and speed, the fallback where a simulator sends no weight on
-/// wheels, by default: on the ground once below [`ON_GROUND_BELOW_M`] and
-/// [`ON_GROUND_SLOWER_MPS`]; in the air again once above [`IN_AIR_ABOVE_M`] or faster than
-/// [`IN_AIR_FASTER_MPS`]. The gap between each pair is the hysteresis: a bounce of a metre, or
-/// speed hovering about one threshold, does not make the phase chatter. A profile's
-/// `[ground_detection]` sets others ([`GroundDetection`]).
-pub const ON_GROUND_BELOW_M: f64 = 3.0;
-/// See [`ON_GROUND_BELOW_M`].
-pub const IN_AIR_ABOVE_M: f64 = 6.0;
-/// See [`ON_GROUND_BELOW_M`] (30 m/s: 58 kt).
-pub const ON_GROUND_SLOWER_MPS: f64 = 30.0;
-/// See [`ON_GROUND_BELOW_M`] (36 m/s: 70 kt).
-pub const IN_AIR_FASTER_MPS: f64 = 36.0;
-
-/// The height-and-speed fallback's thresholds, a profile's `[ground_detection]` (every key
-/// optional, the defaults above). A table of its own rather than keys of `[ground]`: every
-/// key of `[ground]` overrides the key of the same path while on the ground, and these have
-/// no air value to override; they say when the ground is, not how it is cued. They hold
-/// whatever the phase, and the live panel does not change them.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct GroundDetection {
-    /// On the ground once below this height above ground (m) ...
-    pub on_ground_below_m: f64,
-    /// ... and slower than this over the ground (m/s).
-    pub on_ground_slower_mps: f64,
-    /// In the air again once above this height above ground (m) ...
-    pub in_air_above_m: f64,
-    /// ... or faster than this over the ground (m/s).
-    pub in_air_faster_mps: f64,
-}
-
-impl Default for GroundDetection {
-    fn default() -> Self {
-        GroundDetection {
-            on_ground_below_m: ON_GROUND_BELOW_M,
-            on_ground_slower_mps: ON_GROUND_SLOWER_MPS,
-            in_air_above_m: IN_AIR_ABOVE_M,
-            in_air_faster_mps: IN_AIR_FASTER_MPS,
-        }
-    }
-}
-
-impl GroundDetection {
-    /// The defaults: a profile without `[ground_detection]` is written back without it.
-    pub fn is_default(&self) -> bool {
-        *self == Self::default()
-    }
-
-    /// Each threshold finite and above 0, each air threshold above its ground threshold
-    /// (the gap is the hysteresis); an error names the key under `ground_detection.` and
-    /// the range expected.
-    ///
-    /// ```
-    /// use hexcue_core::ground::GroundDetection;
-    ///
-    /// let low = GroundDetection { in_air_above_m: 2.0, ..GroundDetection::default() };
-    /// let e = low.validate().unwrap_err();
-    /// assert_eq!(e.key, "ground_detection.in_air_above_m");
-    /// assert!(e.reason.starts_with("2 m: expected a height above ground_detection.on_ground_below_m (3 m)"));
-    /// ```
-    pub fn validate(&self) -> Result<(), ProfileError> {
-        let refuse = |key: &str, reason: String| {
-            Err(ProfileError {
-                key: format!("ground_detection.{key}"),
-                reason,
-            })
-        };
-        for (key, v, unit, what) in [
-            ("on_ground_below_m", self.on_ground_below_m, "m", "height"),
-            (
-                "on_ground_slower_mps",
-                self.on_ground_slower_mps,
-                "m/s",
-                "speed",
-            ),
-            ("in_air_above_m", self.in_air_above_m, "m", "height"),
-            ("in_air_faster_mps", self.in_air_faster_mps, "m/s", "speed"),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return refuse(
-                    key,
-                    format!("{v} {unit}: expected a finite {what} greater than 0 {unit}"),
-                );
-            }
-        }
-        for (air, air_v, ground, ground_v, unit, what) in [
-            (
-                "in_air_above_m",
-                self.in_air_above_m,
-                "on_ground_below_m",
-                self.on_ground_below_m,
-                "m",
-                "height",
-            ),
-            (
-                "in_air_faster_mps",
-                self.in_air_faster_mps,
-                "on_ground_slower_mps",
-                self.on_ground_slower_mps,
-                "m/s",
-                "speed",
-            ),
-        ] {
-            if air_v <= ground_v {
-                return refuse(
-                    air,
-                    format!(
-                        "{air_v} {unit}: expected a {what} above ground_detection.{ground} \
-                         ({ground_v} {unit}): the gap between them is the \
-                         hysteresis that keeps the phase from chattering"
-                    ),
-                );
-            }
-        }
-        Ok(())
     }
 }
 

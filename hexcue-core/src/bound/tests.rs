@@ -1,5 +1,6 @@
 use nalgebra::Vector3;
 
+use super::achieved::{first_pass, legs_sequence};
 use super::*;
 use crate::score::soft_dead_zone;
 use crate::testing::full_flight;
