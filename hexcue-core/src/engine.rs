@@ -920,8 +920,9 @@ impl Engine {
         // The flight's future only where the profile asks for it and the source has one;
         // elsewhere the forecast, from the samples stepped so far only (the live code path,
         // on a recorded flight too); else the future, which no MPC then reads.
-        let forecast = ForecastParams::of(&self.profile);
-        if forecast.forecast_s > 0.0 {
+        // The key read first: the parameters (the limits in SI among them) only with it on.
+        if self.profile.mpc.forecast_s > 0.0 {
+            let forecast = ForecastParams::of(&self.profile);
             self.forecaster.push(&sample, &forecast);
             if !(self.profile.mpc.preview && self.source.can_read_ahead()) {
                 preview = self.forecaster.forecast(self.preview_len, &forecast);
