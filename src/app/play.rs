@@ -148,10 +148,7 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
     // The trace file is read twice, whatever its length: once to check it, which also
     // compresses and hashes it for the recording, and once as it is stepped.
     let mut copy = match (&args.record, &args.trace) {
-        (Some(record), Some(trace)) => {
-            let text_bytes = std::fs::metadata(trace).ok().map(|m| m.len());
-            Some(TraceCopy::beside(record, text_bytes)?)
-        }
+        (Some(record), Some(trace)) => Some(TraceCopy::beside(record, trace)?),
         _ => None,
     };
     let play = open_play_source(

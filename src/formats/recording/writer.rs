@@ -219,8 +219,7 @@ impl Recorder {
             action: "compress the trace for the recording",
             error,
         };
-        let text_bytes = std::fs::metadata(trace).ok().map(|m| m.len());
-        let mut copy = TraceCopy::beside(path, text_bytes)?;
+        let mut copy = TraceCopy::beside(path, trace)?;
         File::open(trace)
             .and_then(|mut file| io::copy(&mut file, &mut copy))
             .map_err(failed)?;
@@ -797,11 +796,12 @@ pub struct TraceCopy {
 }
 
 impl TraceCopy {
-    /// A scratch file beside the recording at `recording` (its name + `.trace.zst`), for a
-    /// trace of `text_bytes` when known (which sets the zstd level).
-    pub fn beside(recording: &Path, text_bytes: Option<u64>) -> Result<Self, RecordingError> {
+    /// A scratch file beside the recording at `recording` (its name + `.trace.zst`) for the
+    /// trace file `trace`, whose length sets the zstd level.
+    pub fn beside(recording: &Path, trace: &Path) -> Result<Self, RecordingError> {
         let mut name = recording.as_os_str().to_owned();
         name.push(".trace.zst");
+        let text_bytes = std::fs::metadata(trace).ok().map(|m| m.len());
         Self::to(PathBuf::from(name), text_bytes)
     }
 
