@@ -1144,6 +1144,56 @@ fn the_preview_key_sees_the_future_and_falls_back_without_one() {
     assert_eq!(p.mpc.reference_with(false), p.mpc.reference);
 }
 
+/// The controlled experiment for the preview branch: a future equal to the held present is
+/// the `hold` reference, so the two must plan alike, the followed rotation included (both
+/// carry the followed channel's present rate over the horizon), for the free MPC and for COTC
+/// with its 4.3 s horizon. What tells the preview branch from `decay` (the followed rate
+/// held, not faded) and what changing it did is in docs/mpc.md, "Forecast where no future is
+/// known".
+#[test]
+fn a_held_future_previews_as_the_hold_reference() {
+    let p = full_flight();
+    for (base, terminal) in [
+        (p.mpc.clone(), Terminal::Free),
+        (p.cotc_params(), Terminal::Cotc),
+    ] {
+        let mut hold = base.clone();
+        hold.reference = ReferenceMode::Hold;
+        hold.preview = false;
+        let mut seen = base.clone();
+        seen.preview = true;
+        let mut held = Mpc::new(&hold, &p.setting(), terminal).unwrap();
+        let mut previewed = Mpc::new(&seen, &p.setting(), terminal).unwrap();
+        let (mut applied_h, mut applied_p) =
+            (PlatformCommand::default(), PlatformCommand::default());
+        let mut future = vec![sample([0.0; 3], [0.0; 3]); 500];
+        let mut worst: f64 = 0.0;
+        for k in 0..1200 {
+            let now = crate::testing::manoeuvre_cue(k as f64 * 0.01);
+            future.fill(now);
+            let input = |preview, applied| CueInput {
+                k,
+                t_s: k as f64 * 0.01,
+                dt_s: 0.01,
+                sample: now,
+                preview,
+                applied,
+                deadline: None,
+            };
+            let a = held.solve(&input(&[], &applied_h));
+            let b = previewed.solve(&input(&future, &applied_p));
+            assert_eq!(a.feasible, b.feasible, "{terminal:?} step {k}");
+            let d = (a.command.pose - b.command.pose)
+                .amax()
+                .max((a.command.velocity - b.command.velocity).amax());
+            worst = worst.max(d);
+            applied_h = a.command;
+            applied_p = b.command;
+        }
+        assert!(worst < 1e-8, "{terminal:?}: commands {worst} apart");
+    }
+}
+
 #[test]
 fn the_braking_reach_bounds_the_limiter_s_stopping_distance() {
     // Shipped limits: surge 1.5 m/s and 10 m/s², roll 30 °/s and 200 °/s², at 100 Hz.
