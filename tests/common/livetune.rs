@@ -101,10 +101,15 @@ fn spawn(
     dir: &Path,
     algorithms: &str,
     drive: &str,
+    profile: Option<&Path>,
 ) -> (Reaped, mpsc::Receiver<String>) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_hexcue"))
+    let mut command = Command::new(env!("CARGO_BIN_EXE_hexcue"));
+    command.arg("live");
+    if let Some(p) = profile {
+        command.arg("--profile").arg(p);
+    }
+    let mut child = command
         .args([
-            "live",
             "--headless",
             "--input",
             &format!("jsbsim://127.0.0.1:{in_port}"),
@@ -189,11 +194,34 @@ impl Flight {
         drive: &str,
         fly: impl FnOnce(u16, &Path) -> Simulator,
     ) -> (Flight, Value) {
+        Self::start_with(algorithms, drive, None, fly)
+    }
+
+    /// [`Flight::start`] on the profile `profile` (TOML text, written into the session's
+    /// directory) rather than the default one.
+    pub fn start_with(
+        algorithms: &str,
+        drive: &str,
+        profile: Option<&str>,
+        fly: impl FnOnce(u16, &Path) -> Simulator,
+    ) -> (Flight, Value) {
         let dir = tempfile::tempdir().unwrap();
+        let profile = profile.map(|text| {
+            let path = dir.path().join("profile.toml");
+            std::fs::write(&path, text).unwrap();
+            path
+        });
         let stop = Arc::new(AtomicBool::new(false));
         let (out_port, commands, listener) = command_listener(stop.clone());
         let in_port = free_udp_port();
-        let (child, stderr) = spawn(in_port, out_port, dir.path(), algorithms, drive);
+        let (child, stderr) = spawn(
+            in_port,
+            out_port,
+            dir.path(),
+            algorithms,
+            drive,
+            profile.as_deref(),
+        );
         let mut lines = Vec::new();
         let addr = serving(&stderr, &mut lines);
         let mut socket = connect(&addr);
