@@ -381,6 +381,13 @@ pub fn motion_gain_to_zero(mut flight: Flight, info: &Value) -> GainToZero {
         .collect();
     assert_eq!(changes.len(), 1, "{events:?}");
     eprintln!("event: {}", changes[0]);
+    // Motion off: the platform brought back along a way back, said once (docs/parameters.md).
+    let off: Vec<&String> = events
+        .iter()
+        .filter(|e| e.starts_with("motion off (every gain at 0)"))
+        .collect();
+    assert_eq!(off.len(), 1, "{events:?}");
+    eprintln!("event: {}", off[0]);
     assert!(
         changes[0].starts_with("parameter motion_gain set: 1 → 0"),
         "{}",
