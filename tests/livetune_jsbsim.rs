@@ -52,15 +52,19 @@ fn input_column(mcap: &Path, name: &str) -> Vec<f64> {
         .collect()
 }
 
-// Not yet in the default run: in 2 of 5 runs of this machine the pose reached neutral 5.35 s
-// after the request, or JSBSim lost the input under load (docs/parameters.md, "Measured").
 #[test]
-#[ignore = "issue 36: neutral came after 5 s in some real-JSBSim runs; see docs/parameters.md"]
 fn motion_gain_to_zero_from_foxglove_while_jsbsim_rolls_reaches_neutral_without_a_jolt() {
     let Some(python) = python_venv("jsbsim-venv", &["jsbsim"], "import jsbsim") else {
         return;
     };
-    let (flight, info) = Flight::start("cwf", "cwf", |port, dir| {
+    // The shipped profile with a longer input timeout: JSBSim's Python paces itself in real
+    // time and, descheduled on a loaded machine, once sent nothing for more than the 0.2 s
+    // timeout, and the session rightly washed out (hexcue stamps a sample when it reads it,
+    // so its own lateness loses nothing). The check is of the tuning, not of the loss.
+    let shipped = std::fs::read_to_string(repo().join("profiles/full-flight.toml")).unwrap();
+    assert_eq!(shipped.matches("input_timeout_s = 0.2 ").count(), 1);
+    let profile = shipped.replace("input_timeout_s = 0.2 ", "input_timeout_s = 2.0 ");
+    let (flight, info) = Flight::start_with("cwf", "cwf", Some(&profile), |port, dir| {
         let log = std::fs::File::create(dir.join("jsbsim.txt")).unwrap();
         // 120 s: far longer than the session; killed once it is over. The aileron's authority
         // may be set for a measurement (docs/parameters.md, "Measured").

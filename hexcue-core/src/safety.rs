@@ -12,6 +12,8 @@
 //! platform's pose, velocity and acceleration as the poses sent define them, at the gentlest
 //! limits of the profile's `[safety]` that do; the fade-in's gain is a C² ramp.
 
+#[cfg(test)]
+mod motion_off_tests;
 pub mod path;
 
 use nalgebra::{Vector3, Vector6};
@@ -465,6 +467,9 @@ pub struct Safety {
     /// under way, and the last one ended, not yet taken by [`Safety::take_workspace_brake`].
     workspace_brake: Option<WorkspaceBrake>,
     workspace_brake_done: Option<WorkspaceBrake>,
+    /// Every gain on the command is at 0 (motion off, [`Safety::motion_off`]) while engaging
+    /// or running: the way back planned then is followed instead of the gained command.
+    motion_off: bool,
     /// Steps since the stage was made.
     steps: u64,
 }
@@ -539,6 +544,7 @@ impl Safety {
             handover_pose: None,
             workspace_brake: None,
             workspace_brake_done: None,
+            motion_off: false,
             steps: 0,
         }
     }
@@ -652,6 +658,9 @@ impl Safety {
         limiter: Option<&WorkspaceLimiter>,
     ) -> PlatformCommand {
         match self.state {
+            SafetyState::Engaging | SafetyState::Running if self.motion_off => {
+                self.motion_off_step(algorithm)
+            }
             SafetyState::Engaging | SafetyState::Running => self.hand_over(algorithm, limiter),
             SafetyState::Washout | SafetyState::Estop => self.neutral.step(),
             SafetyState::Parked => PlatformCommand::default(),
@@ -660,6 +669,58 @@ impl Safety {
                 ..Default::default()
             },
         }
+    }
+
+    /// Whether every gain on the command is asked to be 0 (the master gain `motion_gain`, or
+    /// all of the per-DoF ones), told before each step's [`Self::command_checked`]. While
+    /// engaging or running, the step it becomes so plans a way back to neutral from the
+    /// platform's state as the poses sent define it ([`NeutralReturn`], as a stop does), and
+    /// the platform follows that way back rather than the gained command, staying at rest on
+    /// neutral at its end; the way back planned is returned, once, for the event. A gained
+    /// command fading to zero reaches neutral only after the hand-over stage has caught up
+    /// with it, which a command beyond the stage's bounds (a roll reversal at full aileron)
+    /// delays past the gain's own path: 5.35 s measured against JSBSim where the gain's path
+    /// was 4.22 s (docs/parameters.md, *Motion off*). The way back is at rest on neutral within
+    /// the return time from any state the stage can send. When a gain comes back up, the
+    /// hand-over stage takes the gained command back from where the platform is, within its
+    /// bounds.
+    pub fn motion_off(&mut self, off: bool) -> Option<&NeutralReturn> {
+        let cueing = matches!(self.state, SafetyState::Engaging | SafetyState::Running);
+        let start = off && cueing && !self.motion_off;
+        self.motion_off = off && cueing;
+        if !start {
+            return None;
+        }
+        self.neutral
+            .start(&state_from_poses(&self.sent_poses, self.dt_s));
+        Some(&self.neutral)
+    }
+
+    /// Whether the platform follows a way back because every gain is at 0.
+    pub fn is_motion_off(&self) -> bool {
+        self.motion_off
+    }
+
+    /// A step of the way back of [`Self::motion_off`]. The hand-over stage's memory moves on
+    /// with it (the algorithm's poses, the stop it keeps possible from the poses it gave), so
+    /// that it takes the command back from here without a step when a gain comes back up.
+    fn motion_off_step(&mut self, algorithm: &PlatformCommand) -> PlatformCommand {
+        let [_, p1, p0] = self.sent_poses;
+        let [_, x1] = self.algorithm_poses;
+        let x0 = Vector6::from_fn(|i, _| {
+            let x = algorithm.pose[i];
+            if x.is_finite() {
+                x
+            } else {
+                p0[i]
+            }
+        });
+        self.algorithm_poses = [x1, x0];
+        let out = self.neutral.step();
+        self.handover_stop = self.stop_from(&[p1, p0, out.pose]);
+        self.handover_stop_k = 0;
+        self.handover_pose = Some(out.pose);
+        out
     }
 
     /// The driving algorithm's command as the platform gets it while engaging and running:

@@ -512,6 +512,8 @@ impl LiveSession {
             let at_once = plan.reset_algorithms || plan.cue_gain == 0.0;
             self.engine.set_on_ground(on_ground, at_once);
         }
+        // Every gain at 0: back to neutral from where the platform is (docs/parameters.md).
+        self.motion_off(t_s);
         if let Some((sample, _)) = latest {
             self.engine.push_sample(sample);
         }
@@ -662,7 +664,7 @@ impl LiveSession {
     /// Counts the way back to neutral planned at this step, and tells the operator of every
     /// DoF that needed more than the gentle limits (an event, and the summary's
     /// `transitions.hard_brakes`).
-    fn transition_events(&mut self, t_s: f64) {
+    pub(super) fn transition_events(&mut self, t_s: f64) {
         let neutral = self.safety.neutral_return();
         let gentle = &self.safety.params().transitions.gentle_acceleration;
         let summary = &mut self.stats.transitions;

@@ -277,3 +277,27 @@ impl LiveSession {
         self.events.push(Event { t_s, level, text });
     }
 }
+
+/// Motion off (issue 36, docs/parameters.md *Motion off*).
+impl LiveSession {
+    /// Tells the safety stage whether every gain is at 0 this step (`motion_gain` = 0, or all
+    /// six): it then brings the platform back to neutral along a way back planned from where
+    /// it is, at rest within the return time, rather than behind a gained command the
+    /// hand-over stage may still be catching up with. The way back is an event and a
+    /// transition of the summary.
+    pub(super) fn motion_off(&mut self, t_s: f64) {
+        let off = self.engine.gains().target() == nalgebra::Vector6::zeros();
+        let Some(d) = self.safety.motion_off(off).map(|r| r.duration_s()) else {
+            return;
+        };
+        self.events.push(Event {
+            t_s,
+            level: EventLevel::Info,
+            text: format!(
+                "motion off (every gain at 0): the platform back to neutral from where it is, \
+                 at rest in {d:.2} s"
+            ),
+        });
+        self.transition_events(t_s);
+    }
+}

@@ -101,10 +101,15 @@ fn spawn(
     dir: &Path,
     algorithms: &str,
     drive: &str,
+    profile: Option<&Path>,
 ) -> (Reaped, mpsc::Receiver<String>) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_hexcue"))
+    let mut command = Command::new(env!("CARGO_BIN_EXE_hexcue"));
+    command.arg("live");
+    if let Some(p) = profile {
+        command.arg("--profile").arg(p);
+    }
+    let mut child = command
         .args([
-            "live",
             "--headless",
             "--input",
             &format!("jsbsim://127.0.0.1:{in_port}"),
@@ -189,11 +194,34 @@ impl Flight {
         drive: &str,
         fly: impl FnOnce(u16, &Path) -> Simulator,
     ) -> (Flight, Value) {
+        Self::start_with(algorithms, drive, None, fly)
+    }
+
+    /// [`Flight::start`] on the profile `profile` (TOML text, written into the session's
+    /// directory) rather than the default one.
+    pub fn start_with(
+        algorithms: &str,
+        drive: &str,
+        profile: Option<&str>,
+        fly: impl FnOnce(u16, &Path) -> Simulator,
+    ) -> (Flight, Value) {
         let dir = tempfile::tempdir().unwrap();
+        let profile = profile.map(|text| {
+            let path = dir.path().join("profile.toml");
+            std::fs::write(&path, text).unwrap();
+            path
+        });
         let stop = Arc::new(AtomicBool::new(false));
         let (out_port, commands, listener) = command_listener(stop.clone());
         let in_port = free_udp_port();
-        let (child, stderr) = spawn(in_port, out_port, dir.path(), algorithms, drive);
+        let (child, stderr) = spawn(
+            in_port,
+            out_port,
+            dir.path(),
+            algorithms,
+            drive,
+            profile.as_deref(),
+        );
         let mut lines = Vec::new();
         let addr = serving(&stderr, &mut lines);
         let mut socket = connect(&addr);
@@ -353,6 +381,13 @@ pub fn motion_gain_to_zero(mut flight: Flight, info: &Value) -> GainToZero {
         .collect();
     assert_eq!(changes.len(), 1, "{events:?}");
     eprintln!("event: {}", changes[0]);
+    // Motion off: the platform brought back along a way back, said once (docs/parameters.md).
+    let off: Vec<&String> = events
+        .iter()
+        .filter(|e| e.starts_with("motion off (every gain at 0)"))
+        .collect();
+    assert_eq!(off.len(), 1, "{events:?}");
+    eprintln!("event: {}", off[0]);
     assert!(
         changes[0].starts_with("parameter motion_gain set: 1 → 0"),
         "{}",
