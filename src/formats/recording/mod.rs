@@ -14,6 +14,7 @@ pub mod meta_key;
 mod reader;
 mod recover;
 mod source;
+mod worker;
 mod writer;
 
 use std::io;
@@ -31,6 +32,7 @@ use hexcue_core::trace::TraceInfo;
 
 pub use reader::{plural, Damage, Frames, JsonMessage, JsonMessages, LostSteps, Recording};
 pub use recover::{recover, RecoverStats};
+pub use worker::{RecorderThread, CAPACITY_FRAMES};
 pub use writer::{CompressedTrace, Recorder, TraceCopy};
 
 /// Name of the metadata record hexcue writes.

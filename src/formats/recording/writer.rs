@@ -889,7 +889,7 @@ impl Drop for CompressedTrace {
     }
 }
 
-fn session_metadata(meta: &RecordingMeta, start_ns: u64) -> BTreeMap<String, String> {
+pub(super) fn session_metadata(meta: &RecordingMeta, start_ns: u64) -> BTreeMap<String, String> {
     let algorithms: Vec<&str> = meta.algorithms.iter().map(|a| a.key()).collect();
     [
         (meta_key::TOOL, "hexcue".to_string()),
