@@ -12,16 +12,18 @@
 
 use std::io;
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::thread::JoinHandle;
 
+use super::writer::FLUSH_INTERVAL;
 use super::{shown, Recorder, RecordingError, RecordingStats};
 use hexcue_core::engine::Frame;
 use hexcue_core::events::EventLevel;
 
-/// Frames the channel holds: 10 s at 100 Hz, about 3 MB. Far more than the stepping thread
-/// gets ahead while the worker compresses a chunk (a second of flight, a few ms), so that
-/// on two cores the two threads rarely wait for each other.
+/// Frames the channel holds: 10 s at 100 Hz, under 4 MB (its slots are allocated with it;
+/// test `the_channel_holds_at_most_4_mb`). Far more than the stepping thread gets ahead
+/// while the worker compresses a chunk (a second of flight, a few ms), so that on two
+/// cores the two threads rarely wait for each other.
 pub const CAPACITY_FRAMES: usize = 1024;
 
 /// What the worker is asked to write.
@@ -35,7 +37,6 @@ enum Job {
         source: &'static str,
         text: String,
     },
-    Flush,
 }
 
 /// The stepping thread's end: hands frames and events to the worker that owns the
@@ -100,12 +101,6 @@ impl RecorderThread {
             source,
             text: text.to_string(),
         })
-    }
-
-    /// [`Recorder::flush`] on the worker, after what was handed over before (a console that
-    /// pauses): returns without waiting for it.
-    pub fn flush(&mut self) -> Result<(), RecordingError> {
-        self.send(Job::Flush)
     }
 
     fn send(&mut self, job: Job) -> Result<(), RecordingError> {
@@ -178,9 +173,23 @@ impl Drop for RecorderThread {
 
 /// The worker: every job in order, until the stepping thread hangs up (the recorder comes
 /// back to be finished) or a write fails (its error comes back; the recorder is dropped,
-/// which finishes the file with what it holds).
+/// which finishes the file with what it holds). When no job has come for a second (a
+/// console paused), what it holds goes to the OS, as the recorder does every second
+/// of a run (docs/recordings.md, "Crash behaviour").
 fn write_jobs(mut recorder: Recorder, rx: Receiver<Job>) -> Result<Recorder, RecordingError> {
-    for job in rx.iter() {
+    let mut unflushed = false;
+    loop {
+        let job = match rx.recv_timeout(FLUSH_INTERVAL) {
+            Ok(job) => job,
+            Err(RecvTimeoutError::Timeout) => {
+                if std::mem::take(&mut unflushed) {
+                    recorder.flush()?;
+                }
+                continue;
+            }
+            Err(RecvTimeoutError::Disconnected) => return Ok(recorder),
+        };
+        unflushed = true;
         match job {
             Job::Frame(frame) => recorder.record(&frame)?,
             Job::Event {
@@ -189,10 +198,8 @@ fn write_jobs(mut recorder: Recorder, rx: Receiver<Job>) -> Result<Recorder, Rec
                 source,
                 text,
             } => recorder.event(t_s, level, source, &text)?,
-            Job::Flush => recorder.flush()?,
         }
     }
-    Ok(recorder)
 }
 
 #[cfg(test)]
@@ -263,7 +270,7 @@ mod tests {
     const EVENT_AT: usize = 700;
 
     #[test]
-    fn the_thread_writes_what_the_recorder_writes_in_the_same_order_to_the_last_step() {
+    fn the_thread_writes_what_the_recorder_writes_at_the_same_steps_to_the_last_one() {
         let frames = frames();
         let dir = tempfile::tempdir().unwrap();
         let (direct, threaded) = (dir.path().join("direct.mcap"), dir.path().join("t.mcap"));
@@ -288,8 +295,14 @@ mod tests {
         let stats = rec.finish().unwrap();
         assert_eq!(stats.steps, frames.len() as u64);
         assert_eq!(stats.messages, direct_stats.messages);
-        let (a, b) = (messages(&direct), messages(&threaded));
+        // In log-time order, as readers give them: where a chunk ends depends on the wall
+        // clock too (a flush at least every second), and a chunk groups its messages by
+        // topic. The sequence numbers (the step each message was written at) show the order
+        // the frames and the event were written in.
+        let (mut a, mut b) = (messages(&direct), messages(&threaded));
         assert_eq!(a.len(), b.len());
+        a.sort_by(|x, y| (x.2, &x.0, x.1).cmp(&(y.2, &y.0, y.1)));
+        b.sort_by(|x, y| (x.2, &x.0, x.1).cmp(&(y.2, &y.0, y.1)));
         assert!(a == b, "the messages differ");
         let event = |m: &(String, u32, u64, Vec<u8>)| {
             m.0 == "/events" && m.3.windows(10).any(|w| w == b"input lost")
@@ -338,6 +351,43 @@ mod tests {
         );
         let e = rec.finish().unwrap_err().to_string();
         assert!(e.contains("bad-time.mcap"), "{e}");
+    }
+
+    /// Handed over and not finished, the frames reach the file once the worker has had
+    /// nothing to do for a second: read back from the unfinished file.
+    #[test]
+    fn an_idle_worker_hands_what_it_holds_to_the_os() {
+        let frames = frames();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("paused.mcap");
+        let mut rec = RecorderThread::spawn(recorder(&path)).unwrap();
+        // Under a second of trace time: the recorder itself would not flush them yet.
+        let handed = 50;
+        for frame in &frames[..handed] {
+            rec.record(frame).unwrap();
+        }
+        let readable = || {
+            Recording::open(&path)
+                .ok()
+                .and_then(|r| r.frames().ok().map(|f| f.count()))
+                .unwrap_or(0)
+        };
+        let waited = std::time::Instant::now();
+        while readable() < handed {
+            assert!(
+                waited.elapsed() < std::time::Duration::from_secs(60),
+                "{} of {handed} frames in the file after a minute",
+                readable()
+            );
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        assert_eq!(rec.finish().unwrap().steps, handed as u64);
+    }
+
+    #[test]
+    fn the_channel_holds_at_most_4_mb() {
+        let bytes = std::mem::size_of::<Job>() * CAPACITY_FRAMES;
+        assert!(bytes <= 4 << 20, "{bytes} bytes");
     }
 
     #[test]
