@@ -609,3 +609,49 @@ fn a_recording_damaged_in_its_middle_keeps_its_intact_chunks() {
     assert!(stderr(&out).contains("skipped steps"), "{}", stderr(&out));
     assert!(svg.exists(), "the figure of the intact steps is written");
 }
+
+/// A write that fails in the middle of a run (the file size limit, as a full disk would):
+/// the recorder, on its own thread, stops, and the run ends with its error, which names the
+/// file and the cause.
+#[test]
+fn a_write_error_in_the_middle_of_a_run_names_the_file_and_the_cause() {
+    use std::os::unix::process::CommandExt;
+    const LIMIT_BYTES: u64 = 300_000;
+    let path = scratch().join("too-large.mcap");
+    let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_hexcue"));
+    command
+        .args(["play", "--headless", "--algorithms", "cwf", "--trace"])
+        .arg(repo().join("recordings/traces/landing.csv"))
+        .arg("--record")
+        .arg(&path);
+    // SAFETY: between fork and exec only two system calls, both async-signal-safe.
+    unsafe {
+        command.pre_exec(|| {
+            let limit = libc::rlimit {
+                rlim_cur: LIMIT_BYTES,
+                rlim_max: LIMIT_BYTES,
+            };
+            if libc::setrlimit(libc::RLIMIT_FSIZE, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            // A write past the limit then fails with EFBIG instead of killing the process.
+            libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+            Ok(())
+        });
+    }
+    let out = command.output().unwrap();
+    let err = stderr(&out);
+    assert!(!out.status.success(), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(
+        err.contains(&format!("{}: cannot write the recording", path.display())),
+        "{err}"
+    );
+    assert!(err.contains("File too large"), "{err}");
+    // Stopped in the middle: the attachments and the first chunks were written.
+    let written = std::fs::metadata(&path).unwrap().len();
+    assert!(
+        written > LIMIT_BYTES / 2 && written <= LIMIT_BYTES,
+        "{written} bytes"
+    );
+}

@@ -167,7 +167,7 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
                 Some(copy) => Recorder::create_with_compressed_trace(path, &meta, copy.finish()?),
                 None => create_recorder(path, &mut meta, None),
             };
-            Some(McapSink::headless(recorder?))
+            Some(recorder?)
         }
         None => None,
     };
@@ -208,7 +208,7 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
                 sinks.push(Box::new(Quiet(Box::new(server))));
             }
             if let Some(recorder) = recorder {
-                sinks.push(Box::new(recorder));
+                sinks.push(Box::new(McapSink::headless(recorder)?));
             }
         }
     }
@@ -302,7 +302,7 @@ pub fn run_console(args: &PlayArgs) -> Result<()> {
     }
     let factory: tui::SinkFactory = Box::new(move |request: &tui::RecordingRequest| {
         let recorder = create_recorder(&request.path, &mut meta, trace_path.as_deref());
-        Ok(Box::new(McapSink::console(recorder?)) as Box<dyn FrameSink>)
+        Ok(Box::new(McapSink::console(recorder?)?) as Box<dyn FrameSink>)
     });
     let outcome = tui::run_live(cfg, factory)?;
     exit_for_signal(outcome.signal)

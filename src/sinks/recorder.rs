@@ -2,39 +2,46 @@
 
 use anyhow::{Context, Result};
 
-use crate::formats::recording::{Recorder, RecordingStats};
+use crate::formats::recording::{Recorder, RecorderThread, RecordingStats};
 use crate::foxglove::FoxgloveServer;
 use crate::session::FrameSink;
 use hexcue_core::engine::Frame;
 
-/// An MCAP recorder as a frame sink.
+/// An MCAP recorder as a frame sink, on a thread of its own ([`RecorderThread`]): the
+/// stepping thread hands each frame over and goes on, and waits only when the recorder is
+/// [`crate::formats::recording::CAPACITY_FRAMES`] frames behind. A write error comes back
+/// at the next frame or at the end, with the file's name.
 pub struct McapSink {
-    recorder: Recorder,
+    recorder: RecorderThread,
     said: fn(&str, &RecordingStats) -> String,
 }
 
 impl McapSink {
     /// A recording the console started: its closing line names the steps, for the operator
     /// who may have recorded only part of the trace.
-    pub fn console(recorder: Recorder) -> Self {
-        McapSink {
-            recorder,
+    pub fn console(recorder: Recorder) -> Result<Self> {
+        Ok(McapSink {
+            recorder: RecorderThread::spawn(recorder)?,
             said: |path, stats| {
                 format!(
                     "recorded {path}: {} steps, {} messages",
                     stats.steps, stats.messages
                 )
             },
-        }
+        })
     }
 
     /// The `--record` file of a headless run, which holds the whole run.
-    pub fn headless(recorder: Recorder) -> Self {
-        McapSink {
-            recorder,
-            said: |path, stats| format!("recorded {path} ({} messages)", stats.messages),
-        }
+    pub fn headless(recorder: Recorder) -> Result<Self> {
+        Ok(McapSink {
+            recorder: RecorderThread::spawn(recorder)?,
+            said: headless_said,
+        })
     }
+}
+
+fn headless_said(path: &str, stats: &RecordingStats) -> String {
+    format!("recorded {path} ({} messages)", stats.messages)
 }
 
 impl FrameSink for McapSink {
@@ -66,41 +73,49 @@ impl FrameSink for McapSink {
 /// A recording and a live Foxglove server fed the same frames (`play --headless --record
 /// --foxglove`): each message is encoded once, for the file, and the server sends those
 /// bytes at the recording's log times (`channels::MessageTap`). The 3D topics are drawn at
-/// every step only while a client subscribes to them; the file keeps its rate.
+/// every step only while a client subscribes to them; the file keeps its rate. On the
+/// stepping thread, unlike [`McapSink`]: such a run is paced (real time by default) for a
+/// viewer to follow, so the recorder's time is not what sets its speed.
 pub struct RecordedAndServed {
-    recording: McapSink,
+    recorder: Recorder,
     server: FoxgloveServer,
 }
 
 impl RecordedAndServed {
-    pub fn new(recording: McapSink, server: FoxgloveServer) -> Self {
-        RecordedAndServed { recording, server }
+    pub fn new(recorder: Recorder, server: FoxgloveServer) -> Self {
+        RecordedAndServed { recorder, server }
     }
 }
 
 impl FrameSink for RecordedAndServed {
     fn record(&mut self, frame: &Frame) -> Result<()> {
-        if self.recording.recorder.draws_scene() {
-            Ok(self
-                .recording
-                .recorder
-                .record_with(frame, Some(&mut self.server))?)
+        if self.recorder.draws_scene() {
+            Ok(self.recorder.record_with(frame, Some(&mut self.server))?)
         } else {
             // No rigs in the recording (its profile is unknown): the server draws its own.
             self.server.publish(frame);
-            Ok(self.recording.recorder.record(frame)?)
+            Ok(self.recorder.record(frame)?)
         }
     }
 
     fn event(&mut self, event: &hexcue_core::events::Event) -> Result<()> {
         FrameSink::event(&mut self.server, event)?;
-        self.recording.event(event)
+        Ok(self.recorder.event(
+            event.t_s,
+            event.level,
+            crate::channels::scene::SESSION_SOURCE,
+            &event.text,
+        )?)
     }
 
     fn finish(self: Box<Self>) -> Result<String> {
-        let RecordedAndServed { recording, server } = *self;
+        let RecordedAndServed { recorder, server } = *self;
         server.stop();
-        Box::new(recording).finish()
+        let path = recorder.path().display().to_string();
+        let stats = recorder
+            .finish()
+            .with_context(|| format!("{path}: cannot finish the recording"))?;
+        Ok(headless_said(&path, &stats))
     }
 }
 

@@ -14,6 +14,7 @@ pub mod meta_key;
 mod reader;
 mod recover;
 mod source;
+mod worker;
 mod writer;
 
 use std::io;
@@ -31,6 +32,7 @@ use hexcue_core::trace::TraceInfo;
 
 pub use reader::{plural, Damage, Frames, JsonMessage, JsonMessages, LostSteps, Recording};
 pub use recover::{recover, RecoverStats};
+pub use worker::{RecorderThread, CAPACITY_FRAMES};
 pub use writer::{CompressedTrace, Recorder, TraceCopy};
 
 /// Name of the metadata record hexcue writes.
@@ -61,7 +63,7 @@ pub enum RecordingError {
         action: &'static str,
         error: io::Error,
     },
-    #[error("{path}: cannot write the recording: {error}")]
+    #[error("{path}: cannot write the recording: {}", with_cause(.error))]
     Write { path: String, error: McapError },
     #[error("{path}: not an MCAP file: it does not start with the MCAP magic bytes")]
     NotMcap { path: String },
@@ -109,6 +111,16 @@ pub enum RecordingError {
     BadTime { path: String, t_s: f64 },
     #[error("{path}: refusing to overwrite the recording being recovered")]
     SameFile { path: String },
+}
+
+/// An MCAP error with the I/O error under it, which the mcap crate's own message leaves out
+/// ("I/O error from writing, or reading a compression stream": a full disk, a file too
+/// large).
+fn with_cause(error: &McapError) -> String {
+    match error {
+        McapError::Io(cause) => format!("{error}: {cause}"),
+        _ => error.to_string(),
+    }
 }
 
 fn shown(path: &Path) -> String {

@@ -36,7 +36,7 @@ const PENDING_BYTES: usize = 2 * 1024 * 1024;
 /// the two times.
 const MESSAGE_RECORD_BYTES: usize = 1 + 8 + 2 + 4 + 8 + 8;
 /// Longest stretch of data, in wall time and in trace time, that a crash may lose.
-const FLUSH_INTERVAL: Duration = Duration::from_secs(1);
+pub(super) const FLUSH_INTERVAL: Duration = Duration::from_secs(1);
 const FLUSH_INTERVAL_S: f64 = 1.0;
 /// The Foxglove 3D topics (`/ALG/tf`, `/ALG/scene`) are written at this rate or faster: a
 /// film's rate, so that the 3D panel plays the platforms back smoothly. They draw
@@ -889,7 +889,7 @@ impl Drop for CompressedTrace {
     }
 }
 
-fn session_metadata(meta: &RecordingMeta, start_ns: u64) -> BTreeMap<String, String> {
+pub(super) fn session_metadata(meta: &RecordingMeta, start_ns: u64) -> BTreeMap<String, String> {
     let algorithms: Vec<&str> = meta.algorithms.iter().map(|a| a.key()).collect();
     [
         (meta_key::TOOL, "hexcue".to_string()),
