@@ -47,7 +47,8 @@ pub struct SwitchingParams {
     pub awr_neutral_usage: f64,
     /// Time constant of the relaxation back toward the nominal weights (s).
     pub awr_relax_s: f64,
-    /// COTC's own horizon and translational washout (`[smpc.cotc]`); `[mpc]` otherwise.
+    /// COTC's own horizon, translational washout and whichever cost keys it takes apart
+    /// (`[smpc.cotc]`, `CotcOverrides`); `[mpc]` otherwise.
     #[serde(default)]
     pub cotc: CotcOverrides,
 }

@@ -452,71 +452,111 @@ impl MpcParams {
     }
 }
 
-/// Where COTC's tuning departs from `[mpc]` (the profile's `[smpc.cotc]` table): its own
-/// prediction grid after the fine intervals, and its own translational washout. Absent keys
-/// keep the `[mpc]` values.
-///
-/// Why COTC is tuned apart: its terminal conditions already bring the platform to rest at
-/// neutral by the end of the horizon, so the washout terms that stand in for them in the free
-/// MPC only take cue away; and a plan that must be undone within the horizon is gentler, and
-/// gives more cue, when the horizon is longer (docs/mpc.md, "COTC's own tuning").
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CotcOverrides {
-    /// Length of COTC's coarse intervals (s).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub coarse_step_s: Option<f64>,
-    /// Number of COTC's coarse intervals.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub coarse_steps: Option<usize>,
-    /// COTC's washout weight on the platform position per axis, per m².
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub washout_position_weight: Option<[f64; 3]>,
-    /// COTC's washout weight on the platform velocity per axis, per (m/s)².
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub washout_velocity_weight: Option<[f64; 3]>,
-    /// COTC's share of the sustained surge and sway carried by tilt: its terminal tilt.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub tilt_share: Option<f64>,
+/// Declares `CotcOverrides` with one optional field per overridable `[mpc]` key (same name,
+/// same type), and its `apply` and `overrides` from the same list, so that a key cannot be
+/// parsed without being applied or be applied without naming `[smpc.cotc]` in its errors.
+macro_rules! cotc_overrides {
+    ($(#[$sdoc:meta])* { $($(#[$doc:meta])* $name:ident: $ty:ty,)* }) => {
+        $(#[$sdoc])*
+        #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct CotcOverrides {
+            $(
+                $(#[$doc])*
+                #[serde(default, skip_serializing_if = "Option::is_none")]
+                pub $name: Option<$ty>,
+            )*
+        }
+
+        impl CotcOverrides {
+            /// COTC's parameters: `[mpc]` with these overrides applied.
+            pub fn apply(&self, mpc: &MpcParams) -> MpcParams {
+                let mut m = mpc.clone();
+                $(
+                    if let Some(v) = self.$name {
+                        m.$name = v;
+                    }
+                )*
+                m
+            }
+
+            /// Whether `[smpc.cotc]` sets the `[mpc]` key `name`.
+            fn overrides(&self, name: &str) -> bool {
+                match name {
+                    $(stringify!($name) => self.$name.is_some(),)*
+                    _ => false,
+                }
+            }
+        }
+    };
+}
+
+cotc_overrides! {
+    /// Where COTC's tuning departs from `[mpc]` (the profile's `[smpc.cotc]` table): its own
+    /// prediction grid after the fine intervals, its own translational washout and, where the
+    /// S-MPC is tuned apart from the free MPC, its own cost weights. Absent keys keep the `[mpc]`
+    /// values.
+    ///
+    /// Why COTC is tuned apart: its terminal conditions already bring the platform to rest at
+    /// neutral by the end of the horizon, so the washout terms that stand in for them in the free
+    /// MPC only take cue away; and a plan that must be undone within the horizon is gentler, and
+    /// gives more cue, when the horizon is longer (docs/mpc.md, "COTC's own tuning").
+    {
+        /// Length of COTC's coarse intervals (s).
+        coarse_step_s: f64,
+        /// Number of COTC's coarse intervals.
+        coarse_steps: usize,
+        /// COTC's washout weight on the platform position per axis, per m².
+        washout_position_weight: [f64; 3],
+        /// COTC's washout weight on the platform velocity per axis, per (m/s)².
+        washout_velocity_weight: [f64; 3],
+        /// COTC's share of the sustained surge and sway carried by tilt: its terminal tilt.
+        tilt_share: f64,
+        /// COTC's weight on the perceived specific-force error per axis, per (m/s²)².
+        specific_force_weight: [f64; 3],
+        /// COTC's weight on the perceived angular-velocity error per axis, per (rad/s)².
+        angular_velocity_weight: [f64; 3],
+        /// COTC's linear price of the error beyond the threshold per channel.
+        dead_zone_weight: [f64; 6],
+        /// COTC's weight on its roll and pitch away from the followed rotation, per rad².
+        tilt_follow_weight: [f64; 2],
+        /// COTC's input weight on the platform acceleration per axis, per (m/s²)².
+        acceleration_weight: [f64; 3],
+        /// COTC's input-rate weight on each change of acceleration between intervals.
+        acceleration_change_weight: [f64; 3],
+        /// COTC's washout weight on the tilt-coordination angles (roll, pitch), per rad².
+        washout_tilt_weight: [f64; 2],
+        /// COTC's washout weight on the rotational-channel angles (roll, pitch, yaw), per rad².
+        washout_rotation_weight: [f64; 3],
+        /// COTC's time constant of the sustained cue its terminal tilt carries (s).
+        cotc_sustained_s: f64,
+        /// COTC's onset price per channel, per squared onset threshold.
+        onset_weight: [f64; 6],
+        /// COTC's false-cue weight per channel.
+        false_cue_weight: [f64; 6],
+        /// COTC's time constants of the `decay` reference per channel (s).
+        reference_decay_s: [f64; 6],
+        /// Whether COTC's heave prediction carries the tilt's loss of vertical force.
+        tilt_heave_loss: bool,
+        /// COTC's heave cue channel's time constant (s; 0 tracks the whole heave).
+        heave_cue_s: f64,
+        /// COTC's input weight on the rotational-channel rates, per (rad/s)².
+        rotation_rate_weight: [f64; 3],
+        /// COTC's input-rate weight on each change of tilt rate.
+        tilt_rate_change_weight: [f64; 2],
+        /// COTC's input-rate weight on each change of rotational rate.
+        rotation_rate_change_weight: [f64; 3],
+    }
 }
 
 impl CotcOverrides {
-    /// COTC's parameters: `[mpc]` with these overrides applied.
-    pub fn apply(&self, mpc: &MpcParams) -> MpcParams {
-        let mut m = mpc.clone();
-        if let Some(v) = self.coarse_step_s {
-            m.coarse_step_s = v;
-        }
-        if let Some(v) = self.coarse_steps {
-            m.coarse_steps = v;
-        }
-        if let Some(v) = self.washout_position_weight {
-            m.washout_position_weight = v;
-        }
-        if let Some(v) = self.washout_velocity_weight {
-            m.washout_velocity_weight = v;
-        }
-        if let Some(v) = self.tilt_share {
-            m.tilt_share = v;
-        }
-        m
-    }
-
     /// Validates COTC's parameters; an error names the key under `smpc.cotc` when it is one
     /// of the overrides, under `mpc` otherwise.
     pub fn validate(&self, mpc: &MpcParams) -> Result<(), ProfileError> {
         self.apply(mpc).validate_as(true).map_err(|mut e| {
             let field = e.key.trim_start_matches("mpc.");
             let name = field.split('[').next().unwrap_or(field);
-            let overridden = match name {
-                "coarse_step_s" => self.coarse_step_s.is_some(),
-                "coarse_steps" => self.coarse_steps.is_some(),
-                "washout_position_weight" => self.washout_position_weight.is_some(),
-                "washout_velocity_weight" => self.washout_velocity_weight.is_some(),
-                "tilt_share" => self.tilt_share.is_some(),
-                _ => false,
-            };
-            if overridden {
+            if self.overrides(name) {
                 e.key = format!("smpc.cotc.{field}");
             }
             e.reason = format!(
@@ -625,6 +665,58 @@ mod tests {
         let mut bad = p.clone();
         bad.mpc.follow_rotation_scale = f64::NAN;
         assert_eq!(bad.validate().unwrap_err().key, "mpc.follow_rotation_scale");
+    }
+
+    /// The cost keys COTC may tune apart (#35): each given in `[smpc.cotc]` reaches COTC only,
+    /// is read from the profile's text, and a bad value is named under `smpc.cotc`.
+    #[test]
+    fn cotc_cost_overrides_reach_cotc_alone_and_are_named_when_wrong() {
+        let p = full_flight();
+        let text = crate::profile::text::DEFAULT_PROFILE_TOML.replacen(
+            "[smpc.cotc]\n",
+            "[smpc.cotc]\nspecific_force_weight = [2.0, 3.0, 0.7]\n\
+             angular_velocity_weight = [11.0, 12.0, 13.0]\n\
+             dead_zone_weight = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]\n\
+             washout_rotation_weight = [0.5, 0.6, 0.7]\n\
+             cotc_sustained_s = 2.5\n",
+            1,
+        );
+        let own = crate::profile::text::parse_profile(&text, "t").unwrap();
+        let plain =
+            crate::profile::text::parse_profile(crate::profile::text::DEFAULT_PROFILE_TOML, "t")
+                .unwrap();
+        let cotc = own.cotc_params();
+        assert_eq!(cotc.specific_force_weight, [2.0, 3.0, 0.7]);
+        assert_eq!(cotc.angular_velocity_weight, [11.0, 12.0, 13.0]);
+        assert_eq!(cotc.dead_zone_weight, [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]);
+        assert_eq!(cotc.washout_rotation_weight, [0.5, 0.6, 0.7]);
+        assert_eq!(cotc.cotc_sustained_s, 2.5);
+        // The free MPC keeps [mpc]'s.
+        assert_eq!(own.mpc, plain.mpc);
+        // Keys [smpc.cotc] does not set stay [mpc]'s in COTC too.
+        assert_eq!(cotc.onset_weight, plain.mpc.onset_weight);
+        assert_eq!(cotc.tilt_follow_weight, plain.mpc.tilt_follow_weight);
+        assert_eq!(cotc.tilt_share, plain.cotc_params().tilt_share);
+
+        let mut bad = p.clone();
+        bad.smpc.cotc.dead_zone_weight = Some([0.0, 0.0, -1.0, 0.0, 0.0, 0.0]);
+        assert_eq!(
+            bad.validate().unwrap_err().key,
+            "smpc.cotc.dead_zone_weight[2]"
+        );
+        let mut bad = p.clone();
+        bad.smpc.cotc.specific_force_weight = Some([1.0, f64::NAN, 1.0]);
+        assert_eq!(
+            bad.validate().unwrap_err().key,
+            "smpc.cotc.specific_force_weight[1]"
+        );
+        // The same bad value in [mpc] is named there.
+        let mut bad = p.clone();
+        bad.mpc.specific_force_weight[1] = f64::NAN;
+        assert_eq!(
+            bad.validate().unwrap_err().key,
+            "mpc.specific_force_weight[1]"
+        );
     }
 
     #[test]
