@@ -10,7 +10,7 @@ use crate::app::common::{
     check_session_outputs, headless_or_console, inputs, progress_bar, stop_flag,
 };
 use crate::cli::{parse_algorithms, PlayArgs};
-use crate::formats::recording::{Recorder, RecordingMeta, TraceCopy};
+use crate::formats::recording::{Recorder, RecordingError, RecordingMeta, TraceCopy};
 use crate::formats::trace::default_trace;
 use crate::foxglove::FoxgloveServer;
 use crate::session::{player, FrameSink, Runner, SinkFailure};
@@ -143,6 +143,10 @@ fn create_recorder(
     }
 }
 
+/// Makes a headless run's recorder: at once, or once the trace's compression is done
+/// (whoever records calls it: the recorder's thread, unless Foxglove shares the encoding).
+type OpenRecorder = Box<dyn FnOnce() -> Result<Recorder, RecordingError> + Send>;
+
 pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
     let (profile, profile_toml, algorithms) = load_play(args)?;
     // The trace file is read twice, whatever its length: once to check it, which also
@@ -160,14 +164,23 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
         eprintln!("note: {}: {notice}", play.name);
     }
     let (name, len) = (play.name.clone(), play.len);
-    let recorder = match &args.record {
+    let recording = match &args.record {
         Some(path) => {
             let mut meta = recording_meta(&profile, profile_toml, &play, &algorithms);
-            let recorder = match copy {
-                Some(copy) => Recorder::create_with_compressed_trace(path, &meta, copy.finish()?),
-                None => create_recorder(path, &mut meta, None),
-            };
-            Some(recorder?)
+            Some(match copy {
+                // The trace may still be compressing on its own thread: whoever writes the
+                // file waits for it (the recorder's thread, unless Foxglove shares it).
+                Some(copy) => {
+                    let path = path.clone();
+                    Box::new(move || {
+                        Recorder::create_with_compressed_trace(&path, &meta, copy.finish()?)
+                    }) as OpenRecorder
+                }
+                None => {
+                    let recorder = create_recorder(path, &mut meta, None)?;
+                    Box::new(move || Ok(recorder))
+                }
+            })
         }
         None => None,
     };
@@ -198,17 +211,17 @@ pub fn run_headless(args: &PlayArgs) -> Result<Summary> {
         Some(addr) => Some(start_foxglove(addr, &profile, &algorithms, tuning.clone())?),
         None => None,
     };
-    match (recorder, server) {
-        // One encoding of each frame for both.
-        (Some(recorder), Some(server)) => {
-            sinks.push(Box::new(RecordedAndServed::new(recorder, server)))
+    match (recording, server) {
+        // One encoding of each frame for both, on the stepping thread.
+        (Some(recording), Some(server)) => {
+            sinks.push(Box::new(RecordedAndServed::new(recording()?, server)))
         }
-        (recorder, server) => {
+        (recording, server) => {
             if let Some(server) = server {
                 sinks.push(Box::new(Quiet(Box::new(server))));
             }
-            if let Some(recorder) = recorder {
-                sinks.push(Box::new(McapSink::headless(recorder)?));
+            if let (Some(open), Some(path)) = (recording, &args.record) {
+                sinks.push(Box::new(McapSink::headless_opening(path, open)?));
             }
         }
     }

@@ -2,7 +2,7 @@
 
 use anyhow::{Context, Result};
 
-use crate::formats::recording::{Recorder, RecorderThread, RecordingStats};
+use crate::formats::recording::{Recorder, RecorderThread, RecordingError, RecordingStats};
 use crate::foxglove::FoxgloveServer;
 use crate::session::FrameSink;
 use hexcue_core::engine::Frame;
@@ -31,10 +31,15 @@ impl McapSink {
         })
     }
 
-    /// The `--record` file of a headless run, which holds the whole run.
-    pub fn headless(recorder: Recorder) -> Result<Self> {
+    /// The `--record` file of a headless run, which holds the whole run; its recorder made
+    /// by its thread (`open`) while the run steps, so that the trace's compression finishes
+    /// there, not before the first step.
+    pub fn headless_opening(
+        path: &std::path::Path,
+        open: impl FnOnce() -> Result<Recorder, RecordingError> + Send + 'static,
+    ) -> Result<Self> {
         Ok(McapSink {
-            recorder: RecorderThread::spawn(recorder)?,
+            recorder: RecorderThread::spawn_opening(path.to_path_buf(), open)?,
             said: headless_said,
         })
     }

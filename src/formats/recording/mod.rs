@@ -14,6 +14,7 @@ pub mod meta_key;
 mod reader;
 mod recover;
 mod source;
+mod trace_copy;
 mod worker;
 mod writer;
 
@@ -32,8 +33,9 @@ use hexcue_core::trace::TraceInfo;
 
 pub use reader::{plural, Damage, Frames, JsonMessage, JsonMessages, LostSteps, Recording};
 pub use recover::{recover, RecoverStats};
+pub use trace_copy::{CompressedTrace, TraceCopy};
 pub use worker::{RecorderThread, CAPACITY_FRAMES};
-pub use writer::{CompressedTrace, Recorder, TraceCopy};
+pub use writer::Recorder;
 
 /// Name of the metadata record hexcue writes.
 pub const METADATA_NAME: &str = "hexcue";

@@ -53,10 +53,21 @@ impl RecorderThread {
     /// Moves `recorder` to a new thread.
     pub fn spawn(recorder: Recorder) -> Result<Self, RecordingError> {
         let path = recorder.path().to_path_buf();
+        Self::spawn_opening(path, move || Ok(recorder))
+    }
+
+    /// A new thread that first makes its recorder (`open`, which writes the file at `path`
+    /// and may wait for the trace's compression: [`super::TraceCopy::finish`]), then writes
+    /// the frames handed over meanwhile: the stepping thread need not wait for either. An
+    /// error of `open` comes back as a write error would.
+    pub fn spawn_opening(
+        path: PathBuf,
+        open: impl FnOnce() -> Result<Recorder, RecordingError> + Send + 'static,
+    ) -> Result<Self, RecordingError> {
         let (tx, rx) = mpsc::sync_channel(CAPACITY_FRAMES);
         let worker = std::thread::Builder::new()
             .name("recorder".into())
-            .spawn(move || write_jobs(recorder, rx))
+            .spawn(move || write_jobs(open()?, rx))
             .map_err(|error| RecordingError::Io {
                 path: shown(&path),
                 action: "start the recorder's thread",

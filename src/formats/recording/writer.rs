@@ -9,9 +9,9 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use mcap::records::{MessageHeader, Metadata};
 use mcap::{Attachment, Compression, McapError, WriteOptions};
-use sha2::{Digest, Sha256};
 
 use super::source::READ_SIZE;
+use super::trace_copy::{CompressedTrace, TraceCopy};
 use super::{
     meta_key, sha256_hex, shown, RecordingError, RecordingMeta, RecordingStats, FORMAT_VERSION,
     METADATA_NAME, PROFILE_ATTACHMENT, SIDECAR_ATTACHMENT, TRACE_ZSTD_ATTACHMENT,
@@ -72,7 +72,7 @@ const TRACE_ZSTD_LEVEL: i32 = 16;
 const TRACE_OPTIMAL_MAX_BYTES: u64 = 16 << 20;
 
 /// The zstd level for a trace attachment of `text_bytes` (unknown: the chunks' level).
-fn trace_level(text_bytes: Option<u64>) -> i32 {
+pub(super) fn trace_level(text_bytes: Option<u64>) -> i32 {
     match text_bytes {
         Some(n) if n <= TRACE_OPTIMAL_MAX_BYTES => TRACE_ZSTD_LEVEL,
         _ => ZSTD_LEVEL as i32,
@@ -782,110 +782,6 @@ impl Drop for Recorder {
     /// the MCAP writer, whose own drop finishes the file (as before they were held).
     fn drop(&mut self) {
         let _ = self.write_pending();
-    }
-}
-
-/// A trace on its way into a recording: compressed (one zstd frame) into a scratch file
-/// and hashed (SHA-256) as its bytes are written in, so that whoever reads the trace feeds
-/// both in the same pass and nothing grows with its length. [`TraceCopy::finish`] gives the
-/// [`CompressedTrace`] to attach; a copy given up is removed.
-pub struct TraceCopy {
-    path: PathBuf,
-    hasher: Sha256,
-    out: Option<zstd::stream::Encoder<'static, BufWriter<File>>>,
-}
-
-impl TraceCopy {
-    /// A scratch file beside the recording at `recording` (its name + `.trace.zst`) for the
-    /// trace file `trace`, whose length sets the zstd level.
-    pub fn beside(recording: &Path, trace: &Path) -> Result<Self, RecordingError> {
-        let mut name = recording.as_os_str().to_owned();
-        name.push(".trace.zst");
-        let text_bytes = std::fs::metadata(trace).ok().map(|m| m.len());
-        Self::to(PathBuf::from(name), text_bytes)
-    }
-
-    /// A scratch file at `path`.
-    pub fn to(path: PathBuf, text_bytes: Option<u64>) -> Result<Self, RecordingError> {
-        let level = trace_level(text_bytes);
-        let out = File::create(&path)
-            .and_then(|file| zstd::stream::Encoder::new(BufWriter::new(file), level));
-        match out {
-            Ok(out) => Ok(TraceCopy {
-                path,
-                hasher: Sha256::new(),
-                out: Some(out),
-            }),
-            Err(error) => Err(RecordingError::Io {
-                path: shown(&path),
-                action: "create the compressed trace",
-                error,
-            }),
-        }
-    }
-
-    /// Ends the zstd frame and syncs the file: the attachment and the hash of what was written.
-    pub fn finish(mut self) -> Result<CompressedTrace, RecordingError> {
-        let path = std::mem::take(&mut self.path);
-        let failed = |error| RecordingError::Io {
-            path: shown(&path),
-            action: "write the compressed trace",
-            error,
-        };
-        let ended = match self.out.take() {
-            Some(out) => out
-                .finish()
-                .and_then(|w| w.into_inner().map_err(|e| e.into_error())),
-            None => Err(io::Error::other("already finished")),
-        };
-        let trace = CompressedTrace {
-            sha256: std::mem::take(&mut self.hasher)
-                .finalize()
-                .iter()
-                .map(|b| format!("{b:02x}"))
-                .collect(),
-            path: path.clone(),
-        };
-        ended.and_then(|file| file.sync_all()).map_err(failed)?;
-        Ok(trace)
-    }
-}
-
-impl Write for TraceCopy {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        let out = self
-            .out
-            .as_mut()
-            .ok_or_else(|| io::Error::other("the compressed trace is finished"))?;
-        let n = out.write(buf)?;
-        self.hasher.update(&buf[..n]);
-        Ok(n)
-    }
-
-    fn flush(&mut self) -> io::Result<()> {
-        self.out.as_mut().map_or(Ok(()), |out| out.flush())
-    }
-}
-
-impl Drop for TraceCopy {
-    fn drop(&mut self) {
-        // Given up before `finish` (the trace was refused): the scratch file goes too.
-        if !self.path.as_os_str().is_empty() {
-            let _ = std::fs::remove_file(&self.path);
-        }
-    }
-}
-
-/// A trace compressed into a scratch file by a [`TraceCopy`], with the SHA-256 of its text;
-/// the file is removed when this is dropped, attached or not.
-pub struct CompressedTrace {
-    path: PathBuf,
-    sha256: String,
-}
-
-impl Drop for CompressedTrace {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.path);
     }
 }
 
