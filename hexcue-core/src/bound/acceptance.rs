@@ -244,6 +244,7 @@ mod tests {
             variables: 0,
             rows: 0,
             lightening_mps2: Vec::new(),
+            solve_s: 0.0,
         }
     }
 

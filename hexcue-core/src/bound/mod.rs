@@ -15,9 +15,10 @@ pub mod envelope;
 mod gap;
 pub mod programme;
 mod replay;
+pub mod settle;
 pub use achieved::{
     achieved_with_legs, achieved_with_sequences, Lookahead, Sequence, Start, ACHIEVED_GRID,
-    ACHIEVED_SEQUENCES, LIGHTENED_SEQUENCE, POLISH_PASSES, TRUST_FRACTION,
+    ACHIEVED_SEQUENCES, LIGHTENED_SEQUENCE, POLISH_ABOVE, POLISH_PASSES, TRUST_FRACTION,
 };
 pub use gap::{gap_parts, GapParts};
 
@@ -147,6 +148,38 @@ pub struct BoundDetails {
     pub unsolved: Vec<String>,
     /// Where the gap between `achieved` and `lower` comes from.
     pub gap: Option<GapParts>,
+    /// Programmes whose optimum a feasible point settled without solving them (`settle`).
+    #[serde(default)]
+    pub settled: Vec<String>,
+    /// Every programme solved for `lower`, `lower.valid` and `achieved`: its name, Clarabel's
+    /// iterations and the wall seconds of its thread (two threads at once; docs/bound.md,
+    /// "What a run costs").
+    #[serde(default)]
+    pub log: Vec<ProgrammeLog>,
+}
+
+/// One programme of a run (`BoundDetails::log`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ProgrammeLog {
+    /// Its channels, or the achieved sequence's label.
+    pub name: String,
+    /// Clarabel's iterations.
+    pub iterations: u32,
+    /// Variables.
+    pub variables: usize,
+    /// Wall seconds from building it to reading its answer, on its thread.
+    pub seconds: f64,
+}
+
+impl ProgrammeLog {
+    fn of(name: &str, s: &Solution) -> ProgrammeLog {
+        ProgrammeLog {
+            name: name.to_string(),
+            iterations: s.iterations,
+            variables: s.variables,
+            seconds: s.solve_s,
+        }
+    }
 }
 
 /// Errors of the yardstick (no I/O: only inputs that cannot be bounded).
@@ -339,6 +372,23 @@ impl Setup {
         }
     }
 
+    /// The same flight for the felt error (`score_terms.felt`): nothing charged below the
+    /// threshold, every channel weighted 1.
+    pub fn felt(&self) -> Setup {
+        Setup {
+            dt_s: self.dt_s,
+            reference: self.reference.clone(),
+            thresholds: self.thresholds,
+            below_threshold_weight: 0.0,
+            score_weights: [1.0; 6],
+            limits: self.limits,
+            eye_m: self.eye_m,
+            filters: self.filters.clone(),
+            residual: self.residual,
+            lightening: self.lightening,
+        }
+    }
+
     /// The same flight on a grid `m` samples apart: the reference at every m-th sample and
     /// the filters discretised over m samples. For the achieved motion only (its programme
     /// need not be a bound: the motion is judged by its replay at the full rate).
@@ -411,18 +461,7 @@ impl Setup {
 /// below the threshold, unweighted: `score_terms.felt`), for the channels of `alone`; `NAN`
 /// for the others.
 pub fn felt_lower(setup: &Setup, alone: [bool; 6]) -> Result<[f64; 6], BoundError> {
-    let felt = Setup {
-        dt_s: setup.dt_s,
-        reference: setup.reference.clone(),
-        thresholds: setup.thresholds,
-        below_threshold_weight: 0.0,
-        score_weights: [1.0; 6],
-        limits: setup.limits,
-        eye_m: setup.eye_m,
-        filters: setup.filters.clone(),
-        residual: setup.residual,
-        lightening: setup.lightening,
-    };
+    let felt = setup.felt();
     let solved: Vec<(usize, Solution)> = (0..6)
         .filter(|&c| alone[c])
         .collect::<Vec<_>>()
@@ -460,6 +499,9 @@ pub struct Relaxed {
     pub total: f64,
     /// Every programme solved, named by its channels.
     pub programmes: Vec<(String, Solution)>,
+    /// Each channel's own optimum's solution (its block's joint one when the block is that
+    /// channel alone), for the channels of `alone`.
+    pub alone: [Option<Solution>; 6],
 }
 
 fn channel_list(cs: &[usize]) -> String {
@@ -497,6 +539,7 @@ pub fn relaxed(setup: &Setup, alone: [bool; 6]) -> Result<Relaxed, BoundError> {
     let mut joint_error = [0.0; 6];
     let mut joint = Vec::new();
     let mut programmes = Vec::new();
+    let mut own: [Option<Solution>; 6] = std::array::from_fn(|_| None);
     for (is_joint, cs, sol) in solved {
         let name = channel_list(&cs);
         if !matches!(
@@ -510,11 +553,13 @@ pub fn relaxed(setup: &Setup, alone: [bool; 6]) -> Result<Relaxed, BoundError> {
                 joint_error[c] = sol.error[c];
                 if cs.len() == 1 && alone[c] {
                     channel[c] = sol.error[c];
+                    own[c] = Some(sol.clone());
                 }
             }
             joint.push(sol.clone());
         } else {
             channel[cs[0]] = sol.error[cs[0]];
+            own[cs[0]] = Some(sol.clone());
         }
         programmes.push((name, sol));
     }
@@ -525,6 +570,7 @@ pub fn relaxed(setup: &Setup, alone: [bool; 6]) -> Result<Relaxed, BoundError> {
         joint_error,
         total,
         programmes,
+        alone: own,
     })
 }
 
@@ -609,14 +655,35 @@ pub fn bound(
 ) -> Result<(Bound, BoundDetails), BoundError> {
     let setup = Setup::new(profile, trace)?;
     let valid_setup = setup.valid();
-    let ((relaxed, felt), valid) = rayon::join(
-        || rayon::join(|| relaxed(&setup, alone), || felt_lower(&setup, alone)),
-        || relaxed(&valid_setup, alone),
+    let inputs = settle::aircraft_inputs(trace);
+    // The achieved sequences do not depend on the relaxation: they run beside it, so that
+    // their passes, one after another within a sequence, are not all that is left at the end.
+    // They are wasted only where the relaxed optimum replays with no limiting at all.
+    let ((lower_and_felt, valid), sequences) = rayon::join(
+        || {
+            rayon::join(
+                || {
+                    let r = relaxed(&setup, alone)?;
+                    let felt = settle::felt_lower_settled(&setup, &r, alone)?;
+                    Ok::<_, BoundError>((r, felt))
+                },
+                || settle::valid_lower(&valid_setup, &inputs, alone),
+            )
+        },
+        || achieved::run_sequences(profile, trace, &setup, &ACHIEVED_SEQUENCES),
     );
-    let (relaxed, felt, valid) = (relaxed?, felt?, valid?);
+    let ((relaxed, (felt, felt_solved, felt_settled)), valid) = (lower_and_felt?, valid?);
     let cmds = commands_of(&relaxed.joint, &setup.limits);
     let first = replay(profile, trace, &cmds);
-    let mut programmes = relaxed.programmes.len() + alone.iter().filter(|&&a| a).count();
+    let mut programmes = relaxed.programmes.len() + felt_solved + valid.programmes.len();
+    let mut settled = felt_settled;
+    settled.extend(valid.settled.iter().cloned());
+    let mut log: Vec<ProgrammeLog> = relaxed
+        .programmes
+        .iter()
+        .chain(&valid.programmes)
+        .map(|(name, s)| ProgrammeLog::of(name, s))
+        .collect();
     let mut largest = relaxed
         .programmes
         .iter()
@@ -626,9 +693,28 @@ pub fn bound(
     let mut unsolved = Vec::new();
     let mut candidates = vec![("relaxed".to_string(), first)];
     if candidates[0].1.limiter_fraction > 0.0 || candidates[0].1.leg_violations > 0 {
-        for (name, r, sol) in achieved_with_legs(profile, trace, &setup) {
+        let mut found = sequences;
+        let best = found
+            .iter()
+            .filter(|(_, r, s)| {
+                !r.commands.is_empty()
+                    && matches!(s.status, SolverStatus::Solved | SolverStatus::AlmostSolved)
+            })
+            .map(|(_, r, _)| r.total)
+            .fold(candidates[0].1.total, f64::min);
+        if best > relaxed.total * (1.0 + POLISH_ABOVE) {
+            let polished = achieved::polish(profile, trace, &setup, &found);
+            found.extend(polished);
+        } else {
+            settled.push(format!(
+                "the polish (the best candidate is within {:.0} % of lower)",
+                POLISH_ABOVE * 100.0
+            ));
+        }
+        for (name, r, sol) in found {
             programmes += 1;
             largest = largest.max((sol.variables, sol.rows));
+            log.push(ProgrammeLog::of(&name, &sol));
             if matches!(
                 sol.status,
                 SolverStatus::Solved | SolverStatus::AlmostSolved
@@ -647,19 +733,15 @@ pub fn bound(
     let gap = Some(gap_parts(profile, trace, &setup, &cmds, &achieved));
     // Dominance: every channel held at or below the CWF's, per block.
     let cwf_total: f64 = cwf_error.iter().sum();
-    let caps = Some(*cwf_error);
-    let capped: Vec<Solution> = setup
-        .blocks()
-        .par_iter()
-        .map(|(cs, ds)| setup.programme(cs, ds, cs, caps).solve())
-        .collect();
-    programmes += capped.len();
-    let feasible = capped
-        .iter()
-        .all(|s| matches!(s.status, SolverStatus::Solved | SolverStatus::AlmostSolved));
-    let dominance_total = feasible.then(|| capped.iter().map(|s| s.objective).sum::<f64>());
-    let mut binding: Vec<usize> = capped.iter().flat_map(|s| s.binding.clone()).collect();
-    binding.sort_unstable();
+    let (dominance_total, binding, capped) = settle::dominance(&setup, &relaxed, cwf_error);
+    programmes += capped;
+    if capped < setup.blocks().len() {
+        settled.push(format!(
+            "{} of {} dominance blocks (the joint optimum is within the caps)",
+            setup.blocks().len() - capped,
+            setup.blocks().len()
+        ));
+    }
     let bound = Bound {
         lower: Lower {
             channel: by_channel(&relaxed.channel),
@@ -690,6 +772,8 @@ pub fn bound(
         largest_rows: largest.1,
         unsolved,
         gap,
+        settled,
+        log,
     };
     Ok((bound, details))
 }

@@ -300,6 +300,9 @@ pub struct Solution {
     /// of the answer's own tilts they show where the relaxation takes lightness no tilt gives
     /// (docs/bound.md, "What would close the take-off's gap").
     pub lightening_mps2: Vec<[f64; 2]>,
+    /// Seconds of this thread's time from building the programme to reading its answer
+    /// (`Programme::solve`; what `BoundDetails::log` adds up per programme).
+    pub solve_s: f64,
 }
 
 /// Sparse matrix rows under construction.
@@ -328,6 +331,7 @@ impl Rows {
 impl Programme<'_> {
     /// Solves the programme with Clarabel.
     pub fn solve(&self) -> Solution {
+        let started = std::time::Instant::now();
         let n = self.reference[0].len();
         let nd = self.dofs.len();
         let nstates: Vec<usize> = self
@@ -642,6 +646,7 @@ impl Programme<'_> {
             variables: nvar,
             rows: n_rows,
             lightening_mps2,
+            solve_s: started.elapsed().as_secs_f64(),
         }
     }
 }
