@@ -9,9 +9,7 @@
 //! and compresses each one, falls behind and the channel fills: the test goes on until the
 //! stepping thread has waited on a full channel many times, before and while counting.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::backtrace::Backtrace;
-use std::cell::{Cell, RefCell};
+use std::cell::Cell;
 use std::sync::Arc;
 
 use hexcue::formats::recording::{Recorder, RecorderThread, RecordingMeta, CAPACITY_FRAMES};
@@ -19,56 +17,9 @@ use hexcue_core::engine::{Engine, Frame};
 use hexcue_core::mca::AlgorithmId;
 use hexcue_core::testing::{full_flight, manoeuvre};
 
-struct Counting;
-
-thread_local! {
-    /// Set on this thread while its allocations count.
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-    /// Inside the counter itself (its backtrace allocates): not counted again.
-    static INSIDE: Cell<bool> = const { Cell::new(false) };
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-    static WHERE: RefCell<Vec<Backtrace>> = const { RefCell::new(Vec::new()) };
-}
-const KEEP: usize = 20;
-
-fn count() {
-    let counting = COUNTING.try_with(Cell::get).unwrap_or(false);
-    if !counting || INSIDE.try_with(Cell::get).unwrap_or(true) {
-        return;
-    }
-    INSIDE.with(|i| i.set(true));
-    ALLOCATIONS.with(|a| a.set(a.get() + 1));
-    WHERE.with(|w| {
-        let mut w = w.borrow_mut();
-        if w.len() < KEEP {
-            w.push(Backtrace::force_capture());
-        }
-    });
-    INSIDE.with(|i| i.set(false));
-}
-
-// SAFETY: every call is passed to the system allocator unchanged; counting touches only
-// thread-locals, and the backtraces it keeps allocate with the counter's own flag set.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
-        System.alloc(layout)
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        count();
-        System.alloc_zeroed(layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count();
-        System.realloc(ptr, layout, new_size)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
+#[path = "common/counting_alloc.rs"]
+mod counting_alloc;
+use counting_alloc::{ALLOCATIONS, COUNTING, WHERE};
 
 /// Waits on a full channel before counting, and while counting.
 const WARM_UP_WAITS: u64 = 5;

@@ -707,14 +707,7 @@ impl Safety {
     fn motion_off_step(&mut self, algorithm: &PlatformCommand) -> PlatformCommand {
         let [_, p1, p0] = self.sent_poses;
         let [_, x1] = self.algorithm_poses;
-        let x0 = Vector6::from_fn(|i, _| {
-            let x = algorithm.pose[i];
-            if x.is_finite() {
-                x
-            } else {
-                p0[i]
-            }
-        });
+        let x0 = finite_or(&algorithm.pose, &p0);
         self.algorithm_poses = [x1, x0];
         let out = self.neutral.step();
         self.handover_stop = self.stop_from(&[p1, p0, out.pose]);
@@ -746,14 +739,7 @@ impl Safety {
         let dt = self.dt_s;
         let [p2, p1, p0] = self.sent_poses;
         let [x2, x1] = self.algorithm_poses;
-        let x0 = Vector6::from_fn(|i, _| {
-            let x = algorithm.pose[i];
-            if x.is_finite() {
-                x
-            } else {
-                p0[i]
-            }
-        });
+        let x0 = finite_or(&algorithm.pose, &p0);
         self.algorithm_poses = [x1, x0];
         let lambda = (-dt / HANDOVER_TAU_S).exp();
         let mut out = *algorithm;
@@ -953,6 +939,18 @@ pub struct HardBrake {
     pub gentle_acceleration: f64,
     /// `m/s²` or `deg/s²`.
     pub unit: String,
+}
+
+/// The algorithm's pose where finite, else the pose sent last: a NaN from an algorithm never
+/// reaches the stage's differences (its limits then hold the platform where it is).
+fn finite_or(pose: &Vector6<f64>, sent: &Vector6<f64>) -> Vector6<f64> {
+    Vector6::from_fn(|i, _| {
+        if pose[i].is_finite() {
+            pose[i]
+        } else {
+            sent[i]
+        }
+    })
 }
 
 #[cfg(test)]

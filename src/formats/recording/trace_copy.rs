@@ -12,8 +12,7 @@ use std::thread::JoinHandle;
 
 use sha2::{Digest, Sha256};
 
-use super::writer::trace_level;
-use super::{shown, RecordingError};
+use super::{shown, trace_level, RecordingError};
 
 /// Blocks of trace text in flight between the reader and the compressing thread: a few
 /// reads ahead, so that neither waits for the other's every block, and memory stays flat

@@ -16,6 +16,7 @@ use super::{
     meta_key, sha256_hex, shown, RecordingError, RecordingMeta, RecordingStats, FORMAT_VERSION,
     METADATA_NAME, PROFILE_ATTACHMENT, SIDECAR_ATTACHMENT, TRACE_ZSTD_ATTACHMENT,
 };
+use super::{trace_level, ZSTD_LEVEL};
 use crate::channels::json::{self, Message};
 use crate::channels::scene::{self, SceneBuilder};
 use crate::channels::{self, Channel, EncodeError, Kind, MessageTap, SceneMessage};
@@ -52,30 +53,6 @@ pub(super) fn scene_every_steps(rate_hz: f64) -> u64 {
         ((rate_hz / SCENE_MIN_HZ).floor() as u64).max(1)
     } else {
         1
-    }
-}
-/// zstd level of the chunks and of the trace attachment (docs/recordings.md, "Size per
-/// minute"): 20 % smaller than level 1 for 0.2 s more of a 60 s flight's writing; levels
-/// 10–15 are no smaller, 16 and above (btopt) 17 % smaller again but 7× slower, which would
-/// take a headless run under 25× real time. Level 19 on the trace alone cost 0.15 s a run
-/// (a CWF-only run takes 0.1 s) for 12 KB on the landing.
-const ZSTD_LEVEL: u32 = 9;
-/// zstd level of a played trace's attachment: level 16's optimal parser takes a third off
-/// the text of a busy trace (the turbulent cruise's 824 KB: 319,718 → 247,221 B) where levels
-/// 10–15 take under 1 %, for about 0.4 µs of CPU a byte (0.3 s for that trace; Python's
-/// `zstandard`, the same C library, on a loaded machine): what keeps the busiest shipped
-/// flight's recording under 5 MB a minute (docs/recordings.md, "One /tf and one /scene").
-const TRACE_ZSTD_LEVEL: i32 = 16;
-/// Above this much trace text (about half an hour at 100 Hz) the attachment is compressed at
-/// [`ZSTD_LEVEL`]: level 16 would keep a 10-hour trace's run waiting two minutes before its
-/// first step, for a file whose size per minute the trace hardly changes.
-const TRACE_OPTIMAL_MAX_BYTES: u64 = 16 << 20;
-
-/// The zstd level for a trace attachment of `text_bytes` (unknown: the chunks' level).
-pub(super) fn trace_level(text_bytes: Option<u64>) -> i32 {
-    match text_bytes {
-        Some(n) if n <= TRACE_OPTIMAL_MAX_BYTES => TRACE_ZSTD_LEVEL,
-        _ => ZSTD_LEVEL as i32,
     }
 }
 const ZSTD_MEDIA_TYPE: &str = "application/zstd";
