@@ -511,11 +511,10 @@ fn channel_list(cs: &[usize]) -> String {
         .join("+")
 }
 
-/// Solves the joint programme (per block) and each channel's own (those of `alone`), on
-/// rayon's pool. A channel not solved alone has `NAN` as its own optimum.
-pub fn relaxed(setup: &Setup, alone: [bool; 6]) -> Result<Relaxed, BoundError> {
+/// The programmes of a relaxation, as (joint, channels, DoFs): every block jointly, then each
+/// channel of `alone` on its own unless its block is that channel alone.
+fn programme_jobs(setup: &Setup, alone: [bool; 6]) -> Vec<(bool, Vec<usize>, Vec<usize>)> {
     let blocks = setup.blocks();
-    // Jobs: every block jointly, then each channel alone unless its block is that channel.
     let mut jobs: Vec<(bool, Vec<usize>, Vec<usize>)> = blocks
         .iter()
         .map(|(cs, ds)| (true, cs.clone(), ds.clone()))
@@ -525,6 +524,13 @@ pub fn relaxed(setup: &Setup, alone: [bool; 6]) -> Result<Relaxed, BoundError> {
             jobs.push((false, vec![c], setup.channel_dofs(c)));
         }
     }
+    jobs
+}
+
+/// Solves the joint programme (per block) and each channel's own (those of `alone`), on
+/// rayon's pool. A channel not solved alone has `NAN` as its own optimum.
+pub fn relaxed(setup: &Setup, alone: [bool; 6]) -> Result<Relaxed, BoundError> {
+    let jobs = programme_jobs(setup, alone);
     let solved: Vec<(bool, Vec<usize>, Solution)> = jobs
         .par_iter()
         .map(|(joint, cs, ds)| {

@@ -61,17 +61,7 @@ pub fn valid_lower(
 ) -> Result<ValidRun, BoundError> {
     let at_rest: [bool; 6] =
         std::array::from_fn(|c| rest_error(setup, inputs, c).is_some_and(|e| e < SETTLED_BELOW));
-    let blocks = setup.blocks();
-    let mut jobs: Vec<(bool, Vec<usize>, Vec<usize>)> = blocks
-        .iter()
-        .map(|(cs, ds)| (true, cs.clone(), ds.clone()))
-        .collect();
-    for (c, &wanted) in alone.iter().enumerate() {
-        if wanted && !blocks.iter().any(|(cs, _)| cs == &vec![c]) {
-            jobs.push((false, vec![c], setup.channel_dofs(c)));
-        }
-    }
-    let (settled, to_solve): (Vec<_>, Vec<_>) = jobs
+    let (settled, to_solve): (Vec<_>, Vec<_>) = programme_jobs(setup, alone)
         .into_iter()
         .partition(|(_, cs, _)| cs.iter().all(|&c| at_rest[c]));
     let solved: Vec<(bool, Vec<usize>, Solution)> = to_solve
@@ -213,36 +203,13 @@ mod tests {
     use nalgebra::Vector3;
 
     use super::*;
+    use crate::bound::tests::trace_of;
     use crate::testing::full_flight;
-    use crate::trace::AircraftSample;
-    use crate::G_MPS2;
-
-    /// A flight of `n` samples at 100 Hz with Δf and ω given per time.
-    fn flight(n: usize, sample: impl Fn(f64) -> (Vector3<f64>, Vector3<f64>)) -> Trace {
-        Trace {
-            name: "synthetic".into(),
-            rate_hz: 100.0,
-            samples: (0..n)
-                .map(|k| {
-                    let t = k as f64 * 0.01;
-                    let (df, w) = sample(t);
-                    AircraftSample {
-                        t_s: t,
-                        specific_force_mps2: df + Vector3::new(0.0, 0.0, -G_MPS2),
-                        angular_velocity_radps: w,
-                        attitude_rad: Vector3::zeros(),
-                    }
-                })
-                .collect(),
-            info: None,
-            notices: Vec::new(),
-        }
-    }
 
     /// Surge, sway and yaw a platform can follow for a while, and a heave that can be beyond
     /// the valid relaxation's envelope (−14.6 … +18.3 m/s² on the full-flight platform).
     fn manoeuvre(heave_mps2: f64) -> Trace {
-        flight(800, |t| {
+        trace_of(800, |t| {
             let on = if (1.0..6.0).contains(&t) { 1.0 } else { 0.0 };
             (
                 Vector3::new(2.5 * on, -on, heave_mps2 * on),
@@ -316,7 +283,7 @@ mod tests {
         // so heave's felt programme is solved; the other channels' lower optima feel nothing
         // and settle theirs. Both against every felt programme solved.
         let profile = full_flight();
-        let trace = flight(1500, |t| {
+        let trace = trace_of(1500, |t| {
             let on = if t > 1.0 { 1.0 } else { 0.0 };
             let pulse = if (2.0..4.0).contains(&t) { 1.0 } else { 0.0 };
             (

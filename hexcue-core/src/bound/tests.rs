@@ -7,7 +7,9 @@ use crate::testing::full_flight;
 use crate::trace::AircraftSample;
 use crate::G_MPS2;
 
-fn trace_of(n: usize, sample: impl Fn(f64) -> (Vector3<f64>, Vector3<f64>)) -> Trace {
+/// A flight of `n` samples at 100 Hz with Δf and ω given per time (s): the bound's tests' and
+/// `settle`'s.
+pub(super) fn trace_of(n: usize, sample: impl Fn(f64) -> (Vector3<f64>, Vector3<f64>)) -> Trace {
     Trace {
         name: "synthetic".into(),
         rate_hz: 100.0,
