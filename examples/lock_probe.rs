@@ -58,6 +58,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut applied = PlatformCommand::default();
     let mut reasons: BTreeMap<String, usize> = BTreeMap::new();
     let (mut acted, mut unsolved) = (0usize, 0usize);
+    let mut chains: BTreeMap<usize, usize> = BTreeMap::new();
+    let mut run = 0usize;
     for k in 0..n {
         let ahead = if preview {
             &cues[k + 1..(k + 501).min(cues.len())]
@@ -106,13 +108,30 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
         let limited = limiter.apply(&out.command);
-        acted += usize::from(limited.acted);
+        // The MPC's own braking step for the limiter counts as the limiter's action, as in
+        // the engine.
+        let braked = match smpc_lane.as_ref() {
+            Some(lane) => lane.issued_limiter_braking(),
+            None => mpc.braked_now(),
+        };
+        let acted_now = limited.acted || braked;
+        acted += usize::from(acted_now);
+        // Runs of consecutive limiter actions, by length: one refusal that becomes ten shows
+        // as a run of ten.
+        if acted_now {
+            run += 1;
+        } else if run > 0 {
+            *chains.entry(run).or_default() += 1;
+            run = 0;
+        }
         applied = limited.command;
     }
     println!(
-        "{} steps: limiter {acted} ({:.2} %), unsolved {unsolved}, reasons {reasons:?}",
+        "{} steps: limiter {acted} ({:.2} %), unsolved {unsolved}, reasons {reasons:?}, \
+         chains {chains:?}, braked by the MPC {}",
         n,
-        100.0 * acted as f64 / n as f64
+        100.0 * acted as f64 / n as f64,
+        mpc.braked_steps()
     );
     Ok(())
 }

@@ -203,7 +203,10 @@ impl StepContext<'_> {
         let started = Instant::now();
         let raw = lane.algorithm.step(&input);
         let limited = lane.limiter.apply(&raw);
-        let (mut command, mut acted) = (limited.command, limited.acted);
+        // A braking step the algorithm issued for the limiter is the limiter's action, taken
+        // a step earlier: it counts as one (limiter share, score).
+        let braked = lane.algorithm.issued_limiter_braking();
+        let (mut command, mut acted) = (limited.command, limited.acted || braked);
         if let Some(fade) = &mut lane.fade {
             let applied = *fade.limiter.last();
             let old_raw = fade.algorithm.step(&CueInput {
@@ -212,7 +215,7 @@ impl StepContext<'_> {
             });
             let old = fade.limiter.apply(&old_raw);
             command = fade.blend.mix(&old.command, &command);
-            acted |= old.acted;
+            acted |= old.acted || fade.algorithm.issued_limiter_braking();
             fade.blend.advance(self.dt_s);
             if fade.blend.done() {
                 lane.end_fade();

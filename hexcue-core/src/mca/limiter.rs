@@ -110,32 +110,66 @@ impl WorkspaceLimiter {
         if !cmd.is_finite() {
             return Some(Rejection::NonFinite);
         }
-        if let Some(dof) = (0..6).find(|&i| cmd.pose[i].abs() > self.limits.excursion[i]) {
+        let slack = 1.0 + RATE_TOLERANCE;
+        for i in 0..6 {
+            if cmd.velocity[i].abs() > self.limits.velocity[i] * slack {
+                return Some(Rejection::Velocity(i));
+            }
+            if cmd.acceleration[i].abs() > self.limits.acceleration[i] * slack {
+                return Some(Rejection::Acceleration(i));
+            }
+        }
+        self.pose_rejection(&cmd.pose)
+    }
+
+    /// [`Self::rejection`] of a pose alone, whatever velocity and acceleration a command
+    /// reports with it: the excursions, the legs, the rates implied by the issued poses and
+    /// the braking look-ahead. An algorithm that decides each pose a step ahead (the MPC)
+    /// asks this of the pose it is about to issue, with a copy of the limiter brought to
+    /// the engine's state ([`Self::resume`]).
+    pub fn pose_rejection(&self, pose: &Vector6<f64>) -> Option<Rejection> {
+        if !pose.iter().all(|x| x.is_finite()) {
+            return Some(Rejection::NonFinite);
+        }
+        if let Some(dof) = (0..6).find(|&i| pose[i].abs() > self.limits.excursion[i]) {
             return Some(Rejection::Excursion(dof));
         }
-        if !self.stewart.fits(&cmd.pose, self.leg_margin_m) {
+        if !self.stewart.fits(pose, self.leg_margin_m) {
             return Some(Rejection::Legs);
         }
         let slack = 1.0 + RATE_TOLERANCE;
         let dt = self.dt_s;
         for i in 0..6 {
-            let rate = (cmd.pose[i] - self.last.pose[i]) / dt;
+            let rate = (pose[i] - self.last.pose[i]) / dt;
             let rate_change = (rate - self.last_rate[i]) / dt;
-            if cmd.velocity[i].abs() > self.limits.velocity[i] * slack
-                || rate.abs() > self.limits.velocity[i] * slack + 1e-9
-            {
+            if rate.abs() > self.limits.velocity[i] * slack + 1e-9 {
                 return Some(Rejection::Velocity(i));
             }
-            if cmd.acceleration[i].abs() > self.limits.acceleration[i] * slack
-                || rate_change.abs() > self.limits.acceleration[i] * slack + 1e-9
-            {
+            if rate_change.abs() > self.limits.acceleration[i] * slack + 1e-9 {
                 return Some(Rejection::Acceleration(i));
             }
         }
-        if !self.can_stop(&cmd.pose, &((cmd.pose - self.last.pose) / dt)) {
+        if !self.can_stop(pose, &((pose - self.last.pose) / dt)) {
             return Some(Rejection::Braking);
         }
         None
+    }
+
+    /// Brings the limiter to the state it holds after issuing `last`, the pose before it
+    /// having been `last.pose − last_rate·dt`: what a copy needs to judge the next command
+    /// as the engine's limiter will. (The engine's limiter keeps exactly that rate: every
+    /// command it issues, passed or its own, has its pose one step of `last_rate` on.)
+    pub fn resume(&mut self, last: &PlatformCommand, last_rate: &Vector6<f64>) {
+        self.last = *last;
+        self.last_rate = *last_rate;
+    }
+
+    /// The limiter's own braking step from the state it holds: every DoF decelerating toward
+    /// rest at its limit, the pose and the rate it would issue if it had to brake now. From a
+    /// state the limiter issued, the result passes [`Self::pose_rejection`] (the braking
+    /// look-ahead checked that path), barring the last resort.
+    pub fn braking_step(&self) -> (Vector6<f64>, Vector6<f64>) {
+        self.brake(&self.last.pose, &self.last_rate)
     }
 
     fn acceptable(&self, cmd: &PlatformCommand) -> bool {

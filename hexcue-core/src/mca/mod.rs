@@ -326,6 +326,13 @@ pub trait MotionCueing: Send {
     /// live session says no: its stepping thread runs at real-time priority and the pool's
     /// threads do not, so the step would wait behind whatever else the machine runs.
     fn set_parallel(&mut self, _parallel: bool) {}
+    /// Whether the last step's command is the workspace limiter's own braking step, which the
+    /// algorithm issued itself because the limiter would have refused the pose it had decided
+    /// a step ahead (the MPCs: docs/mpc.md, "The lock at the workspace's corner"). The engine
+    /// counts such a step as the limiter's: it is its action, taken one step earlier.
+    fn issued_limiter_braking(&self) -> bool {
+        false
+    }
 }
 
 /// An algorithm's running state, opaque to everyone but the algorithm that took it.

@@ -67,6 +67,9 @@ pub struct Smpc {
     reports: [super::SolverReport; 2],
     /// Both QPs on two cores when they are both solved (see [`MotionCueing::set_parallel`]).
     parallel: bool,
+    /// Whether the last command is a controller's braking step for the limiter
+    /// ([`MotionCueing::issued_limiter_braking`]).
+    braked: bool,
 }
 
 /// [`MotionCueing::snapshot`] of an S-MPC: both MPCs' running states and the switching's.
@@ -115,6 +118,7 @@ impl Smpc {
                 },
             ],
             parallel: true,
+            braked: false,
         })
     }
 
@@ -251,7 +255,20 @@ impl MotionCueing for Smpc {
         };
         free_report.name = super::QpName::Free;
         self.reports = [cotc.report, free_report];
+        // The controller whose command went out (both while blending) braked for the limiter.
+        self.braked = if self.mixer.is_blending() {
+            self.cotc.braked_now() || self.free.braked_now()
+        } else {
+            match active {
+                Controller::Cotc => self.cotc.braked_now(),
+                Controller::Free => self.free.braked_now(),
+            }
+        };
         command
+    }
+
+    fn issued_limiter_braking(&self) -> bool {
+        self.braked
     }
 
     fn state(&self) -> AlgorithmState {
@@ -325,6 +342,7 @@ impl MotionCueing for Smpc {
         self.outgoing = Controller::Cotc;
         self.mode = Mode::Cotc;
         self.time_in_mode_s = 0.0;
+        self.braked = false;
     }
 }
 

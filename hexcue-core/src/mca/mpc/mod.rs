@@ -31,16 +31,17 @@ use scratch::Scratch;
 use std::sync::Arc;
 
 use clarabel::solver::DefaultSolver;
-use nalgebra::{DMatrix, DVector, SVector, Vector1, Vector3};
+use nalgebra::{DMatrix, DVector, SVector, Vector1, Vector3, Vector6};
 
 use self::cache::PredictionCache;
 use self::condensed::CondensedQp;
 use self::follow::Follow;
-use self::model::{input, state, NU, NX};
+use self::model::{input, pose_of, state, NU, NX};
 use self::params::ReferenceMode;
 pub use self::params::{CotcOverrides, MpcParams};
 pub use self::plan::Plan;
 use self::qp::{CscPattern, Triplets};
+use super::limiter::WorkspaceLimiter;
 use super::{
     AlgorithmId, AlgorithmState, CueInput, CueSample, Mode, MotionCueing, PlatformCommand, Setting,
     SolveStatus, SolverReport,
@@ -168,6 +169,10 @@ pub struct Mpc {
     ref_trace: DiscreteStateSpace,
     stewart: Stewart,
     limits: DofLimits,
+    /// A copy of the engine's workspace limiter, brought to its state each step: the pose
+    /// this MPC issues next is decided a step ahead, and after the limiter acted it is
+    /// judged here first (`sync_and_advance`).
+    limiter: WorkspaceLimiter,
     tilt_rate_max_radps: [f64; 2],
     /// Perception thresholds of f̂x..ω̂z (m/s², rad/s), the unit of the false-cue slacks.
     thresholds: [f64; 6],
@@ -296,6 +301,7 @@ impl Mpc {
             cache,
             stewart: setting.platform.stewart.clone(),
             limits,
+            limiter: WorkspaceLimiter::new(setting.platform.stewart.clone(), limits, margin, dt_s),
             tilt_rate_max_radps: [thresholds.x, thresholds.y],
             thresholds: {
                 let f = setting.vestibular.otolith_threshold_mps2;
@@ -327,6 +333,9 @@ impl Mpc {
                 follow: Follow::new(params, [limits.excursion[3], limits.excursion[4]], dt_s),
                 onset: onset::OnsetGuard::new(setting),
                 started: false,
+                applied_before: None,
+                braked_steps: 0,
+                braked_now: false,
                 sustained_df_mps2: Vector3::zeros(),
                 terminal_tilt_rad: [0.0; 2],
                 last_command: PlatformCommand::default(),
@@ -402,6 +411,18 @@ impl Mpc {
     /// The motion planned by the last solve over the horizon.
     pub fn plan(&self) -> &Plan {
         &self.run.plan
+    }
+
+    /// Steps since the last reset on which the pose this MPC had decided a step ahead would
+    /// have been refused by the limiter, and its braking step was issued instead.
+    pub fn braked_steps(&self) -> u64 {
+        self.run.braked_steps
+    }
+
+    /// Whether the last step's pose is the limiter's braking step
+    /// ([`MotionCueing::issued_limiter_braking`]).
+    pub fn braked_now(&self) -> bool {
+        self.run.braked_now
     }
 
     /// The last solve's report.
@@ -491,6 +512,12 @@ impl Mpc {
             x[state::YAW] = applied.pose[5];
             self.run.u_last[input::ROT_YAW_RATE] = applied.velocity[5];
         }
+        // The pose applied before this one, if both followed this MPC's (or its leader's)
+        // commands: the first step's command ignores where the platform was, so a rate
+        // from it would be no rate the platform had.
+        let applied_before = self.run.applied_before;
+        self.run.braked_now = false;
+        self.run.applied_before = (self.run.started && applied.is_finite()).then_some(applied.pose);
         if self.run.started {
             if (dt_s - self.trace_model.dt_s).abs() > 1e-12 {
                 self.trace_model = self.cache.model.discretise(dt_s);
@@ -521,8 +548,58 @@ impl Mpc {
                 }
             }
         }
+        let same_step = (dt_s - self.dt_s).abs() < 1e-12;
+        if let Some(before) = applied_before.filter(|_| same_step && applied.is_finite()) {
+            self.brake_where_the_limiter_would(applied, &before);
+        }
         self.run.u_before.copy_from(&self.run.u_last);
         self.run.started = true;
+    }
+
+    /// The pose issued next was decided a step ago, from the state this MPC expected; where
+    /// the limiter acted since, the platform is elsewhere, moving otherwise, and that pose,
+    /// carried on from the applied state, can be one the limiter refuses again: it then
+    /// brakes every DoF at its limit, the MPC carries its braked rates on, and one refusal
+    /// becomes a chain of them (docs/mpc.md, "The lock at the workspace's corner"). So the
+    /// pose is judged as the engine's limiter will judge it, and where it would be refused
+    /// the MPC issues the limiter's own braking step instead (which it accepts) and plans
+    /// from there: its rows are then written on the state the next step really starts from.
+    fn brake_where_the_limiter_would(
+        &mut self,
+        applied: &PlatformCommand,
+        applied_before: &Vector6<f64>,
+    ) {
+        let rate = (applied.pose - applied_before) / self.dt_s;
+        self.limiter.resume(applied, &rate);
+        let next = pose_of(&self.run.x);
+        if self.limiter.pose_rejection(&next).is_none() {
+            return;
+        }
+        let (pose, rate) = self.limiter.braking_step();
+        let x = &mut self.run.x;
+        for k in 0..3 {
+            x[state::POS + k] = pose[k];
+            x[state::VEL + k] = rate[k];
+        }
+        for (j, (total, tilt)) in [
+            (state::ROLL, state::TILT_ROLL),
+            (state::PITCH, state::TILT_PITCH),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let old_total = x[total];
+            if old_total.abs() > 1e-12 && (pose[3 + j] - old_total).abs() > 1e-12 {
+                x[tilt] *= (pose[3 + j] / old_total).clamp(0.0, 1.0);
+            }
+            x[total] = pose[3 + j];
+            let tilt_rate = self.run.u_last[input::TILT_ROLL_RATE + j];
+            self.run.u_last[input::ROT_ROLL_RATE + j] = rate[3 + j] - tilt_rate;
+        }
+        x[state::YAW] = pose[5];
+        self.run.u_last[input::ROT_YAW_RATE] = rate[5];
+        self.run.braked_steps += 1;
+        self.run.braked_now = true;
     }
 
     /// The aircraft's perceived motion over the horizon, from its perception state now.
@@ -777,6 +854,8 @@ impl Mpc {
         self.run.heave_low_mps2 = leader.run.heave_low_mps2;
         self.run.onset.copy_from(&leader.run.onset);
         self.run.started = leader.run.started;
+        self.run.applied_before = leader.run.applied_before;
+        self.run.braked_now = leader.run.braked_now;
         self.run.sustained_df_mps2 = leader.run.sustained_df_mps2;
         self.run.terminal_tilt_rad = leader.run.terminal_tilt_rad;
         self.run.last_command = leader.run.last_command;
@@ -819,6 +898,9 @@ impl Mpc {
         self.run.follow.reset();
         self.run.onset.clear();
         self.run.started = false;
+        self.run.applied_before = None;
+        self.run.braked_steps = 0;
+        self.run.braked_now = false;
         self.run.last_command = PlatformCommand::default();
         // Emptied, its room kept: the next plan is written without allocating.
         self.run.plan.clear();
@@ -871,6 +953,14 @@ struct Running {
     /// The applied commands and the aircraft over the jolt measure's windows.
     onset: onset::OnsetGuard,
     started: bool,
+    /// The pose applied the step before the last, when both were this MPC's (for the rate
+    /// the limiter holds).
+    applied_before: Option<Vector6<f64>>,
+    /// Steps on which the pose decided a step ahead was replaced by the limiter's braking
+    /// step (`brake_where_the_limiter_would`).
+    braked_steps: u64,
+    /// Whether this step's pose is the limiter's braking step.
+    braked_now: bool,
     /// Low-passed aircraft Δf whose tilt is COTC's terminal condition (m/s²).
     sustained_df_mps2: Vector3<f64>,
     /// Roll and pitch COTC's last QP ended at (rad).
@@ -929,6 +1019,10 @@ impl MotionCueing for Mpc {
 
     fn as_any(&self) -> Option<&dyn std::any::Any> {
         Some(self)
+    }
+
+    fn issued_limiter_braking(&self) -> bool {
+        self.run.braked_now
     }
 }
 

@@ -1499,3 +1499,95 @@ fn active_set_and_clarabel_agree_with_the_tilt_heave_loss() {
         );
     }
 }
+
+/// The pose an MPC issues is decided a step ahead. Here the limiter has just acted and left
+/// the platform at the last surge from which, moving at 0.6 m/s, its braking still stops
+/// inside (found by bisection on the limiter's own check); carried on at that rate, the
+/// decided pose is one the limiter refuses (`Braking`), and did, step after step, while it
+/// braked every DoF at its limit (docs/mpc.md, "The lock at the workspace's corner"). The
+/// MPC now issues the limiter's braking step instead, which it accepts, and says so.
+#[test]
+fn after_the_limiter_acted_the_next_pose_is_one_it_accepts() {
+    let p = full_flight();
+    let dt = p.dt_s();
+    let mut limiter = WorkspaceLimiter::new(p.stewart(), p.limits.si(), p.limiter.leg_margin_m, dt);
+    for (dof, rate) in [(0usize, 0.6), (1, -0.6), (3, 0.3), (4, -0.3)] {
+        let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
+        let at = |x: f64| {
+            let mut pose = Vector6::zeros();
+            pose[dof] = x;
+            pose
+        };
+        let rates = at(rate);
+        // The largest excursion along `dof` whose braking from `rate` passes: the limiter,
+        // having issued it at that rate, would accept it again.
+        // The rate the limiter holds, as it (and the MPC) computes it from the poses: at the
+        // edge found by bisection a rounding error decides.
+        let held = |x: f64| (at(x) - at(x - rate * dt)) / dt;
+        let passes = |limiter: &mut WorkspaceLimiter, x: f64| {
+            let before = PlatformCommand {
+                pose: at(x - rate * dt),
+                velocity: rates,
+                acceleration: Vector6::zeros(),
+            };
+            limiter.resume(&before, &held(x - rate * dt));
+            limiter.pose_rejection(&at(x)).is_none()
+        };
+        let (mut lo, mut hi) = (0.0, p.limits.si().excursion[dof]);
+        assert!(passes(&mut limiter, lo * rate.signum()));
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if passes(&mut limiter, mid * rate.signum()) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        // A micrometre inside: exactly on the edge, the rounding of a rate recomputed from
+        // two poses decides either way.
+        let edge = (lo - 1e-6) * rate.signum();
+        let applied_at = |x: f64| PlatformCommand {
+            pose: at(x),
+            velocity: rates,
+            acceleration: Vector6::zeros(),
+        };
+        // Carried on at the applied rate, the next pose is refused.
+        limiter.resume(&applied_at(edge), &held(edge));
+        assert_eq!(
+            limiter.pose_rejection(&at(edge + rate * dt)),
+            Some(crate::mca::limiter::Rejection::Braking),
+            "dof {dof}: the premise"
+        );
+        let quiet = sample([0.0; 3], [0.0; 3]);
+        // The first step's command ignores the applied state; from the second the MPC
+        // follows it, and at the third it knows the rate the limiter holds.
+        step(&mut mpc, 0, quiet, &applied_at(edge - 2.0 * rate * dt));
+        step(&mut mpc, 1, quiet, &applied_at(edge - rate * dt));
+        let out = step(&mut mpc, 2, quiet, &applied_at(edge));
+        assert!(mpc.braked_now(), "dof {dof}: not braked");
+        assert_eq!(
+            limiter.rejection(&out.command),
+            None,
+            "dof {dof}: refused {:?}",
+            out.command
+        );
+        let (braked, _) = limiter.braking_step();
+        assert!(
+            (out.command.pose - braked).amax() < 1e-12,
+            "dof {dof}: not the limiter's braking step: {:?} against {:?}",
+            out.command.pose.as_slice(),
+            braked.as_slice()
+        );
+        // Away from the edge the decided pose passes and is issued as it was.
+        let mut mpc = Mpc::new(&p.mpc, &p.setting(), Terminal::Free).unwrap();
+        step(
+            &mut mpc,
+            0,
+            quiet,
+            &applied_at(0.5 * edge - 2.0 * rate * dt),
+        );
+        step(&mut mpc, 1, quiet, &applied_at(0.5 * edge - rate * dt));
+        step(&mut mpc, 2, quiet, &applied_at(0.5 * edge));
+        assert!(!mpc.braked_now(), "dof {dof}: braked away from the edge");
+    }
+}
