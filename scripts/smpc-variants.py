@@ -10,6 +10,7 @@ A variant is NAME=LINE[;LINE...]: `cotc.KEY = V` sets KEY in [smpc.cotc], `smpc.
 solvers' wall-clock limit is lifted, as in `compare`. BOUNDS (environment) is a directory of
 `hexcue bound --json` files named `bound-FLIGHT.json`; flights without one get no cueable
 figure (their error total still ranks the variants: the bound does not depend on them).
+FLAGS (environment): more `play` options for every run, e.g. `--preview` (the CWF ignores it).
 Summaries already in OUTDIR are reused.
 
 usage: scripts/smpc-variants.py BIN OUTDIR VARIANT... -- FLIGHT.csv...
@@ -25,6 +26,7 @@ here = os.path.dirname(os.path.abspath(__file__))
 base = open(os.path.join(here, '..', 'profiles', 'full-flight.toml')).read()
 bounds = os.environ.get('BOUNDS')
 jobs = int(os.environ.get('JOBS', '1'))
+extra_flags = os.environ.get('FLAGS', '').split()
 chs = ['fx', 'fy', 'fz', 'wx', 'wy', 'wz']
 os.makedirs(out, exist_ok=True)
 
@@ -66,7 +68,7 @@ for v in variants:
         sp = f'{out}/{name}--{fn}.json'
         if not os.path.exists(sp):
             runs.append((name, fn, [bin_, 'play', '--headless', '--trace', f, '--profile', pp,
-                                    '--algorithms', algs, '--summary', sp, '--force']))
+                                    '--algorithms', algs, '--summary', sp, '--force'] + extra_flags))
 procs = []
 for name, fn, cmd in runs:
     while len(procs) >= jobs:
@@ -101,7 +103,7 @@ print('variant     flight                      alg    error  cueable  removes  '
 for f in flights:
     fn = os.path.basename(f)[:-4]
     b = load('base', fn)
-    if b is None:
+    if b is None or 'cwf' not in b:
         continue
     low = lower_of(fn)
     cue = lambda e: sum(max(e[c] - low[c], 0) for c in chs) if low else float('nan')
