@@ -284,6 +284,12 @@ def cmd_work(args) -> None:
             except (KeyboardInterrupt, Stopped):
                 hand_back(study, trial, config["space"])
                 sys.exit(1)
+            except optuna.exceptions.UpdateFinishedTrialError:
+                # Two workers can pop the same queued trial from an SQLite database, which has
+                # no row lock for Optuna's pop (optuna/optuna#4621): the other one finished it,
+                # with the same candidate; this evaluation is dropped.
+                print(f"trial {trial.number}: finished by another worker", file=sys.stderr)
+                continue
             except BaseException:
                 study.tell(trial, state=TrialState.FAIL)
                 raise
