@@ -29,7 +29,6 @@ pub(super) struct Follow {
     tilt: TiltCoordination,
     /// Roll and pitch rotational channels (angle, rate per unit of scaled rate).
     rotation: [LtiFilter; 2],
-    tilt_share: f64,
     rotation_scale: f64,
     /// Roll and pitch of the rotational channel now (rad) and their rates (rad/s).
     rotation_now: [(f64, f64); 2],
@@ -51,15 +50,20 @@ impl Follow {
                 dt_s,
             ),
             rotation: std::array::from_fn(|_| LtiFilter::new(rotation.clone())),
-            tilt_share: p.tilt_share,
             rotation_scale: p.follow_rotation_scale,
             rotation_now: [(0.0, 0.0); 2],
         }
     }
 
-    /// One trace step on the aircraft's Δf (m/s²) and body rates (rad/s), both finite.
-    pub(super) fn step(&mut self, df_mps2: &Vector3<f64>, rate_radps: &Vector3<f64>, dt_s: f64) {
-        let share = self.tilt_share;
+    /// One trace step on the aircraft's Δf (m/s²) and body rates (rad/s), both finite, the
+    /// tilt coordinating `share` of the force (`MpcParams::tilt_share_with`).
+    pub(super) fn step(
+        &mut self,
+        df_mps2: &Vector3<f64>,
+        rate_radps: &Vector3<f64>,
+        share: f64,
+        dt_s: f64,
+    ) {
         self.tilt.step(df_mps2.x * share, df_mps2.y * share, dt_s);
         for k in 0..2 {
             let y = self.rotation[k].step(&[rate_radps[k] * self.rotation_scale]);
@@ -119,7 +123,7 @@ mod tests {
         let mut last = 0.0;
         let rate_max = p.follow_tilt_rate_limit_dps.to_radians();
         for _ in 0..2000 {
-            f.step(&df, &Vector3::zeros(), dt);
+            f.step(&df, &Vector3::zeros(), p.tilt_share, dt);
             f.predict(&[0.1, 0.4], Some([0.3; 2]), &mut out);
             let pitch = out[0][1];
             assert!(out[0][0].abs() < 1e-12, "no roll for a surge");
@@ -140,7 +144,12 @@ mod tests {
         let mut peak: f64 = 0.0;
         for k in 0..3000 {
             let q = if k < 100 { 0.1 } else { 0.0 };
-            f.step(&Vector3::zeros(), &Vector3::new(0.0, q, 0.0), dt);
+            f.step(
+                &Vector3::zeros(),
+                &Vector3::new(0.0, q, 0.0),
+                p.tilt_share,
+                dt,
+            );
             f.predict(&[0.1], Some([0.3; 2]), &mut out);
             peak = peak.max(out[0][1]);
         }

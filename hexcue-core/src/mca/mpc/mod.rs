@@ -25,6 +25,7 @@ pub mod qp;
 pub mod reference;
 pub mod riccati;
 mod scratch;
+mod sync;
 pub mod tilt_heave;
 
 use scratch::Scratch;
@@ -36,7 +37,7 @@ use nalgebra::{DMatrix, DVector, SVector, Vector1, Vector3, Vector6};
 use self::cache::PredictionCache;
 use self::condensed::CondensedQp;
 use self::follow::Follow;
-use self::model::{input, pose_of, state, NU, NX};
+use self::model::{input, NU, NX};
 use self::params::ReferenceMode;
 pub use self::params::{CotcOverrides, MpcParams};
 pub use self::plan::Plan;
@@ -480,128 +481,6 @@ impl Mpc {
         self.washout_gain
     }
 
-    /// Brings the prediction state to the platform's applied state at the previous step, then
-    /// advances it one trace step: the MPC always predicts from where the platform really is
-    /// (after the limiter, or the S-MPC's mixer).
-    fn sync_and_advance(&mut self, applied: &PlatformCommand, dt_s: f64) {
-        if self.run.started && applied.is_finite() {
-            let x = &mut self.run.x;
-            for k in 0..3 {
-                x[state::POS + k] = applied.pose[k];
-                x[state::VEL + k] = applied.velocity[k];
-                self.run.u_last[input::ACCEL_X + k] = applied.acceleration[k];
-            }
-            // Keep this controller's split of roll and pitch into tilt and rotation, shrunk
-            // with the total when something upstream scaled it toward neutral.
-            for (j, (total, tilt)) in [
-                (state::ROLL, state::TILT_ROLL),
-                (state::PITCH, state::TILT_PITCH),
-            ]
-            .into_iter()
-            .enumerate()
-            {
-                let new_total = applied.pose[3 + j];
-                let old_total = x[total];
-                if old_total.abs() > 1e-12 && (new_total - old_total).abs() > 1e-12 {
-                    x[tilt] *= (new_total / old_total).clamp(0.0, 1.0);
-                }
-                x[total] = new_total;
-                let tilt_rate = self.run.u_last[input::TILT_ROLL_RATE + j];
-                self.run.u_last[input::ROT_ROLL_RATE + j] = applied.velocity[3 + j] - tilt_rate;
-            }
-            x[state::YAW] = applied.pose[5];
-            self.run.u_last[input::ROT_YAW_RATE] = applied.velocity[5];
-        }
-        // The pose applied before this one, if both followed this MPC's (or its leader's)
-        // commands: the first step's command ignores where the platform was, so a rate
-        // from it would be no rate the platform had.
-        let applied_before = self.run.applied_before;
-        self.run.braked_now = false;
-        self.run.applied_before = (self.run.started && applied.is_finite()).then_some(applied.pose);
-        if self.run.started {
-            if (dt_s - self.trace_model.dt_s).abs() > 1e-12 {
-                self.trace_model = self.cache.model.discretise(dt_s);
-                self.trace_e = &self.trace_model.a * &self.cache.lever_jump;
-            }
-            // x = A x + B u + ΦE Δu, term by term into the scratch, summed in that order.
-            let s = &mut self.scratch;
-            s.jump.copy_from(&self.run.u_last);
-            s.jump -= &self.run.u_before;
-            s.ax.gemv(1.0, &self.trace_model.a, &self.run.x, 0.0);
-            s.bu.gemv(1.0, &self.trace_model.b, &self.run.u_last, 0.0);
-            s.ej.gemv(1.0, &self.trace_e, &s.jump, 0.0);
-            let before = [self.run.x[state::ROLL], self.run.x[state::PITCH]];
-            for (i, x) in self.run.x.iter_mut().enumerate() {
-                *x = s.ax[i] + s.bu[i] + s.ej[i];
-            }
-            if let Some(th) = self.tilt_heave.as_mut() {
-                if (th.trace_dt_s - dt_s).abs() > 1e-12 {
-                    th.trace = tilt_heave::held_linearly(&self.cache.model, dt_s);
-                    th.trace_dt_s = dt_s;
-                }
-                // The tilt's loss of vertical force over the step, held first order between
-                // the angles at its ends (the rates are held over the step).
-                let h0 = tilt_heave::loss_mps2(before[0], before[1]);
-                let h1 = tilt_heave::loss_mps2(self.run.x[state::ROLL], self.run.x[state::PITCH]);
-                for (r, &s) in tilt_heave::HEAVE_OTOLITH.iter().enumerate() {
-                    self.run.x[s] += th.trace.start[r] * h0 + th.trace.end[r] * h1;
-                }
-            }
-        }
-        let same_step = (dt_s - self.dt_s).abs() < 1e-12;
-        if let Some(before) = applied_before.filter(|_| same_step && applied.is_finite()) {
-            self.brake_where_the_limiter_would(applied, &before);
-        }
-        self.run.u_before.copy_from(&self.run.u_last);
-        self.run.started = true;
-    }
-
-    /// The pose issued next was decided a step ago, from the state this MPC expected; where
-    /// the limiter acted since, the platform is elsewhere, moving otherwise, and that pose,
-    /// carried on from the applied state, can be one the limiter refuses again: it then
-    /// brakes every DoF at its limit, the MPC carries its braked rates on, and one refusal
-    /// becomes a chain of them (docs/mpc.md, "The lock at the workspace's corner"). So the
-    /// pose is judged as the engine's limiter will judge it, and where it would be refused
-    /// the MPC issues the limiter's own braking step instead (which it accepts) and plans
-    /// from there: its rows are then written on the state the next step really starts from.
-    fn brake_where_the_limiter_would(
-        &mut self,
-        applied: &PlatformCommand,
-        applied_before: &Vector6<f64>,
-    ) {
-        let rate = (applied.pose - applied_before) / self.dt_s;
-        self.limiter.resume(applied, &rate);
-        let next = pose_of(&self.run.x);
-        if self.limiter.pose_rejection(&next).is_none() {
-            return;
-        }
-        let (pose, rate) = self.limiter.braking_step();
-        let x = &mut self.run.x;
-        for k in 0..3 {
-            x[state::POS + k] = pose[k];
-            x[state::VEL + k] = rate[k];
-        }
-        for (j, (total, tilt)) in [
-            (state::ROLL, state::TILT_ROLL),
-            (state::PITCH, state::TILT_PITCH),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            let old_total = x[total];
-            if old_total.abs() > 1e-12 && (pose[3 + j] - old_total).abs() > 1e-12 {
-                x[tilt] *= (pose[3 + j] / old_total).clamp(0.0, 1.0);
-            }
-            x[total] = pose[3 + j];
-            let tilt_rate = self.run.u_last[input::TILT_ROLL_RATE + j];
-            self.run.u_last[input::ROT_ROLL_RATE + j] = rate[3 + j] - tilt_rate;
-        }
-        x[state::YAW] = pose[5];
-        self.run.u_last[input::ROT_YAW_RATE] = rate[5];
-        self.run.braked_steps += 1;
-        self.run.braked_now = true;
-    }
-
     /// The aircraft's perceived motion over the horizon, from its perception state now.
     fn predict_reference(&mut self, sample: &CueSample, preview: &[CueSample], dt_s: f64) {
         let n = self.n_intervals();
@@ -733,6 +612,27 @@ impl Mpc {
         self.run.sustained_df_mps2 * self.params.tilt_share
     }
 
+    /// The share of the sustained Δf whose tilt is COTC's terminal condition: the low-pass as
+    /// it is now (`tilt_share` of it),
+    /// or, where the future is known, as it will be at the horizon's end (the same low-pass
+    /// run on over the samples ahead, as far as the horizon and the samples go: a short
+    /// forecast moves it little, a preview of the flight to the horizon's end;
+    /// `preview_tilt_share` of it). A causal
+    /// terminal tilt lags the force by the low-pass and the horizon: with the future known
+    /// COTC would still tilt toward a force already gone, and back only once it has ended
+    /// (docs/mpc.md, "Preview: COTC's terminal tilt from the future").
+    fn terminal_df_mps2(&self, ahead: &[CueSample], alpha: f64) -> Vector3<f64> {
+        let mut df = self.run.sustained_df_mps2;
+        if self.params.reference_with(!ahead.is_empty()) != ReferenceMode::Preview {
+            return df * self.params.tilt_share;
+        }
+        let steps = (self.horizon_s() / self.dt_s).round() as usize;
+        for s in ahead.iter().take(steps) {
+            df += (s.delta_f_mps2.map(finite_or_zero) - df) * alpha;
+        }
+        df * self.params.tilt_share_with(true)
+    }
+
     /// The aircraft's Δf_z through two first-order high-passes (`heave_cue_s` each): the part
     /// of the heave that the stroke can cue and take back. One stage passes a ramp's slope
     /// times τ for as long as the ramp lasts (a spiral dive's growing load factor), which was
@@ -776,7 +676,8 @@ impl Mpc {
             low[1] += (first - low[1]) * alpha;
         }
         let rates = input.sample.angular_velocity_radps.map(finite_or_zero);
-        self.run.follow.step(&df, &rates, dt_s);
+        let share = self.params.tilt_share_with(!input.preview.is_empty());
+        self.run.follow.step(&df, &rates, share, dt_s);
         let decay_s = match self.params.reference_with(!input.preview.is_empty()) {
             ReferenceMode::Decay => Some([
                 self.params.reference_decay_s[3],
@@ -791,7 +692,7 @@ impl Mpc {
         self.predict_reference(&input.sample, input.preview, dt_s);
         self.update_tilt_bounds();
         let last_bound = self.tilt_bound_rad[self.grid.len() - 1];
-        let tilt = terminal_tilt(&self.tilt_df_mps2());
+        let tilt = terminal_tilt(&self.terminal_df_mps2(input.preview, alpha));
         // Only the heave guard's tighter bound moves COTC's terminal tilt: a sustained cue
         // beyond the workspace must still make COTC infeasible, which is what hands the
         // S-MPC to the free MPC.

@@ -186,6 +186,14 @@ pub struct MpcParams {
     /// (docs/mpc.md, "How much tilt").
     #[serde(default = "default_tilt_share")]
     pub tilt_share: f64,
+    /// `tilt_share` where the MPC predicts with samples ahead (`preview`, or the forecast of
+    /// `forecast_s`): COTC's terminal tilt (of the sustained force as the low-pass will have
+    /// it at the horizon's end) and the followed tilt. Of `tilt_share`'s two reasons for less
+    /// than all of the force, tilting back late when it ends goes with a known future; the
+    /// lightness stays. Absent: `tilt_share` (docs/mpc.md, "Preview: COTC's terminal tilt
+    /// from the future").
+    #[serde(default)]
+    pub preview_tilt_share: Option<f64>,
     /// The heave cue channel: the cost tracks the perception of Δf_z through two first-order
     /// high-passes with this time constant (s), predicted fading to nothing, instead of the
     /// whole perceived heave; the false-cue guard still protects the whole. A sustained load factor
@@ -238,6 +246,15 @@ impl MpcParams {
             ReferenceMode::Preview
         } else {
             self.reference
+        }
+    }
+
+    /// The share of the sustained surge and sway force carried by tilt: `preview_tilt_share`
+    /// where the MPC predicts with samples ahead (`reference_with`), `tilt_share` otherwise.
+    pub fn tilt_share_with(&self, future_known: bool) -> f64 {
+        match self.reference_with(future_known) {
+            ReferenceMode::Preview => self.preview_tilt_share.unwrap_or(self.tilt_share),
+            _ => self.tilt_share,
         }
     }
 
@@ -391,6 +408,16 @@ impl MpcParams {
                     self.tilt_share
                 ),
             );
+        }
+        if let Some(share) = self.preview_tilt_share {
+            if !(share > 0.0 && share <= 1.0) {
+                return err(
+                    "preview_tilt_share",
+                    format!(
+                        "expected a share of the sustained specific force in (0, 1], got {share}"
+                    ),
+                );
+            }
         }
         non_negative("tilt_follow_weight", &self.tilt_follow_weight)?;
         positive("mpc.follow_tilt_lp_wn_radps", self.follow_tilt_lp_wn_radps)?;
@@ -638,6 +665,19 @@ mod tests {
         let mut bad = p.clone();
         bad.mpc.tilt_share = 0.0;
         assert_eq!(bad.validate().unwrap_err().key, "mpc.tilt_share");
+        let mut bad = p.clone();
+        bad.mpc.preview_tilt_share = Some(1.2);
+        let err = bad.validate().unwrap_err();
+        assert_eq!(err.key, "mpc.preview_tilt_share", "{err}");
+        assert!(err.reason.contains("1.2"), "{err}");
+        // With the future known the preview's share, without it `tilt_share`.
+        let mut own = p.mpc.clone();
+        own.preview = true;
+        own.preview_tilt_share = Some(0.9);
+        assert_eq!(own.tilt_share_with(true), 0.9);
+        assert_eq!(own.tilt_share_with(false), own.tilt_share);
+        own.preview_tilt_share = None;
+        assert_eq!(own.tilt_share_with(true), own.tilt_share);
         let mut bad = p.clone();
         bad.smpc.cotc.tilt_share = Some(1.5);
         assert_eq!(bad.validate().unwrap_err().key, "smpc.cotc.tilt_share");

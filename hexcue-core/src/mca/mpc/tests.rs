@@ -1,5 +1,6 @@
 //! The MPC's tests, a module of `mpc` compiled only under `#[cfg(test)]`.
 
+use super::model::state;
 use super::*;
 use crate::mca::limiter::WorkspaceLimiter;
 use crate::profile::Profile;
@@ -1153,10 +1154,16 @@ fn the_preview_key_sees_the_future_and_falls_back_without_one() {
 #[test]
 fn a_held_future_previews_as_the_hold_reference() {
     let p = full_flight();
-    for (base, terminal) in [
+    for (mut base, terminal) in [
         (p.mpc.clone(), Terminal::Free),
         (p.cotc_params(), Terminal::Cotc),
     ] {
+        // The reference branch is what is compared: with the future known COTC's terminal tilt
+        // is also the low-passed force at the horizon's end, of `preview_tilt_share`
+        // (`preview_sets_cotc_s_terminal_tilt_from_the_force_ahead`); with no share of its own
+        // and a low-pass of 1 µs, a held future gives the present's.
+        base.preview_tilt_share = None;
+        base.cotc_sustained_s = 1e-6;
         let mut hold = base.clone();
         hold.reference = ReferenceMode::Hold;
         hold.preview = false;
@@ -1590,4 +1597,50 @@ fn after_the_limiter_acted_the_next_pose_is_one_it_accepts() {
         step(&mut mpc, 2, quiet, &applied_at(0.5 * edge));
         assert!(!mpc.braked_now(), "dof {dof}: braked away from the edge");
     }
+}
+
+/// With the future known, COTC's terminal tilt is the sustained force as the low-pass will
+/// have it at the horizon's end, not as it has it now: a surge of 2 m/s² that starts 0.5 s
+/// ahead has, by the horizon's end, been low-passed for the rest of the horizon, by hand
+/// 2·(1 − e^(−(H − 0.5)/τ)). Without the future (or with the preview key off) it is the
+/// present low-pass: zero.
+#[test]
+fn preview_sets_cotc_s_terminal_tilt_from_the_force_ahead() {
+    let mut p = full_flight();
+    p.mpc.preview = true;
+    let dt = 0.01;
+    let future: Vec<CueSample> = (0..500)
+        .map(|k| {
+            let f = if k >= 50 { 2.0 } else { 0.0 };
+            sample([f, 0.0, 0.0], [0.0; 3])
+        })
+        .collect();
+    let terminal = |params: &MpcParams, ahead: &[CueSample]| {
+        let mut mpc = Mpc::new(params, &p.setting(), Terminal::Cotc).unwrap();
+        let input = CueInput {
+            k: 0,
+            t_s: 0.0,
+            dt_s: dt,
+            sample: sample([0.0; 3], [0.0; 3]),
+            preview: ahead,
+            applied: &PlatformCommand::default(),
+            deadline: None,
+        };
+        mpc.solve(&input);
+        (mpc.terminal_tilt_rad(), mpc.horizon_s())
+    };
+    let (tilt, horizon_s) = terminal(&p.mpc, &future);
+    let tau = p.mpc.cotc_sustained_s;
+    let share = p.mpc.preview_tilt_share.unwrap_or(p.mpc.tilt_share);
+    let df = 2.0 * (1.0 - (-(horizon_s - 0.5) / tau).exp()) * share;
+    let by_hand = terminal_tilt(&Vector3::new(df, 0.0, 0.0));
+    assert!(by_hand[1].abs() > 0.05, "a tilt worth testing: {by_hand:?}");
+    assert!(
+        (tilt[0] - by_hand[0]).abs() < 1e-9 && (tilt[1] - by_hand[1]).abs() < 1e-9,
+        "{tilt:?} against {by_hand:?}"
+    );
+    assert_eq!(terminal(&p.mpc, &[]).0, [0.0, 0.0]);
+    let mut causal = p.mpc.clone();
+    causal.preview = false;
+    assert_eq!(terminal(&causal, &future).0, [0.0, 0.0]);
 }
