@@ -512,6 +512,9 @@ pub enum SwitchReason {
         /// How long the errors stayed within it (s).
         dwell_s: f64,
     },
+    /// The supervisor had left COTC on a failure both MPCs shared, and COTC is solved again:
+    /// back at once, without the ε dwell, since the departure was not COTC's.
+    SharedFailureOver,
     /// A reason this version does not know, read from a file, kept as written.
     Other(String),
 }
@@ -520,7 +523,9 @@ impl SwitchReason {
     /// The reason a stored text names; [`SwitchReason::Other`] for text that is not exactly
     /// what this version's `Display` writes.
     pub fn parse(text: &str) -> Self {
-        let parsed = if let Some(word) = text
+        let parsed = if text == SHARED_FAILURE_OVER {
+            Some(SwitchReason::SharedFailureOver)
+        } else if let Some(word) = text
             .strip_prefix("COTC not solved (")
             .and_then(|r| r.strip_suffix(')'))
         {
@@ -557,10 +562,14 @@ impl std::fmt::Display for SwitchReason {
                 f,
                 "errors within ε = {epsilon_mps2:.2} m/s² for {dwell_s:.1} s and COTC solved"
             ),
+            SwitchReason::SharedFailureOver => f.write_str(SHARED_FAILURE_OVER),
             SwitchReason::Other(text) => f.write_str(text),
         }
     }
 }
+
+/// [`SwitchReason::SharedFailureOver`]'s text.
+const SHARED_FAILURE_OVER: &str = "shared failure over, COTC solved again";
 
 /// The reason as its text: what recordings and summaries store. Formatted only here, at the
 /// edge; the step carries the enum.
@@ -597,6 +606,10 @@ mod tests {
             SwitchReason::parse("errors within ε = 0.30 m/s² for 1.5 s and COTC solved"),
             SwitchReason::Settled { dwell_s, .. } if dwell_s == 1.5
         ));
+        assert_eq!(
+            SwitchReason::parse("shared failure over, COTC solved again"),
+            SwitchReason::SharedFailureOver
+        );
         for n in QpName::ALL {
             assert_eq!(QpName::from_word(n.word()), n);
         }
@@ -614,6 +627,7 @@ mod tests {
                 epsilon_mps2: f64::from(e) / 100.0,
                 dwell_s: f64::from(d) / 10.0,
             }),
+            Just(SwitchReason::SharedFailureOver),
         ]
     }
 

@@ -670,6 +670,7 @@ fn short_reason(why: &hexcue_core::vocab::SwitchReason) -> String {
     match why {
         SwitchReason::CotcNotSolved(status) => format!("COTC {}", status_word(status)),
         SwitchReason::Settled { dwell_s, .. } => format!("|e|<ε {dwell_s:.1}s, COTC ok"),
+        SwitchReason::SharedFailureOver => "shared fail over".to_string(),
         SwitchReason::Other(text) => text.clone(),
     }
 }

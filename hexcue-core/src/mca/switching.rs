@@ -207,6 +207,12 @@ pub struct Supervisor {
     within_epsilon_s: f64,
     /// Time with COTC unsolved, without a break.
     unsolved_s: f64,
+    /// Time with COTC solved, without a break.
+    solved_s: f64,
+    /// The free MPC is in charge because a failure both MPCs shared lasted, and the free MPC
+    /// has not since been solved while COTC was not: the departure was not COTC's, so COTC
+    /// takes over again as soon as it is solved (no ε dwell).
+    left_shared: bool,
     /// The dwell the next return must wait, lengthened by the back-off.
     dwell_now_s: f64,
     /// Time on COTC since the return or the last shortening of the dwell.
@@ -230,6 +236,8 @@ impl Supervisor {
             time_in_state_s: 0.0,
             within_epsilon_s: 0.0,
             unsolved_s: 0.0,
+            solved_s: 0.0,
+            left_shared: false,
             dwell_now_s: params.dwell_s,
             held_s: 0.0,
             switch_count: 0,
@@ -243,6 +251,8 @@ impl Supervisor {
         self.time_in_state_s = 0.0;
         self.within_epsilon_s = 0.0;
         self.unsolved_s = 0.0;
+        self.solved_s = 0.0;
+        self.left_shared = false;
         self.dwell_now_s = self.dwell_s;
         self.held_s = 0.0;
         self.switch_count = 0;
@@ -283,6 +293,15 @@ impl Supervisor {
         } else {
             self.unsolved_s + dt_s
         };
+        self.solved_s = if input.cotc_solved {
+            self.solved_s + dt_s
+        } else {
+            0.0
+        };
+        // The free MPC solved where COTC is not: from here on the failure is COTC's own.
+        if input.free_solved && !input.cotc_solved {
+            self.left_shared = false;
+        }
         let decision = match self.active {
             Controller::Cotc => self.leave(input, dt_s),
             Controller::Free => self.back(),
@@ -292,6 +311,9 @@ impl Supervisor {
             self.time_in_state_s = 0.0;
             self.within_epsilon_s = 0.0;
             self.held_s = 0.0;
+            if d.to == Controller::Cotc {
+                self.left_shared = false;
+            }
             self.switch_count += 1;
             self.last_reason = Some(d.reason.clone());
         }
@@ -308,6 +330,7 @@ impl Supervisor {
             if self.switch_count > 0 && self.time_in_state_s < self.backoff_hold_s - 1e-9 {
                 self.dwell_now_s = (self.dwell_now_s * self.backoff_factor).min(self.backoff_max_s);
             }
+            self.left_shared = !own_failure;
             return Some(SwitchDecision {
                 to: Controller::Free,
                 reason: SwitchReason::CotcNotSolved(input.cotc_status),
@@ -322,8 +345,24 @@ impl Supervisor {
     }
 
     /// On the free MPC: back once COTC has been solved with the errors within ε for the
-    /// dwell, and never before the blend away from COTC has ended.
+    /// dwell, and never before the blend away from COTC has ended. After a departure on a
+    /// shared failure, back as soon as COTC has been solved for `leave_confirm_s` (the time
+    /// the departure waited), blend or not (the mixer turns the blend around): the free MPC
+    /// was never better placed than COTC, and the ε dwell would keep it in charge for as long
+    /// as the aircraft's cue is beyond the platform. Only while no return has recently
+    /// failed (the dwell at its base): flickering shared failures make one prompt round trip,
+    /// then wait for the backed-off dwell.
     fn back(&self) -> Option<SwitchDecision> {
+        let prompt = self.left_shared
+            && self.solved_s > 0.0
+            && self.solved_s >= self.leave_confirm_s - 1e-9
+            && self.dwell_now_s <= self.dwell_s + 1e-9;
+        if prompt {
+            return Some(SwitchDecision {
+                to: Controller::Cotc,
+                reason: SwitchReason::SharedFailureOver,
+            });
+        }
         let dwelt = self.within_epsilon_s >= self.dwell_now_s - 1e-9;
         let blended = self.time_in_state_s >= self.transition_s - 1e-9;
         (dwelt && blended).then_some(SwitchDecision {
@@ -603,6 +642,94 @@ mod tests {
             run(&mut s, 100, |k| k >= 10, true),
             vec![(10, Controller::Free)]
         );
+    }
+
+    /// Both MPCs solved, the errors far beyond ε (a cue beyond the platform).
+    fn solved_far() -> SupervisorInput {
+        input(true, 2.0)
+    }
+
+    #[test]
+    fn a_departure_on_a_shared_failure_returns_once_cotc_is_solved_again() {
+        // A shared failure from step 10 to 69 (0.6 s): the supervisor leaves at 59, after
+        // leave_confirm_s. Both are solved again from step 70, the error far beyond ε: COTC
+        // takes over again after it has been solved for leave_confirm_s (50 steps), blend or
+        // not, and the reason says why.
+        let mut s = Supervisor::new(&params());
+        let mut switches = Vec::new();
+        for k in 0..300 {
+            let i = if (10..70).contains(&k) {
+                shared_failure()
+            } else {
+                solved_far()
+            };
+            if let Some(d) = s.update(&i, 0.01) {
+                switches.push((k, d.to));
+            }
+        }
+        assert_eq!(
+            switches,
+            vec![(59, Controller::Free), (119, Controller::Cotc)]
+        );
+        assert_eq!(s.last_reason(), Some(&SwitchReason::SharedFailureOver));
+
+        // The same, but the free MPC is solved for one step while COTC is not: the failure is
+        // COTC's own from there, and with the error beyond ε it stays on the free MPC.
+        let mut s = Supervisor::new(&params());
+        let mut switches = Vec::new();
+        for k in 0..300 {
+            let i = match k {
+                10..=69 => shared_failure(),
+                70 => input(false, 2.0),
+                _ => solved_far(),
+            };
+            if let Some(d) = s.update(&i, 0.01) {
+                switches.push((k, d.to));
+            }
+        }
+        assert_eq!(switches, vec![(59, Controller::Free)]);
+
+        // A departure on COTC's own failure never returns early either.
+        let mut s = Supervisor::new(&params());
+        let own: Vec<_> = (0..300)
+            .filter_map(|k| {
+                let i = if k == 10 {
+                    input(false, 2.0)
+                } else {
+                    solved_far()
+                };
+                s.update(&i, 0.01).map(|d| (k, d.to))
+            })
+            .collect();
+        assert_eq!(own, vec![(10, Controller::Free)]);
+    }
+
+    #[test]
+    fn repeated_shared_failures_make_one_prompt_round_trip_then_wait_for_the_dwell() {
+        // Shared failures of 0.6 s every 1.5 s: the first departure returns promptly, the
+        // second comes within backoff_hold_s and backs the dwell off, and from then on COTC
+        // comes back only after the (backed-off) ε dwell: never more than one prompt return
+        // until COTC has held.
+        let mut s = Supervisor::new(&params());
+        let mut reasons = Vec::new();
+        for k in 0..1500 {
+            let i = if k % 150 < 60 && k < 900 {
+                shared_failure()
+            } else {
+                input(true, 0.05)
+            };
+            if let Some(d) = s.update(&i, 0.01) {
+                if d.to == Controller::Cotc {
+                    reasons.push(d.reason);
+                }
+            }
+        }
+        let prompt = reasons
+            .iter()
+            .filter(|r| **r == SwitchReason::SharedFailureOver)
+            .count();
+        assert_eq!(prompt, 1, "{reasons:?}");
+        assert!(reasons.len() >= 2, "{reasons:?}");
     }
 
     /// Steps from a switch to the free MPC until the supervisor returns, COTC solved.
