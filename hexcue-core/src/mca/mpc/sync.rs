@@ -1,6 +1,6 @@
 //! The state each step starts from: the platform's applied state advanced one trace step,
 //! and the pose issued next judged as the engine's workspace limiter will judge it
-//! (docs/mpc.md, "The lock at the workspace's corner").
+//! (docs/mpc.md, "The chain after one refusal, cured").
 
 use nalgebra::Vector6;
 
@@ -90,7 +90,7 @@ impl Mpc {
     /// the limiter acted since, the platform is elsewhere, moving otherwise, and that pose,
     /// carried on from the applied state, can be one the limiter refuses again: it then
     /// brakes every DoF at its limit, the MPC carries its braked rates on, and one refusal
-    /// becomes a chain of them (docs/mpc.md, "The lock at the workspace's corner"). So the
+    /// becomes a chain of them (docs/mpc.md, "The chain after one refusal, cured"). So the
     /// pose is judged as the engine's limiter will judge it, and where it would be refused
     /// the MPC issues the limiter's own braking step instead (which it accepts) and plans
     /// from there: its rows are then written on the state the next step really starts from.
