@@ -328,7 +328,7 @@ pub trait MotionCueing: Send {
     fn set_parallel(&mut self, _parallel: bool) {}
     /// Whether the last step's command is the workspace limiter's own braking step, which the
     /// algorithm issued itself because the limiter would have refused the pose it had decided
-    /// a step ahead (the MPCs: docs/mpc.md, "The lock at the workspace's corner"). The engine
+    /// a step ahead (the MPCs: docs/mpc.md, "The chain after one refusal, cured"). The engine
     /// counts such a step as the limiter's: it is its action, taken one step earlier.
     fn issued_limiter_braking(&self) -> bool {
         false

@@ -15,32 +15,10 @@ impl Mpc {
     /// (after the limiter, or the S-MPC's mixer).
     pub(super) fn sync_and_advance(&mut self, applied: &PlatformCommand, dt_s: f64) {
         if self.run.started && applied.is_finite() {
-            let x = &mut self.run.x;
             for k in 0..3 {
-                x[state::POS + k] = applied.pose[k];
-                x[state::VEL + k] = applied.velocity[k];
                 self.run.u_last[input::ACCEL_X + k] = applied.acceleration[k];
             }
-            // Keep this controller's split of roll and pitch into tilt and rotation, shrunk
-            // with the total when something upstream scaled it toward neutral.
-            for (j, (total, tilt)) in [
-                (state::ROLL, state::TILT_ROLL),
-                (state::PITCH, state::TILT_PITCH),
-            ]
-            .into_iter()
-            .enumerate()
-            {
-                let new_total = applied.pose[3 + j];
-                let old_total = x[total];
-                if old_total.abs() > 1e-12 && (new_total - old_total).abs() > 1e-12 {
-                    x[tilt] *= (new_total / old_total).clamp(0.0, 1.0);
-                }
-                x[total] = new_total;
-                let tilt_rate = self.run.u_last[input::TILT_ROLL_RATE + j];
-                self.run.u_last[input::ROT_ROLL_RATE + j] = applied.velocity[3 + j] - tilt_rate;
-            }
-            x[state::YAW] = applied.pose[5];
-            self.run.u_last[input::ROT_YAW_RATE] = applied.velocity[5];
+            self.place(&applied.pose, &applied.velocity);
         }
         // The pose applied before this one, if both followed this MPC's (or its leader's)
         // commands: the first step's command ignores where the platform was, so a rate
@@ -106,10 +84,20 @@ impl Mpc {
             return;
         }
         let (pose, rate) = self.limiter.braking_step();
+        self.place(&pose, &rate);
+        self.run.braked_steps += 1;
+        self.run.braked_now = true;
+    }
+
+    /// Puts the platform's pose and velocity into the prediction state: the translations as
+    /// they are, roll and pitch as totals whose split into tilt and rotation this controller
+    /// keeps (shrunk with the total when something upstream scaled it toward neutral), the
+    /// rotations' rates as the inputs held over the step.
+    fn place(&mut self, pose: &Vector6<f64>, velocity: &Vector6<f64>) {
         let x = &mut self.run.x;
         for k in 0..3 {
             x[state::POS + k] = pose[k];
-            x[state::VEL + k] = rate[k];
+            x[state::VEL + k] = velocity[k];
         }
         for (j, (total, tilt)) in [
             (state::ROLL, state::TILT_ROLL),
@@ -118,17 +106,16 @@ impl Mpc {
         .into_iter()
         .enumerate()
         {
+            let new_total = pose[3 + j];
             let old_total = x[total];
-            if old_total.abs() > 1e-12 && (pose[3 + j] - old_total).abs() > 1e-12 {
-                x[tilt] *= (pose[3 + j] / old_total).clamp(0.0, 1.0);
+            if old_total.abs() > 1e-12 && (new_total - old_total).abs() > 1e-12 {
+                x[tilt] *= (new_total / old_total).clamp(0.0, 1.0);
             }
-            x[total] = pose[3 + j];
+            x[total] = new_total;
             let tilt_rate = self.run.u_last[input::TILT_ROLL_RATE + j];
-            self.run.u_last[input::ROT_ROLL_RATE + j] = rate[3 + j] - tilt_rate;
+            self.run.u_last[input::ROT_ROLL_RATE + j] = velocity[3 + j] - tilt_rate;
         }
         x[state::YAW] = pose[5];
-        self.run.u_last[input::ROT_YAW_RATE] = rate[5];
-        self.run.braked_steps += 1;
-        self.run.braked_now = true;
+        self.run.u_last[input::ROT_YAW_RATE] = velocity[5];
     }
 }
