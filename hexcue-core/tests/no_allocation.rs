@@ -175,13 +175,17 @@ fn the_mpc_step_allocates_nothing_with_its_constraints_active() {
     assert_eq!(n, 0, "{seen:?}");
 }
 
+/// Steps of the take-off run before counting with `switching_profile`: to 18.56 s, after the
+/// free MPC's first solves (from 18.50 s, they size its buffers) and before the S-MPC leaves
+/// COTC (18.64 s), so that the departure, the blend and the return are all measured.
+const WARM_BEFORE_THE_SWITCH: usize = 1856;
+
 /// The shipped profile switches on none of the shipped flights; with the whole sustained
 /// cue carried by tilt and the reference held over the horizon (as in the S-MPC's own
 /// switching tests) both QPs fail on the takeoff's rotation from 18.50 s (the free MPC's
 /// first solves): the S-MPC leaves COTC at 18.64 s and, the failure having been shared, goes
 /// back at 18.84 s, during the blend, which the mixer turns around (until the supervisor
 /// returned after a shared failure without the ε dwell, it stayed away until about 24 s).
-const WARM_BEFORE_THE_SWITCH: usize = 1856;
 fn switching_profile() -> hexcue_core::profile::Profile {
     let mut profile = full_flight();
     profile.mpc.reference = hexcue_core::mca::mpc::params::ReferenceMode::Hold;
